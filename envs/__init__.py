@@ -1,0 +1,1 @@
+"""MJCF assets of the Baxter pick-and-place scene (installed as ``lerobot_pnp.assets``)."""

@@ -1,0 +1,17 @@
+"""Typed errors, so callers can tell a bad request from a bug."""
+
+
+class PnPError(Exception):
+    """Base class of every error this package raises on purpose."""
+
+
+class ConfigError(PnPError, ValueError):
+    """A configuration value is invalid (names the field and the allowed range)."""
+
+
+class UnreachableError(PnPError):
+    """A requested gripper pose cannot be reached (outside reach, joint limits, or IK did not converge)."""
+
+
+class ExpertFailure(PnPError):
+    """The scripted expert executed its plan but the task did not succeed (e.g. the grasp slipped)."""

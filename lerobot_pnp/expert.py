@@ -1,0 +1,192 @@
+"""The scripted finite-state-machine expert (the paper's motion planner).
+
+PICK: start, approach (above the object at z_obj + h), grasp, close, retract.
+PLACE: start (= pick retract), approach (above the target), descend, open, retract.
+Each state is a joint-space keyframe found by IK (gripper down, yaw aligned with the cube, seeded from
+the previous keyframe). The FSM is closed-loop: each keyframe is planned from the state observed when the
+previous one was reached, so a nudged cube is still picked. It drives the env through its public API only.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import gymnasium as gym
+import numpy as np
+
+from lerobot_pnp import robot
+from lerobot_pnp.errors import ConfigError, ExpertFailure
+from lerobot_pnp.interpolation import joint_trajectory
+
+
+@dataclass
+class ExpertConfig:
+    """How the expert grasps and places (metres)."""
+
+    grasp_depth: float = 0.005  # gripper endpoint below the cube centre at the grasp
+    place_clearance: float = 0.003  # cube bottom above the table when it is released
+    settle_time: float = 0.3  # dense mode: hold time after each arm move (s)
+    gripper_time: float = 0.6  # dense mode: time given to the gripper to open/close (s)
+
+    def __post_init__(self):
+        if not 0 <= self.grasp_depth <= robot.CUBE_SIZE / 2:
+            raise ConfigError(f"ExpertConfig.grasp_depth must be in [0, {robot.CUBE_SIZE / 2}] m, got {self.grasp_depth}")
+        if not 0 <= self.place_clearance <= 0.02:
+            raise ConfigError(f"ExpertConfig.place_clearance must be in [0, 0.02] m, got {self.place_clearance}")
+        if self.settle_time < 0 or self.gripper_time <= 0:
+            raise ConfigError("ExpertConfig.settle_time must be >= 0 and gripper_time > 0")
+
+
+@dataclass
+class ExpertEpisode:
+    """One demonstration. Frame arrays have one row per recorded frame (10 in keyframe mode)."""
+
+    seed: int
+    states: np.ndarray  # (T, 8) observed joints + gripper opening
+    object_positions: np.ndarray  # (T, 3) observed cube xyz
+    actions: np.ndarray  # (T, 8) commanded joint targets + gripper command
+    phases: np.ndarray  # (T,) FSM state index 0..9 (the keyframe being left)
+    keyframes: np.ndarray  # (10, 8) the FSM's commanded keyframes (state 0 = the start state)
+    keyframe_states: np.ndarray  # (10, 11) observed state + object xyz at each FSM state (the paper's sample)
+    success: bool
+    info: dict = field(default_factory=dict)
+
+    @property
+    def num_frames(self) -> int:
+        return len(self.actions)
+
+
+def grasp_yaw(cube_yaw: float) -> float:
+    """The gripper yaw closest to 0 that aligns the fingers with the cube's faces (90 deg symmetry)."""
+    return (cube_yaw + math.pi / 4) % (math.pi / 2) - math.pi / 4
+
+
+class FSMExpert:
+    """Plans the next keyframe (7 joints + gripper command) from the env's current state."""
+
+    def __init__(self, env: gym.Env, config: ExpertConfig | None = None):
+        self.env = env.unwrapped
+        self.config = config or ExpertConfig()
+        self.hover = self.env.task_config.hover_height
+        self.reset()
+
+    def reset(self) -> None:
+        self.phase = 0
+        self._cmd = np.append(self.env.arm_qpos(), robot.GRIPPER_OPEN)
+        self._yaw = 0.0
+
+    def next_keyframe(self) -> np.ndarray:
+        """Keyframe to go to from FSM state ``self.phase`` (the command that reaches state phase+1)."""
+        env, cfg, ik = self.env, self.config, self.env.ik
+        q_prev, grip = self._cmd[:7], self._cmd[7]
+        cube, cube_yaw = env.object_pose()
+        ee, _ = env.ee_pose()
+        place = np.array([*env.task_config.place_xy, robot.CUBE_REST_Z])
+        p = self.phase
+        if p == 0:  # -> pick/approach: above the object
+            self._yaw = grasp_yaw(cube_yaw)
+            q, grip = ik.solve(cube + [0, 0, self.hover], self._yaw, q_prev), robot.GRIPPER_OPEN
+        elif p == 1:  # -> pick/grasp: at the object
+            self._yaw = grasp_yaw(cube_yaw)
+            q = ik.solve(cube - [0, 0, cfg.grasp_depth], self._yaw, q_prev)
+        elif p == 2:  # -> pick/close
+            q, grip = q_prev, robot.GRIPPER_CLOSED
+        elif p == 3:  # -> pick/retract: back up to z_obj + h
+            q = ik.solve(np.array([ee[0], ee[1], robot.CUBE_REST_Z + self.hover]), self._yaw, q_prev)
+        elif p == 4:  # -> place/start (= pick/retract): hold
+            q = q_prev
+        elif p == 5:  # -> place/approach: above the target, compensating where the cube sits in the hand
+            offset = ee - cube
+            self._yaw = 0.0
+            q = ik.solve(place + offset * [1, 1, 0] + [0, 0, self.hover], self._yaw, q_prev)
+        elif p == 6:  # -> place/descend: cube just above the table at the target
+            offset = ee - cube
+            q = ik.solve(place + offset + [0, 0, cfg.place_clearance], self._yaw, q_prev)
+        elif p == 7:  # -> place/open
+            q, grip = q_prev, robot.GRIPPER_OPEN
+        elif p == 8:  # -> place/retract
+            q = ik.solve(np.array([ee[0], ee[1], robot.CUBE_REST_Z + self.hover]), self._yaw, q_prev)
+        else:  # after the last state: hold
+            q = q_prev
+        self._cmd = np.append(q, grip)
+        self.phase += 1
+        return self._cmd.astype(np.float32)
+
+
+def _frame(obs: dict) -> tuple[np.ndarray, np.ndarray]:
+    return np.asarray(obs["agent_pos"], dtype=np.float32), np.asarray(obs["environment_state"], dtype=np.float32)
+
+
+def run_expert_episode(env: gym.Env, seed: int, config: ExpertConfig | None = None) -> ExpertEpisode:
+    """Reset ``env`` with ``seed``, run the FSM through it and return the demonstration.
+
+    Raises UnreachableError when a keyframe has no IK solution and ExpertFailure when the plan ran but the
+    task did not succeed (the cause is in the message); nothing half-valid is returned.
+    """
+    cfg = config or ExpertConfig()
+    base = env.unwrapped
+    obs, info = env.reset(seed=seed)
+    expert = FSMExpert(env, cfg)
+    dense = base.control_mode == "dense"
+    states, objects, actions, phases = [], [], [], []
+    keyframes = [expert._cmd.astype(np.float32)]
+    kf_states = [np.concatenate(_frame(obs))]
+    checks = {}
+    done = False
+    for phase in range(robot.N_KEYFRAMES - 1):
+        target = expert.next_keyframe()
+        keyframes.append(target)
+        if dense:
+            segment = _dense_segment(base, keyframes[-2], target, cfg)
+        else:
+            segment = [target]
+        for action in segment:
+            state, obj = _frame(obs)
+            states.append(state), objects.append(obj), actions.append(action), phases.append(phase)
+            obs, _, terminated, truncated, info = env.step(action)
+            if truncated:
+                raise ExpertFailure(f"seed {seed}: episode truncated by the time limit in phase {robot.PHASE_NAMES[phase]}")
+            done = terminated
+        kf_states.append(np.concatenate(_frame(obs)))
+        if phase == 2:
+            checks["grasped"] = base.object_in_grasp()
+        if phase == 6:
+            checks["held_at_target"] = base.object_in_grasp()
+        if done and phase < robot.N_KEYFRAMES - 2:
+            break
+    # The final observed state, with a hold action, ends the episode.
+    state, obj = _frame(obs)
+    states.append(state), objects.append(obj), actions.append(keyframes[-1]), phases.append(robot.N_KEYFRAMES - 1)
+    success = bool(info["is_success"])
+    if not success:
+        if not checks.get("grasped", False):
+            cause = "grasp_missed"
+        elif not checks.get("held_at_target", False):
+            cause = "dropped"
+        else:
+            cube, _ = base.object_pose()
+            cause = f"not_placed (cube at {np.round(cube, 3).tolist()})"
+        raise ExpertFailure(f"seed {seed}: expert failed: {cause}")
+    return ExpertEpisode(
+        seed=seed,
+        states=np.stack(states),
+        object_positions=np.stack(objects),
+        actions=np.stack(actions).astype(np.float32),
+        phases=np.asarray(phases, dtype=np.int64),
+        keyframes=np.stack(keyframes),
+        keyframe_states=np.stack(kf_states).astype(np.float32),
+        success=success,
+        info=checks,
+    )
+
+
+def _dense_segment(env, start: np.ndarray, target: np.ndarray, cfg: ExpertConfig) -> list[np.ndarray]:
+    """Dense actions executing one keyframe: interpolated arm setpoints, a settle, then the gripper."""
+    fps = env.fps
+    arm = joint_trajectory(start[:7], target[:7], fps, env.speed, ik=env._path_ik)
+    steps = [np.append(q, start[7]) for q in arm]
+    steps += [np.append(target[:7], start[7])] * math.ceil(cfg.settle_time * fps)
+    if target[7] != start[7]:
+        steps += [target.copy()] * math.ceil(cfg.gripper_time * fps)
+    return [np.asarray(s, dtype=np.float32) for s in steps]

@@ -1,0 +1,193 @@
+"""Configuration of the ``pnp_lstm`` policy: the LSTM task planner of de Magistris et al. 2016.
+
+The policy learns the pick-and-place FSM from a *keyframe* dataset: every episode is exactly
+``n_subtasks * steps_per_subtask`` frames (2 x 5 = 10: pick start/approach/grasp/close/retract, then place
+start/approach/descend/open/retract). At frame ``k`` the input is the robot state and the object position,
+the target is the next keyframe (joint targets + gripper command).
+
+LeRobot finds the classes by naming convention: this module is ``configuration_pnp_lstm``, so
+``PnpLstmConfig`` -> ``PnpLstmPolicy`` in ``modeling_pnp_lstm`` and ``make_pnp_lstm_pre_post_processors``
+in ``processor_pnp_lstm`` (see ``lerobot.policies.factory``).
+
+This module (like the whole ``lerobot_pnp.policy`` package) knows tensors and LeRobot features only.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+from lerobot.configs import FeatureType, NormalizationMode, PreTrainedConfig
+from lerobot.optim import AdamConfig
+from lerobot.optim.schedulers import CosineAnnealingWithWarmupSchedulerConfig, LRSchedulerConfig
+from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_STATE
+
+logger = logging.getLogger(__name__)
+
+LR_SCHEDULERS = ("none", "cosine")
+
+
+@PreTrainedConfig.register_subclass("pnp_lstm")
+@dataclass
+class PnpLstmConfig(PreTrainedConfig):
+    """Hyper-parameters of the LSTM task planner.
+
+    Architecture (paper defaults): one LSTM + Linear head per subtask (``shared_network=False``), the
+    PICK net runs on frames ``0..steps_per_subtask-1`` and the PLACE net on the rest, starting from a
+    zero hidden state. Loss: MSE on MEAN_STD-normalised actions.
+
+    Args:
+        steps_per_subtask: Keyframes per subtask FSM (the paper's 5 states).
+        n_subtasks: Number of subtasks (pick, place). An episode has ``n_subtasks * steps_per_subtask``
+            frames.
+        hidden_size: LSTM hidden units.
+        num_layers: Stacked LSTM layers (1 or 2).
+        dropout: Dropout between stacked LSTM layers and before the Linear head (training only).
+        shared_network: One LSTM for all subtasks instead of one per subtask; a subtask one-hot is then
+            appended to the input.
+        carry_hidden_across_subtasks: Only with ``shared_network``: keep the hidden state across the
+            subtask switch instead of resetting it to zero.
+        recurrent: ``False`` gives the memoryless ablation: the same layers, but the hidden state is reset
+            to zero before every step (same parameter count, no memory).
+        input_noise_std: Std of Gaussian noise added to the normalised inputs during training only.
+        balance_window_loss: With ``lerobot-train`` each sample is a window ending at a uniformly sampled
+            frame, so early frames are seen more often than late ones. When True, valid frame ``k`` of a
+            window is weighted by ``T / (T - k)`` so the expected loss equals the plain per-frame MSE of
+            whole episodes (what the fast path and the paper optimise).
+        torch_num_threads: If set and the policy runs on CPU, ``torch.set_num_threads`` is called with it
+            when the policy is built. This tiny model is ~100x slower with several intra-op threads on a
+            small CPU; ``None`` leaves torch alone.
+        optimizer_lr / optimizer_weight_decay / optimizer_grad_clip_norm: Adam preset.
+        lr_scheduler: ``"none"`` or ``"cosine"`` (linear warm-up, then cosine annealing to zero over the run).
+        scheduler_warmup_steps: Warm-up steps of the cosine schedule.
+    """
+
+    n_obs_steps: int = 1
+
+    normalization_mapping: dict[str, NormalizationMode] = field(
+        default_factory=lambda: {
+            "STATE": NormalizationMode.MEAN_STD,
+            "ENV": NormalizationMode.MEAN_STD,
+            "ACTION": NormalizationMode.MEAN_STD,
+        }
+    )
+
+    # Task structure.
+    steps_per_subtask: int = 5
+    n_subtasks: int = 2
+
+    # Architecture.
+    hidden_size: int = 128
+    num_layers: int = 1
+    dropout: float = 0.0
+    shared_network: bool = False
+    carry_hidden_across_subtasks: bool = False
+    recurrent: bool = True
+
+    # Training.
+    input_noise_std: float = 0.0
+    balance_window_loss: bool = True
+    torch_num_threads: int | None = 1
+
+    # Optimiser preset (Adam, as in most LSTM work of the time).
+    optimizer_lr: float = 1e-3
+    optimizer_weight_decay: float = 0.0
+    optimizer_grad_clip_norm: float = 10.0
+    lr_scheduler: str = "none"
+    scheduler_warmup_steps: int = 0
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.steps_per_subtask < 1:
+            raise ValueError(f"steps_per_subtask must be >= 1, got {self.steps_per_subtask}.")
+        if self.n_subtasks < 1:
+            raise ValueError(f"n_subtasks must be >= 1, got {self.n_subtasks}.")
+        if self.num_layers not in (1, 2):
+            raise ValueError(f"num_layers must be 1 or 2, got {self.num_layers}.")
+        if self.hidden_size < 1:
+            raise ValueError(f"hidden_size must be >= 1, got {self.hidden_size}.")
+        if not 0.0 <= self.dropout < 1.0:
+            raise ValueError(f"dropout must be in [0, 1), got {self.dropout}.")
+        if self.input_noise_std < 0.0:
+            raise ValueError(f"input_noise_std must be >= 0, got {self.input_noise_std}.")
+        if self.lr_scheduler not in LR_SCHEDULERS:
+            raise ValueError(f"lr_scheduler must be one of {LR_SCHEDULERS}, got {self.lr_scheduler!r}.")
+        if self.carry_hidden_across_subtasks and not self.shared_network:
+            raise ValueError(
+                "carry_hidden_across_subtasks=True needs shared_network=True: separate subtask networks "
+                "do not share a hidden-state space."
+            )
+        if self.n_obs_steps != 1:
+            raise ValueError(
+                f"pnp_lstm keeps its own history in the LSTM state; n_obs_steps must be 1, got {self.n_obs_steps}."
+            )
+
+    # ---- task structure -------------------------------------------------------------------------
+
+    @property
+    def episode_length(self) -> int:
+        """Frames per keyframe episode (10 in the paper)."""
+        return self.n_subtasks * self.steps_per_subtask
+
+    # ---- LeRobot contract -----------------------------------------------------------------------
+
+    @property
+    def observation_delta_indices(self) -> list[int]:
+        # A window of a whole episode ending at the sampled frame; LeRobot clamps frames before the
+        # episode start and marks them in `<key>_is_pad`.
+        return list(range(-(self.episode_length - 1), 1))
+
+    @property
+    def action_delta_indices(self) -> list[int]:
+        return list(range(-(self.episode_length - 1), 1))
+
+    @property
+    def reward_delta_indices(self) -> None:
+        return None
+
+    def get_optimizer_preset(self) -> AdamConfig:
+        return AdamConfig(
+            lr=self.optimizer_lr,
+            weight_decay=self.optimizer_weight_decay,
+            grad_clip_norm=self.optimizer_grad_clip_norm,
+        )
+
+    def get_scheduler_preset(self) -> LRSchedulerConfig | None:
+        if self.lr_scheduler == "cosine":
+            return CosineAnnealingWithWarmupSchedulerConfig(num_warmup_steps=self.scheduler_warmup_steps)
+        return None
+
+    def validate_features(self) -> None:
+        """The planner needs the robot state, the object position and the action; no images."""
+        inputs = self.input_features or {}
+        outputs = self.output_features or {}
+        state = inputs.get(OBS_STATE)
+        if state is None or state.type is not FeatureType.STATE:
+            raise ValueError(
+                f"pnp_lstm needs the input feature '{OBS_STATE}' (robot joints + gripper); "
+                f"got input features {sorted(inputs)}."
+            )
+        env = inputs.get(OBS_ENV_STATE)
+        if env is None or env.type is not FeatureType.ENV:
+            raise ValueError(
+                f"pnp_lstm needs the input feature '{OBS_ENV_STATE}' (object position); "
+                f"got input features {sorted(inputs)}."
+            )
+        if ACTION not in outputs:
+            raise ValueError(f"pnp_lstm needs the output feature '{ACTION}'; got {sorted(outputs)}.")
+        if self.image_features:
+            logger.warning(
+                "pnp_lstm is a state-only planner; it ignores the image features %s.", sorted(self.image_features)
+            )
+        for key, ft in {**inputs, **outputs}.items():
+            if ft.type is FeatureType.VISUAL:
+                continue
+            if len(ft.shape) != 1:
+                raise ValueError(f"pnp_lstm expects 1-D features; '{key}' has shape {tuple(ft.shape)}.")
+
+    @property
+    def model_input_keys(self) -> list[str]:
+        """Input features fed to the LSTM, in concatenation order: state features first, then env."""
+        inputs = self.input_features or {}
+        keys = [k for k, ft in inputs.items() if ft.type in (FeatureType.STATE, FeatureType.ENV)]
+        return sorted(keys, key=lambda k: (inputs[k].type is not FeatureType.STATE, k))
