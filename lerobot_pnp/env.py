@@ -110,6 +110,9 @@ class BaxterPnPEnv(gym.Env):
         self._substeps_dense = max(1, round(1.0 / (self.fps * m.opt.timestep)))
         self._renderer = None
         self._step_count = 0
+        # Optional observer called after every control tick (100 Hz in keyframe mode, fps in dense mode),
+        # e.g. by the viewer to record the continuous motion between keyframes. It must not change the state.
+        self.on_control_tick = None
 
         self.action_space = spaces.Box(
             low=np.append(robot.JOINT_LOWER, robot.GRIPPER_CLOSED).astype(np.float32),
@@ -176,20 +179,21 @@ class BaxterPnPEnv(gym.Env):
 
     # ------------------------------------------------------------------ gymnasium API
     def reset(self, *, seed: int | None = None, options: dict | None = None):
+        """Seeded reset. ``options`` may pin the start: ``arm_qpos`` (7,), ``object_pos`` (3,), ``object_yaw``."""
         super().reset(seed=seed)
+        options = options or {}
         rng = self.np_random
         m, d = self.model, self.data
         mujoco.mj_resetData(m, d)
         cube_pos, yaw = self.task_config.sample_object(rng)
-        for _ in range(20):
-            start = self.task_config.sample_start(rng)
-            try:
-                q = self.ik.solve(start, 0.0, robot.NEUTRAL_Q)
-                break
-            except UnreachableError:
-                continue
+        if "object_pos" in options:
+            cube_pos = self._checked_option(options, "object_pos", 3)
+            cube_pos[2] = robot.CUBE_REST_Z
+        yaw = float(options.get("object_yaw", yaw))
+        if "arm_qpos" in options:
+            q = np.clip(self._checked_option(options, "arm_qpos", robot.N_JOINTS), robot.JOINT_LOWER, robot.JOINT_UPPER)
         else:
-            raise UnreachableError(f"no reachable start pose found in the box {self.task_config.start_low}..{self.task_config.start_high}")
+            q = self._sample_start_q(rng)
         d.qpos[self._qadr] = q
         d.qpos[self._finger_qadr] = (robot.FINGER_TRAVEL, -robot.FINGER_TRAVEL)
         d.qpos[self._cube_qadr : self._cube_qadr + 3] = cube_pos
@@ -200,6 +204,24 @@ class BaxterPnPEnv(gym.Env):
         mujoco.mj_step(m, d, 50)  # let contacts settle (0.1 s)
         self._step_count = 0
         return self._get_obs(), self._get_info()
+
+    def _sample_start_q(self, rng: np.random.Generator) -> np.ndarray:
+        for _ in range(20):
+            start = self.task_config.sample_start(rng)
+            try:
+                return self.ik.solve(start, 0.0, robot.NEUTRAL_Q)
+            except UnreachableError:
+                continue
+        raise UnreachableError(
+            f"no reachable start pose found in the box {self.task_config.start_low}..{self.task_config.start_high}"
+        )
+
+    @staticmethod
+    def _checked_option(options: dict, key: str, size: int) -> np.ndarray:
+        value = np.asarray(options[key], dtype=float).reshape(-1)
+        if value.shape != (size,) or not np.all(np.isfinite(value)):
+            raise ValueError(f"reset option {key!r} must be {size} finite numbers, got {options[key]!r}")
+        return value
 
     def step(self, action):
         action = np.asarray(action, dtype=np.float64).reshape(-1)
@@ -233,6 +255,8 @@ class BaxterPnPEnv(gym.Env):
     # ------------------------------------------------------------------ control
     def _run(self, substeps: int) -> None:
         mujoco.mj_step(self.model, self.data, substeps)
+        if self.on_control_tick is not None:
+            self.on_control_tick(self)
 
     def _move_to_keyframe(self, q_target: np.ndarray, grip: float) -> None:
         """Interpolate the arm to ``q_target`` (min-jerk, within the joint velocity limits), settle, then grip."""

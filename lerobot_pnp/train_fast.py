@@ -34,7 +34,7 @@ import os
 import random
 import tempfile
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -339,7 +339,7 @@ def _save(
     from lerobot.configs.train import TrainPipelineConfig
 
     train_cfg = TrainPipelineConfig(
-        dataset=DatasetConfig(repo_id=cfg.dataset_repo_id, root=cfg.dataset_root),
+        dataset=DatasetConfig(repo_id=cfg.dataset_repo_id, root=cfg.dataset_root, video_backend="pyav"),
         policy=policy.config,
         output_dir=out_dir,
         job_name="pnp_lstm_train_fast",

@@ -63,6 +63,8 @@ class PnpLstmConfig(PreTrainedConfig):
     """
 
     n_obs_steps: int = 1
+    # LeRobot's default is True, which makes `lerobot-train` demand a --policy.repo_id; opt in instead.
+    push_to_hub: bool = False
 
     normalization_mapping: dict[str, NormalizationMode] = field(
         default_factory=lambda: {
