@@ -100,7 +100,7 @@ class BaxterPnPEnv(gym.Env):
         self._cube_body = m.body(robot.CUBE_BODY).id
         self._cube_geom = m.geom("cube").id
         self._pad_geoms = {m.geom("l_pad").id, m.geom("r_pad").id}
-        self._finger_bodies = {m.body(n).id for n in ("l_finger", "r_finger", "l_finger_tip", "r_finger_tip")}
+        self._finger_body_ids = np.array([m.body(n).id for n in ("l_finger", "r_finger", "l_finger_tip", "r_finger_tip")])
         self._ee_site = m.site(robot.EE_SITE).id
         target = m.site(robot.TARGET_SITE).id
         m.site_pos[target][:2] = self.task_config.place_xy
@@ -120,8 +120,13 @@ class BaxterPnPEnv(gym.Env):
             dtype=np.float32,
         )
         obs_spaces = {
-            "agent_pos": spaces.Box(-np.inf, np.inf, (robot.STATE_DIM,), np.float32),
-            "environment_state": spaces.Box(-np.inf, np.inf, (robot.OBJECT_DIM,), np.float32),
+            # Limits with a margin for observation noise; the gripper opening is in [0, 1].
+            "agent_pos": spaces.Box(
+                np.append(robot.JOINT_LOWER - 0.5, -0.5).astype(np.float32),
+                np.append(robot.JOINT_UPPER + 0.5, 1.5).astype(np.float32),
+                dtype=np.float32,
+            ),
+            "environment_state": spaces.Box(-3.0, 3.0, (robot.OBJECT_DIM,), np.float32),
         }
         if self.cameras:
             h, w = self.image_size
@@ -148,22 +153,19 @@ class BaxterPnPEnv(gym.Env):
     def ee_pose(self) -> tuple[np.ndarray, np.ndarray]:
         return self.data.site_xpos[self._ee_site].copy(), self.data.site_xmat[self._ee_site].reshape(3, 3).copy()
 
+    def _cube_contacts(self) -> np.ndarray:
+        """Geoms in contact with the cube."""
+        pairs = self.data.contact.geom[: self.data.ncon]
+        mask = (pairs == self._cube_geom).any(axis=1)
+        return pairs[mask].sum(axis=1) - self._cube_geom
+
     def object_in_grasp(self) -> bool:
         """Both finger pads touch the cube."""
-        touching = set()
-        for c in self.data.contact[: self.data.ncon]:
-            pair = {c.geom1, c.geom2}
-            if self._cube_geom in pair:
-                touching |= pair & self._pad_geoms
-        return touching == self._pad_geoms
+        return self._pad_geoms.issubset(self._cube_contacts().tolist())
 
     def _gripper_touches_object(self) -> bool:
-        for c in self.data.contact[: self.data.ncon]:
-            if self._cube_geom in (c.geom1, c.geom2):
-                other = c.geom2 if c.geom1 == self._cube_geom else c.geom1
-                if self.model.geom_bodyid[other] in self._finger_bodies:
-                    return True
-        return False
+        bodies = self.model.geom_bodyid[self._cube_contacts()]
+        return bool(np.isin(bodies, self._finger_body_ids).any())
 
     def is_success(self) -> bool:
         cube_pos, _ = self.object_pose()

@@ -46,6 +46,9 @@ class ArmIK:
         self.pos_tol, self.rot_tol, self.max_iters, self.damping = pos_tol, rot_tol, max_iters, damping
         self._jacp = np.zeros((3, model.nv))
         self._jacr = np.zeros((3, model.nv))
+        self._jac = np.zeros((6, robot.N_JOINTS))
+        self._err = np.zeros(6)
+        self._damp6 = damping * np.eye(6)
         self.posture = robot.NEUTRAL_Q.copy()
 
     def forward(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -59,21 +62,22 @@ class ArmIK:
         self.data.qpos[self.qadr] = q
         mujoco.mj_kinematics(self.model, self.data)
         mujoco.mj_comPos(self.model, self.data)
-        x = self.data.site_xpos[self.site_id]
         rot = self.data.site_xmat[self.site_id].reshape(3, 3)
-        err_p = pos - x
-        err_r = 0.5 * (np.cross(rot[:, 0], target_rot[:, 0]) + np.cross(rot[:, 1], target_rot[:, 1])
-                       + np.cross(rot[:, 2], target_rot[:, 2]))
+        # Rotation error 0.5 * sum_i rot[:, i] x target[:, i], i.e. the vee of the skew part below.
+        skew = target_rot @ rot.T - rot @ target_rot.T
+        self._err[:3] = pos - self.data.site_xpos[self.site_id]
+        self._err[3:] = 0.5 * skew[2, 1], 0.5 * skew[0, 2], 0.5 * skew[1, 0]
         mujoco.mj_jacSite(self.model, self.data, self._jacp, self._jacr, self.site_id)
-        jac = np.vstack([self._jacp[:, self.dofadr], self._jacr[:, self.dofadr]])
-        return np.concatenate([err_p, err_r]), jac
+        self._jac[:3] = self._jacp[:, self.dofadr]
+        self._jac[3:] = self._jacr[:, self.dofadr]
+        return self._err, self._jac
 
     def refine(self, q: np.ndarray, pos: np.ndarray, target_rot: np.ndarray, iters: int = 2) -> np.ndarray:
         """A few damped Gauss-Newton steps from ``q`` toward a pose (no null-space pull): for path tracking."""
         q = np.asarray(q, dtype=float).copy()
         for _ in range(iters):
             err, jac = self._task_error(q, pos, target_rot)
-            q = np.clip(q + jac.T @ np.linalg.solve(jac @ jac.T + self.damping * np.eye(6), err), self.lower, self.upper)
+            q = np.clip(q + jac.T @ np.linalg.solve(jac @ jac.T + self._damp6, err), self.lower, self.upper)
         return q
 
     def solve(self, pos: np.ndarray, yaw: float, seed: np.ndarray) -> np.ndarray:

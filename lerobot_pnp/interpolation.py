@@ -19,6 +19,7 @@ from lerobot_pnp import robot
 MIN_MOVE_TIME = 0.2  # s
 PATH_KINDS = ("straight", "joint")
 _KNOTS = 12
+_KNOT_S = np.linspace(0.0, 1.0, _KNOTS)
 
 
 def min_jerk(s):
@@ -39,26 +40,34 @@ def joint_trajectory(q0, q1, rate_hz: float, speed: float = 1.0, ik=None) -> np.
     """
     q0, q1 = np.asarray(q0, dtype=float), np.asarray(q1, dtype=float)
     n = math.ceil(move_duration(q0, q1, speed) * rate_hz)
-    s = min_jerk(np.arange(1, n + 1) / n)
-    path = q0 + s[:, None] * (q1 - q0)
-    if ik is not None and np.max(np.abs(q1 - q0)) > 1e-6:
-        path += _straightening(q0, q1, ik, s)
+    max_step = robot.JOINT_VEL_LIMIT * speed / rate_hz
+    knot_offsets = None
+    for _ in range(3):
+        s = min_jerk(np.arange(1, n + 1) / n)
+        path = q0 + s[:, None] * (q1 - q0)
+        if ik is not None and np.max(np.abs(q1 - q0)) > 1e-6:
+            if knot_offsets is None:
+                knot_offsets = _straightening(q0, q1, ik)
+            path += np.stack([np.interp(s, _KNOT_S, knot_offsets[:, j]) for j in range(7)], axis=1)
+        # The straightening correction adds a little speed: stretch the move if a limit would be exceeded.
+        ratio = float(np.max(np.abs(np.diff(np.vstack([q0, path]), axis=0)) / max_step))
+        if ratio <= 1.0:
+            break
+        n = math.ceil(n * ratio) + 1
     return path
 
 
-def _straightening(q0: np.ndarray, q1: np.ndarray, ik, s: np.ndarray) -> np.ndarray:
-    """Joint offsets (len(s), 7) that move the joint-space path onto the straight Cartesian segment."""
+def _straightening(q0: np.ndarray, q1: np.ndarray, ik) -> np.ndarray:
+    """Joint offsets at the knots (``_KNOT_S``) that put the path on the straight Cartesian segment."""
     p0, r0 = ik.forward(q0)
     p1, r1 = ik.forward(q1)
-    knots = np.linspace(0.0, 1.0, _KNOTS)
     offsets = np.zeros((_KNOTS, 7))
     for k in range(1, _KNOTS - 1):
-        u = knots[k]
+        u = _KNOT_S[k]
         q = q0 + u * (q1 - q0) + offsets[k - 1]
-        target_rot = _slerp_rot(r0, r1, u)
-        q = ik.refine(q, p0 + u * (p1 - p0), target_rot, iters=2)
+        q = ik.refine(q, p0 + u * (p1 - p0), _slerp_rot(r0, r1, u), iters=2)
         offsets[k] = q - (q0 + u * (q1 - q0))
-    return np.stack([np.interp(s, knots, offsets[:, j]) for j in range(7)], axis=1)
+    return offsets
 
 
 def _slerp_rot(r0: np.ndarray, r1: np.ndarray, u: float) -> np.ndarray:

@@ -165,7 +165,9 @@ def validate_keyframe_dataset(meta: Any, episode_length: int = robot.N_KEYFRAMES
                 f"Dataset '{meta.repo_id}': feature '{key}' has shape {tuple(ft['shape'])}, expected {shape}."
             )
         if ft.get("dtype") not in ("float32", "float64"):
-            raise ValueError(f"Dataset '{meta.repo_id}': feature '{key}' has dtype {ft.get('dtype')}, expected float32.")
+            raise ValueError(
+                f"Dataset '{meta.repo_id}': feature '{key}' has dtype {ft.get('dtype')}, expected float32."
+            )
     lengths = [int(n) for n in meta.episodes["length"]]
     bad = sorted({n for n in lengths if n != episode_length})
     if bad:
@@ -231,7 +233,9 @@ def load_keyframe_data(
     frame = table["frame_index"][order_t].reshape(n_ep, t_ep)
     ep = table["episode_index"][order_t].reshape(n_ep, t_ep)
     if not torch.equal(frame, torch.arange(t_ep).expand(n_ep, t_ep)) or not bool((ep == ep[:, :1]).all()):
-        raise ValueError(f"Dataset '{repo_id}' is not a keyframe dataset: frame indices are not 0..{t_ep - 1} per episode.")
+        raise ValueError(
+            f"Dataset '{repo_id}' is not a keyframe dataset: frame indices are not 0..{t_ep - 1} per episode."
+        )
 
     def seq(key: str) -> torch.Tensor:
         return table[key][order_t].to(torch.float32).reshape(n_ep, t_ep, -1)
@@ -280,7 +284,11 @@ def _action_names(meta: Any) -> list[str]:
 
 @torch.no_grad()
 def keyframe_error(
-    policy: PnpLstmPolicy, postprocessor: Any, norm_batch: dict[str, torch.Tensor], raw_action: torch.Tensor, names: list[str]
+    policy: PnpLstmPolicy,
+    postprocessor: Any,
+    norm_batch: dict[str, torch.Tensor],
+    raw_action: torch.Tensor,
+    names: list[str],
 ) -> dict[str, Any]:
     """Held-out error of the predicted next keyframe (teacher forcing: dataset states as inputs)."""
     policy.eval()

@@ -63,6 +63,9 @@ class PnpLstmConfig(PreTrainedConfig):
     """
 
     n_obs_steps: int = 1
+    # A ~150k-parameter LSTM: CPU (1 thread) is as fast as a GPU here and needs no accelerator at eval.
+    # LeRobot's default is None (auto-select), which also logs a warning; pass --policy.device=cuda to opt in.
+    device: str | None = "cpu"
     # LeRobot's default is True, which makes `lerobot-train` demand a --policy.repo_id; opt in instead.
     push_to_hub: bool = False
 

@@ -305,11 +305,13 @@ class PnpLstmPolicy(PreTrainedPolicy):
         y = batch[ACTION]
         if y.ndim != 3 or tuple(y.shape[:2]) != tuple(lead_shape) or y.shape[-1] != self.action_dim:
             raise ValueError(
-                f"'{ACTION}' has shape {tuple(y.shape)}; expected ({lead_shape[0]}, {lead_shape[1]}, {self.action_dim})."
+                f"'{ACTION}' has shape {tuple(y.shape)}; "
+                f"expected ({lead_shape[0]}, {lead_shape[1]}, {self.action_dim})."
             )
         if not bool(torch.isfinite(y).all()):
             raise ValueError(f"'{ACTION}' contains non-finite values (NaN or inf).")
-        return y.to(dtype=next(self.parameters()).dtype)
+        ref = next(self.parameters())
+        return y.to(device=ref.device, dtype=ref.dtype)
 
     def _get_pad_mask(self, batch: dict[str, Tensor], bsz: int, length: int) -> Tensor | None:
         """The window's pad mask ``(B, T)`` (True = frame outside the episode), or None for full episodes."""

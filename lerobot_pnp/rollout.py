@@ -1,0 +1,200 @@
+"""Run a LeRobot policy checkpoint in the Baxter env and collect the trajectory (one env, no vectorisation).
+
+This mirrors the per-step pipeline of ``lerobot-eval``'s rollout (gym observation -> ``preprocess_observation``
+-> task -> policy pre-processor -> ``select_action`` -> post-processor -> ``env.step``) for a single, seeded
+episode, so the viewer (``lerobot_pnp.viz``) can watch exactly what ``lerobot-eval`` would run.
+
+``load_policy`` checks that the checkpoint fits this env (``observation.state`` (8,),
+``observation.environment_state`` (3,), ``action`` (8,), no image inputs) and raises
+``IncompatiblePolicyError`` otherwise. Set ``env.unwrapped.on_control_tick`` before ``run_policy_episode`` to
+observe the continuous motion between steps.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from lerobot_pnp import robot
+from lerobot_pnp.errors import ConfigError
+
+OBS_STATE, OBS_ENV, ACTION = "observation.state", "observation.environment_state", "action"
+CONFIG_NAME = "config.json"
+
+
+class PolicyLoadError(ConfigError):
+    """The policy checkpoint is missing or cannot be read."""
+
+
+class IncompatiblePolicyError(ConfigError):
+    """The checkpoint's features do not match this env (e.g. a checkpoint trained for another robot)."""
+
+
+@dataclass
+class LoadedPolicy:
+    """A policy ready to run: the module, its processors and where it came from."""
+
+    policy: Any  # lerobot PreTrainedPolicy
+    preprocessor: Any
+    postprocessor: Any
+    path: Path
+    type: str
+
+    def reset(self) -> None:
+        self.policy.reset()
+        for proc in (self.preprocessor, self.postprocessor):
+            reset = getattr(proc, "reset", None)
+            if callable(reset):
+                reset()
+
+
+@dataclass
+class PolicyEpisode:
+    """One closed-loop episode. Row ``k`` of ``states``/``object_positions`` is the observation the policy saw
+    at step ``k``; ``actions[k]`` is what it answered. The last row of ``states`` is the final observation."""
+
+    seed: int
+    states: np.ndarray  # (T+1, 8)
+    object_positions: np.ndarray  # (T+1, 3)
+    actions: np.ndarray  # (T, 8)
+    successes: np.ndarray  # (T,) env success flag after each step
+    success: bool
+    info: dict = field(default_factory=dict)
+
+    @property
+    def num_steps(self) -> int:
+        return len(self.actions)
+
+
+def resolve_checkpoint(path: str | Path) -> Path:
+    """The ``pretrained_model`` folder for ``path`` (accepts it, a checkpoint step folder or a run folder)."""
+    p = Path(path).expanduser()
+    for candidate in (p, p / "pretrained_model", p / "checkpoints" / "last" / "pretrained_model"):
+        if (candidate / CONFIG_NAME).is_file():
+            return candidate
+    if not p.exists():
+        raise PolicyLoadError(f"policy checkpoint not found: {p} does not exist")
+    raise PolicyLoadError(
+        f"no policy checkpoint at {p}: expected a LeRobot 'pretrained_model' folder with {CONFIG_NAME} "
+        "(or a checkpoint folder containing one)"
+    )
+
+
+def check_policy_features(config: Any) -> None:
+    """Raise ``IncompatiblePolicyError`` unless the policy's features are those of this env."""
+    inputs = dict(config.input_features or {})
+    outputs = dict(config.output_features or {})
+    expected_in = {OBS_STATE: (robot.STATE_DIM,), OBS_ENV: (robot.OBJECT_DIM,)}
+    problems = []
+    for key, shape in expected_in.items():
+        if key not in inputs:
+            problems.append(f"missing input feature '{key}' (shape {shape})")
+        elif tuple(inputs[key].shape) != shape:
+            problems.append(f"input '{key}' has shape {tuple(inputs[key].shape)}, this env gives {shape}")
+    extra = sorted(set(inputs) - set(expected_in))
+    if extra:
+        problems.append(f"inputs {extra} are not produced by this env (it gives {sorted(expected_in)})")
+    if ACTION not in outputs:
+        problems.append(f"missing output feature '{ACTION}'")
+    elif tuple(outputs[ACTION].shape) != (robot.ACTION_DIM,):
+        problems.append(
+            f"action has shape {tuple(outputs[ACTION].shape)}, this env takes ({robot.ACTION_DIM},) "
+            "(7 joint targets + gripper)"
+        )
+    if problems:
+        raise IncompatiblePolicyError(
+            f"policy of type '{getattr(config, 'type', '?')}' does not fit the Baxter pick-and-place env: "
+            + "; ".join(problems)
+        )
+
+
+def load_policy(path: str | Path, device: str = "cpu") -> LoadedPolicy:
+    """Load a LeRobot checkpoint (any registered policy type) with its processors, checked against this env."""
+    import lerobot_pnp  # noqa: F401  (registers pnp_lstm)
+    from lerobot.configs import PreTrainedConfig
+    from lerobot.policies.factory import get_policy_class, make_pre_post_processors
+
+    ckpt = resolve_checkpoint(path)
+    try:
+        config = PreTrainedConfig.from_pretrained(ckpt)
+    except Exception as err:  # draccus / json errors: unknown policy type, corrupt file
+        raise PolicyLoadError(f"cannot read the policy config {ckpt / CONFIG_NAME}: {err}") from err
+    check_policy_features(config)
+    # lerobot issue #4647: set pretrained_path by hand, or the processors are rebuilt without their stats.
+    config.pretrained_path = ckpt
+    config.device = device
+    try:
+        policy = get_policy_class(config.type).from_pretrained(ckpt, config=config)
+        preprocessor, postprocessor = make_pre_post_processors(
+            config,
+            pretrained_path=str(ckpt),
+            preprocessor_overrides={"device_processor": {"device": device}},
+            postprocessor_overrides={"device_processor": {"device": "cpu"}},
+        )
+    except Exception as err:
+        raise PolicyLoadError(f"cannot load the policy from {ckpt}: {err}") from err
+    policy.eval()
+    return LoadedPolicy(policy, preprocessor, postprocessor, ckpt, config.type)
+
+
+def policy_action(loaded: LoadedPolicy, obs: dict, task: str) -> np.ndarray:
+    """One policy step on a single (unbatched) gym observation; returns the (8,) env action."""
+    import torch
+    from lerobot.envs.utils import preprocess_observation
+
+    batch = preprocess_observation({k: v for k, v in obs.items() if k != "pixels"})
+    batch["task"] = [task]
+    batch = loaded.preprocessor(batch)
+    with torch.inference_mode():
+        action = loaded.policy.select_action(batch)
+    action = loaded.postprocessor(action)
+    return action.to("cpu").numpy().reshape(-1).astype(np.float32)
+
+
+def run_policy_episode(
+    env: Any,
+    loaded: LoadedPolicy,
+    seed: int,
+    *,
+    max_steps: int | None = None,
+    reset_options: dict | None = None,
+    on_step: Callable[[int, dict, np.ndarray], None] | None = None,
+) -> PolicyEpisode:
+    """Reset ``env`` with ``seed`` and run the policy until success or ``max_steps`` (default: the env's limit).
+
+    ``on_step(k, obs, action)`` is called before each step is applied.
+    """
+    base = env.unwrapped
+    if max_steps is None:
+        max_steps = getattr(env, "_max_episode_steps", None) or getattr(base, "_max_episode_steps", None)
+        max_steps = max_steps or (10 if base.control_mode == "keyframe" else 400)
+    loaded.reset()
+    obs, info = env.reset(seed=seed, options=reset_options)
+    states = [np.asarray(obs["agent_pos"], np.float32)]
+    objects = [np.asarray(obs["environment_state"], np.float32)]
+    actions, successes = [], []
+    task = getattr(base, "task_description", robot.TASK)
+    for k in range(max_steps):
+        action = policy_action(loaded, obs, task)
+        if action.shape != (robot.ACTION_DIM,) or not np.all(np.isfinite(action)):
+            raise IncompatiblePolicyError(f"policy returned an invalid action at step {k}: {action.tolist()}")
+        if on_step is not None:
+            on_step(k, obs, action)
+        obs, _, terminated, truncated, info = env.step(action)
+        actions.append(action)
+        successes.append(bool(info.get("is_success", False)))
+        states.append(np.asarray(obs["agent_pos"], np.float32))
+        objects.append(np.asarray(obs["environment_state"], np.float32))
+        if terminated or truncated:
+            break
+    return PolicyEpisode(
+        seed=seed,
+        states=np.stack(states),
+        object_positions=np.stack(objects),
+        actions=np.stack(actions) if actions else np.zeros((0, robot.ACTION_DIM), np.float32),
+        successes=np.asarray(successes, dtype=bool),
+        success=bool(successes and successes[-1]),
+    )

@@ -1,0 +1,184 @@
+"""The MuJoCo scene and the gymnasium env: kinematics, spaces, determinism, config errors, LeRobot config."""
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+from lerobot_pnp import robot
+from lerobot_pnp.env import BaxterPnPEnv
+from lerobot_pnp.env_config import GYM_ID, BaxterPnPEnvConfig
+from lerobot_pnp.errors import ConfigError
+from lerobot_pnp.ik import ArmIK, gripper_down_rotation
+from lerobot_pnp.task import TaskConfig
+
+# Reference poses of Rethink's left arm (shared/notes/baxter.md): joints -> left_gripper position, z axis.
+REFERENCE_POSES = [
+    ([0, -0.55, 0, 0.75, 0, 1.26, 0], (0.64626, 0.84126, 0.06262), (0.0782, 0.0782, -0.9939)),
+    ([-0.08, -1.0, -1.19, 1.94, 0.67, 1.03, -0.50], (0.57971, 0.18329, 0.11370), (0.0537, 0.0159, -0.9984)),
+]
+
+
+@pytest.fixture(scope="module")
+def model():
+    return mujoco.MjModel.from_xml_path(str(robot.scene_path()))
+
+
+def test_scene_loads_on_its_own_and_names_match(model):
+    assert [model.joint(i).name for i in range(7)] == list(robot.JOINT_NAMES)
+    np.testing.assert_allclose(model.jnt_range[:7, 0], robot.JOINT_LOWER)
+    np.testing.assert_allclose(model.jnt_range[:7, 1], robot.JOINT_UPPER)
+    assert model.body("cube").mass[0] == pytest.approx(0.5)
+    assert model.site(robot.EE_SITE) is not None and model.site(robot.TARGET_SITE) is not None
+
+
+@pytest.mark.parametrize("q, pos, z_axis", REFERENCE_POSES)
+def test_forward_kinematics_matches_reference_poses(model, q, pos, z_axis):
+    p, rot = ArmIK(model).forward(np.array(q))
+    assert np.linalg.norm(p - np.array(pos)) < 1e-3  # < 1 mm
+    np.testing.assert_allclose(rot[:, 2], z_axis, atol=2e-4)
+
+
+def test_ik_reaches_gripper_down_pose_and_rejects_out_of_reach(model):
+    from lerobot_pnp.errors import UnreachableError
+
+    ik = ArmIK(model)
+    target = np.array([0.6, 0.2, robot.CUBE_REST_Z])
+    q = ik.solve(target, 0.3, robot.NEUTRAL_Q)
+    p, rot = ik.forward(q)
+    assert np.linalg.norm(p - target) < 1e-3
+    np.testing.assert_allclose(rot, gripper_down_rotation(0.3), atol=5e-3)
+    assert np.all(q >= robot.JOINT_LOWER) and np.all(q <= robot.JOINT_UPPER)
+    with pytest.raises(UnreachableError, match="IK did not converge"):
+        ik.solve(np.array([1.5, 0.2, 0.0]), 0.0, robot.NEUTRAL_Q)
+
+
+def test_gym_make_and_env_checker():
+    env = gym.make(GYM_ID)
+    assert env.spec.max_episode_steps == 10
+    check_env(env.unwrapped, skip_render_check=True)
+    dense = gym.make("lerobot_pnp/BaxterPnPDense-v0")
+    assert dense.unwrapped.control_mode == "dense" and dense.spec.max_episode_steps == 400
+    check_env(dense.unwrapped, skip_render_check=True)
+
+
+def test_reset_is_seeded_and_in_the_workspace(keyframe_env):
+    obs_a, info = keyframe_env.reset(seed=7)
+    obs_b, _ = keyframe_env.reset(seed=7)
+    obs_c, _ = keyframe_env.reset(seed=8)
+    np.testing.assert_array_equal(obs_a["agent_pos"], obs_b["agent_pos"])
+    np.testing.assert_array_equal(obs_a["environment_state"], obs_b["environment_state"])
+    assert not np.array_equal(obs_a["environment_state"], obs_c["environment_state"])
+    assert info["is_success"] is False
+    tc = TaskConfig()
+    cube = obs_a["environment_state"]
+    assert tc.object_low[0] <= cube[0] <= tc.object_high[0] and tc.object_low[1] <= cube[1] <= tc.object_high[1]
+    assert cube[2] == pytest.approx(robot.CUBE_REST_Z, abs=2e-3)
+    ee, rot = keyframe_env.unwrapped.ee_pose()
+    assert ee[2] > robot.TABLE_TOP_Z + 0.15 and rot[2, 2] < -0.99  # random start above the table, pointing down
+    assert obs_a["agent_pos"][-1] == pytest.approx(1.0, abs=1e-3)  # gripper open
+
+
+def test_keyframe_step_reaches_the_commanded_keyframe(keyframe_env):
+    obs, _ = keyframe_env.reset(seed=3)
+    env = keyframe_env.unwrapped
+    target = env.ik.solve(np.array([0.55, 0.25, 0.0]), 0.0, obs["agent_pos"][:7])
+    obs, reward, terminated, truncated, info = keyframe_env.step(np.append(target, 1.0).astype(np.float32))
+    np.testing.assert_allclose(obs["agent_pos"][:7], target, atol=5e-3)
+    assert np.linalg.norm(env.ee_pose()[0] - np.array([0.55, 0.25, 0.0])) < 5e-3
+    assert not terminated and not truncated and reward == 0.0
+
+
+def test_straight_path_keeps_the_gripper_on_the_segment(model):
+    from lerobot_pnp.interpolation import joint_trajectory
+
+    ik = ArmIK(model)
+    top, bottom = np.array([0.5, 0.12, robot.CUBE_REST_Z + 0.15]), np.array([0.5, 0.12, robot.CUBE_REST_Z])
+    q0 = ik.solve(top, 0.0, robot.NEUTRAL_Q)
+    q1 = ik.solve(bottom, 0.0, q0)
+
+    def max_sideways(path):
+        return max(np.linalg.norm(ik.forward(q)[0][:2] - top[:2]) for q in path)
+
+    straight = max_sideways(joint_trajectory(q0, q1, 100, ik=ik))
+    plain = max_sideways(joint_trajectory(q0, q1, 100))
+    assert straight < 1.5e-3 < plain  # the open gripper has 3.9 mm of clearance around the cube
+
+
+def test_invalid_actions_raise(keyframe_env):
+    keyframe_env.reset(seed=0)
+    with pytest.raises(ValueError, match="NaN"):
+        keyframe_env.step(np.full(8, np.nan, dtype=np.float32))
+    with pytest.raises(ValueError, match="shape"):
+        keyframe_env.step(np.zeros(5, dtype=np.float32))
+
+
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        ({"control_mode": "teleport"}, "control_mode must be one of"),
+        ({"hover_height": -0.1}, "hover_height must be > 0"),
+        ({"object_low": (0.9, 0.1), "object_high": (1.2, 0.5)}, "out of the arm's reach"),
+        ({"object_low": (0.7, 0.1), "object_high": (0.5, 0.5)}, "object_low must be <= object_high"),
+        ({"cameras": ("ceiling",)}, "unknown camera"),
+        ({"speed": 2.0}, "speed"),
+        ({"nudge_max": -0.01}, "nudge_max must be >= 0"),
+    ],
+)
+def test_bad_configs_raise_clear_errors(kwargs, message):
+    with pytest.raises(ConfigError, match=message):
+        BaxterPnPEnv(**kwargs)
+
+
+def test_nudge_moves_the_cube_before_the_grasp_and_noise_only_touches_observations():
+    env = BaxterPnPEnv(nudge_max=0.03, nudge_at_step=1, obs_noise_object=0.005, obs_noise_joints=0.01)
+    obs, _ = env.reset(seed=5)
+    before, _ = env.object_pose()
+    assert np.linalg.norm(obs["environment_state"] - before) > 0  # noisy observation
+    obs, *_ = env.step(np.append(env.arm_qpos(), 1.0).astype(np.float32))
+    after, _ = env.object_pose()
+    moved = np.linalg.norm(after[:2] - before[:2])
+    assert 0 < moved <= 0.03 + 1e-6
+    assert np.linalg.norm(obs["agent_pos"][:7] - env.arm_qpos()) > 0
+
+
+def test_reset_options_pin_the_start_state(keyframe_env):
+    q = np.array([0.1, -0.6, 0.0, 0.9, 0.0, 1.2, 0.0])
+    obs, _ = keyframe_env.reset(seed=0, options={"arm_qpos": q, "object_pos": [0.5, 0.3, 0.0]})
+    np.testing.assert_allclose(obs["agent_pos"][:7], q, atol=2e-3)
+    np.testing.assert_allclose(obs["environment_state"][:2], [0.5, 0.3], atol=1e-3)
+    with pytest.raises(ValueError, match="object_pos"):
+        keyframe_env.reset(options={"object_pos": [0.5, np.nan, 0.0]})
+
+
+def test_camera_observations_render_lazily():
+    env = BaxterPnPEnv(cameras=("front",), image_size=(48, 64))
+    assert env._renderer is None  # nothing rendered before it is needed
+    obs, _ = env.reset(seed=0)
+    img = obs["pixels"]["front"]
+    assert img.shape == (48, 64, 3) and img.dtype == np.uint8 and img.std() > 0
+    assert env.render().shape == (48, 64, 3)
+    env.close()
+
+
+def test_lerobot_env_config_builds_vector_envs():
+    from lerobot.envs.configs import EnvConfig
+    from lerobot.envs.factory import make_env_config
+    from lerobot.envs.utils import env_to_policy_features
+
+    cfg = make_env_config("baxter_pnp")
+    assert isinstance(cfg, BaxterPnPEnvConfig) and cfg.fps == 1 and cfg.episode_length == 10
+    assert "baxter_pnp" in EnvConfig.get_known_choices()
+    features = env_to_policy_features(cfg)
+    assert features["observation.state"].shape == (8,) and features["observation.environment_state"].shape == (3,)
+    envs = cfg.create_envs(n_envs=2, use_async_envs=False)["baxter_pnp"][0]
+    obs, info = envs.reset(seed=[0, 1])
+    assert obs["agent_pos"].shape == (2, 8) and list(info["is_success"]) == [False, False]
+    assert envs.call("_max_episode_steps")[0] == 10
+    envs.close()
+    dense = BaxterPnPEnvConfig(control_mode="dense", cameras=["front"])
+    assert dense.fps == 20 and dense.episode_length == 400
+    assert dense.features_map["pixels/front"] == "observation.images.front"
+    with pytest.raises(ConfigError, match="control_mode"):
+        BaxterPnPEnvConfig(control_mode="bogus")
