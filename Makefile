@@ -1,0 +1,32 @@
+# Two entry points do all the set-up on a fresh machine (see README):
+#   make demo   the end-to-end job: generate expert data, train the LSTM planner, evaluate it closed loop
+#   make test   the test suite (what CI runs)
+# Python 3.12 comes from pyenv when present (LeRobot 0.6 needs >= 3.12), else python3.12 on PATH.
+PYTHON ?= $(shell p=$$(pyenv prefix 3.12.1 2>/dev/null) && echo $$p/bin/python || command -v python3.12)
+VENV := .venv
+STAMP := $(VENV)/.installed
+export OMP_NUM_THREADS ?= 1
+export MUJOCO_GL ?= egl
+export HF_HUB_OFFLINE ?= 1
+
+.PHONY: demo test install clean
+
+$(STAMP): pyproject.toml
+	@test -n "$(PYTHON)" || { echo "Python 3.12 not found (pyenv install 3.12.1, or set PYTHON=...)"; exit 1; }
+	@command -v ffmpeg >/dev/null || { command -v apt-get >/dev/null && [ "$$(id -u)" = 0 ] && \
+		(apt-get update -qq && apt-get install -y -qq ffmpeg >/dev/null) || echo "note: ffmpeg not installed (video datasets fall back to PyAV)"; }
+	test -x $(VENV)/bin/python || $(PYTHON) -m venv $(VENV)
+	$(VENV)/bin/pip install -q --upgrade pip
+	$(VENV)/bin/pip install -q -e '.[test]'
+	touch $(STAMP)
+
+install: $(STAMP)
+
+demo: $(STAMP)
+	$(VENV)/bin/lerobot-pnp demo --config_path configs/demo.json
+
+test: $(STAMP)
+	$(VENV)/bin/python -m pytest -q
+
+clean:
+	rm -rf $(VENV) outputs build *.egg-info
