@@ -470,7 +470,7 @@ def generate(cfg: GenerateConfig) -> dict:
     for f in failures:
         causes[f["cause"]] = causes.get(f["cause"], 0) + 1
     summary.update({
-        "status": "resumed" if records and done_before else "generated",
+        "status": "resumed" if done_before else "generated",
         "episodes_reused": done_before,
         "expert_failures": len(failures),
         "failure_causes": causes,
@@ -582,7 +582,7 @@ def _merge_and_commit(cfg: GenerateConfig, root: Path, jobs: list[dict], records
     if len(shard_roots) == 1:
         shutil.copytree(shard_roots[0], merged, ignore=shutil.ignore_patterns(SHARD_FILE))
     else:
-        _quiet_tqdm(aggregate_datasets)(
+        aggregate_datasets(
             repo_ids=[f"{cfg.repo_id}_shard{j['index']:05d}" for j in jobs],
             aggr_repo_id=cfg.repo_id,
             roots=shard_roots,
@@ -597,8 +597,6 @@ def _merge_and_commit(cfg: GenerateConfig, root: Path, jobs: list[dict], records
         info.splits["test"] = f"{n_train}:{n}"
     write_info(info, merged)
     check = verify_dataset(merged, expected_seeds=seeds)
-    from lerobot_pnp.env import BaxterPnPEnv  # noqa: F401  (only for the record below)
-
     generation = {
         "config": _manifest(cfg),
         "env": cfg.env_kwargs(),
@@ -616,27 +614,6 @@ def _merge_and_commit(cfg: GenerateConfig, root: Path, jobs: list[dict], records
     return {"root": str(root), "repo_id": cfg.repo_id, "representation": cfg.representation, "fps": cfg.fps,
             "episodes": check["total_episodes"], "frames": check["total_frames"], "splits": info.splits,
             "shards": len(jobs)}
-
-
-def _quiet_tqdm(func):
-    """Run a LeRobot helper with its tqdm bars off (they print one bar per step of the merge)."""
-
-    def wrapped(*args, **kwargs):
-        import functools
-
-        import tqdm as tqdm_mod
-
-        from lerobot.datasets import aggregate
-
-        original = aggregate.tqdm.tqdm
-        aggregate.tqdm.tqdm = functools.partial(original, disable=True)
-        try:
-            return func(*args, **kwargs)
-        finally:
-            aggregate.tqdm.tqdm = original
-            del tqdm_mod
-
-    return wrapped
 
 
 def _version() -> str:

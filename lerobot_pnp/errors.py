@@ -15,3 +15,7 @@ class UnreachableError(PnPError):
 
 class ExpertFailure(PnPError):
     """The scripted expert executed its plan but the task did not succeed (e.g. the grasp slipped)."""
+
+
+class DatasetError(PnPError):
+    """A dataset folder is missing, incomplete, corrupt, or cannot be written/pushed as asked."""
