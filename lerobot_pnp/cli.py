@@ -56,6 +56,10 @@ def main(argv: list[str] | None = None) -> int:
             config_path = arg.split("=", 1)[1] if "=" in arg else args[i + 1]
             args = args[:i] + args[i + (1 if "=" in arg else 2):]
             break
+    # A command may accept the issue-style spellings (--repo-id, --episode-index 0 1) by normalising argv.
+    normalize = getattr(importlib.import_module(config_ref.split(":")[0]), "normalize_cli_args", None)
+    if normalize is not None:
+        args = normalize(args)
     cfg = draccus.parse(config_class=config_cls, config_path=config_path, args=args)
     from lerobot_pnp.errors import PnPError
 

@@ -345,23 +345,35 @@ def build_shard(job: dict, progress=None) -> dict:
     record = {"index": job["index"], "start": job["start"], "stop": job["stop"], "seeds": seeds,
               "failures": failures, "sim_s": sim_s, "write_s": write_s}
     (tmp / SHARD_FILE).write_text(json.dumps(record, indent=1))
+    if progress:
+        progress("shard")
     os.replace(tmp, final)
     return record
 
 
 # worker-process plumbing
 _PROGRESS_QUEUE = None
+_PARENT_PID = None
 
 
 def _worker_init(progress_queue) -> None:
-    global _PROGRESS_QUEUE
+    global _PROGRESS_QUEUE, _PARENT_PID
     _PROGRESS_QUEUE = progress_queue
+    _PARENT_PID = os.getppid()
     _single_thread()
     _quiet_libraries()
 
 
+def _worker_progress(kind: str) -> None:
+    # A worker whose parent was killed (kill -9) stops at once, before it could finish (rename) its shard
+    # while a resumed run rebuilds the same shard.
+    if os.getppid() != _PARENT_PID:
+        os._exit(1)
+    _PROGRESS_QUEUE.put(kind)
+
+
 def _worker_build_shard(job: dict) -> dict:
-    return build_shard(job, progress=_PROGRESS_QUEUE.put)
+    return build_shard(job, progress=_worker_progress)
 
 
 # ---------------------------------------------------------------------------------------------- generate
@@ -403,10 +415,13 @@ def generate(cfg: GenerateConfig) -> dict:
             _check_overwritable(root)
             shutil.rmtree(root)
         elif not cfg.resume:
-            state = "an interrupted generation" if work.exists() else "a dataset"
+            state = ("an interrupted generation" if work.exists() else
+                     "a dataset" if (root / "meta" / "info.json").exists() else "not a dataset")
             raise DatasetError(
                 f"{root} already exists ({state}); pass --resume to finish/keep it or --overwrite to replace it"
             )
+    if (root / TRASH_DIR).exists():  # killed while deleting the work folder of a finished run
+        shutil.rmtree(root / TRASH_DIR)
     if root.exists() and not work.exists():
         # --resume on a finished dataset: verify it matches and report.
         info = validate_dataset(root)
@@ -414,10 +429,30 @@ def generate(cfg: GenerateConfig) -> dict:
         _check_manifest(gen.get("config", {}), cfg)
         return {"root": str(root), "status": "already complete", "episodes": info["total_episodes"],
                 "frames": info["total_frames"], "splits": info.get("splits")}
-    if (root / TRASH_DIR).exists():
-        shutil.rmtree(root / TRASH_DIR)
 
     # 2. The work folder and its manifest (a resumed run must have the same content settings).
+    work.mkdir(parents=True, exist_ok=True)
+    lock = _lock(work)
+    try:
+        return _generate_locked(cfg, root, work, workers, t_start)
+    finally:
+        lock.close()
+
+
+def _lock(work: Path):
+    """An exclusive lock on the work folder: two generators never write the same root at once."""
+    import fcntl
+
+    handle = open(work / "lock", "w")
+    try:
+        fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        handle.close()
+        raise DatasetError(f"another `lerobot-pnp generate` is writing {work.parent}") from None
+    return handle
+
+
+def _generate_locked(cfg: GenerateConfig, root: Path, work: Path, workers: int, t_start: float) -> dict:
     shards_dir = work / "shards"
     manifest_path = work / "manifest.json"
     if manifest_path.exists():
@@ -430,8 +465,9 @@ def generate(cfg: GenerateConfig) -> dict:
             if entry.name != WORK_DIR:
                 shutil.rmtree(entry) if entry.is_dir() else entry.unlink()
     else:
-        if work.exists():  # killed before the manifest was written: nothing useful in it
-            shutil.rmtree(work)
+        # Fresh, or killed before the manifest was written (nothing useful in it).
+        if shards_dir.exists():
+            shutil.rmtree(shards_dir)
         cfg = _with(cfg, shard_size=_resolve_shard_size(cfg, workers))
         shards_dir.mkdir(parents=True)
         _write_json_atomic(manifest_path, _manifest(cfg))
@@ -516,7 +552,7 @@ def _run_jobs(todo: list[dict], workers: int, cfg: GenerateConfig, initial: int)
     def tick(kind: str) -> None:
         if kind == "episode":
             bar.update(1)
-        else:
+        elif kind == "failure":
             fails[0] += 1
             bar.set_postfix(failed=fails[0], refresh=False)
 
@@ -555,6 +591,8 @@ def _run_jobs(todo: list[dict], workers: int, cfg: GenerateConfig, initial: int)
                     except queue.Empty:
                         pass
             finally:
+                progress_q.close()
+                progress_q.join_thread()
                 for v, old in saved.items():
                     if old is None:
                         os.environ.pop(v, None)
@@ -587,6 +625,7 @@ def _merge_and_commit(cfg: GenerateConfig, root: Path, jobs: list[dict], records
             aggr_repo_id=cfg.repo_id,
             roots=shard_roots,
             aggr_root=merged,
+            concatenate_data=False,  # one data file per shard: a linear-time merge (no rewrites)
         )
     # The split (LeRobot's "start:end" format) and the record of how the data was made.
     info = load_info(merged)
@@ -700,6 +739,11 @@ def _data_table(root: Path):
     return pa.concat_tables([_read_parquet(p, "data file") for p in files]).sort_by("index")
 
 
+# LeRobot's aggregate_stats merges these bookkeeping columns' stats without the per-shard offsets (they are
+# never normalised or fed to a policy), so they are not compared.
+_INDEX_COLUMNS = ("index", "episode_index", "task_index")
+
+
 def verify_dataset(root: str | Path, expected_seeds: list[int] | None = None, rtol: float = 1e-4) -> dict:
     """validate_dataset + content checks: distinct episode seeds (in order, if given) and meta/stats.json
     (mean/std/min/max/count of every numeric feature) equal to the statistics recomputed from the data."""
@@ -716,7 +760,7 @@ def verify_dataset(root: str | Path, expected_seeds: list[int] | None = None, rt
         raise DatasetError(f"{root}: episode seeds differ from the generation record")
     stats = _read_json(root / "meta" / "stats.json", "meta/stats.json")
     for key, ft in info["features"].items():
-        if ft["dtype"] not in ("float32", "float64", "int64", "bool") or key not in stats:
+        if ft["dtype"] not in ("float32", "float64", "int64", "bool") or key not in stats or key in _INDEX_COLUMNS:
             continue
         col = table.column(key).to_numpy() if ft["shape"] == [1] else np.stack(table.column(key).to_numpy(False))
         x = np.asarray(col, dtype=np.float64).reshape(len(table), -1)

@@ -72,7 +72,8 @@ logger = logging.getLogger(__name__)
 APPLICATION_ID = "lerobot_pnp"
 OBS_STATE, OBS_ENV, ACTION = "observation.state", "observation.environment_state", "action"
 PHASE_INDEX, EPISODE_SEED, SUCCESS = "phase.index", "episode.seed", "next.success"
-ENV_CONFIG_FILES = ("meta/env_config.json", "meta/lerobot_pnp.json", "env_config.json")
+# Where the env settings of a dataset are looked for (``lerobot-pnp generate`` writes the first one).
+ENV_CONFIG_FILES = ("meta/pnp_generate.json", "meta/env_config.json")
 PICK_COLOR, PLACE_COLOR, EXPERT_COLOR = (230, 160, 30), (40, 200, 220), (120, 220, 120)
 FLOOR_COLOR = (64, 77, 90, 255)
 
@@ -177,7 +178,9 @@ def normalize_cli_args(args: list[str]) -> list[str]:
                     vals.append(args[i + 1])
                     i += 1
                 joined = " ".join(vals)
-                out.append(f"--episode_index={joined if len(vals) == 1 and '[' in joined else '[' + ','.join(joined.replace(',', ' ').split()) + ']'}")
+                if "[" not in joined:
+                    joined = "[" + ",".join(joined.replace(",", " ").split()) + "]"
+                out.append(f"--episode_index={joined}")
                 i += 1
                 continue
             arg = f"--{name}{eq}{val}"
@@ -434,7 +437,9 @@ def log_run(rec, run: str, scene: SceneModel, samples: dict[str, np.ndarray], fr
         rec.send_columns(
             f"{run}/plots/phase",
             indexes=_indexes(ft[known], frames.frame_index[known]),
-            columns=rr.TextLog.columns(text=[_phase_name(p) for p in frames.phase[known]], level=["INFO"] * int(known.sum())),
+            columns=rr.TextLog.columns(
+                text=[_phase_name(p) for p in frames.phase[known]], level=["INFO"] * int(known.sum())
+            ),
         )
         sample_phase = _phase_per_sample(len(t), frames.sample[known], frames.phase[known])
         _send_scalars(rec, f"{run}/plots/phase_index", tick_idx, sample_phase)
@@ -847,3 +852,83 @@ def visualize(cfg: VizConfig) -> dict:
     if cfg.save is not None:
         rec.disconnect()
     return summary
+
+
+# ---------------------------------------------------------------------------------------------- still picture
+def render_picture(
+    out: str | Path,
+    seed: int = 0,
+    step: int = 3,
+    fraction: float = 0.5,
+    camera: str = "view",
+    size: tuple[int, int] = (480, 640),
+) -> dict:
+    """MuJoCo offscreen render of the viewer's scene (for the README, where no Rerun viewer can run).
+
+    Runs the FSM expert from ``seed``, poses the scene ``fraction`` of the way through keyframe step ``step``
+    (3: lifting the grasped cube), and draws the end-effector path and the labelled FSM keyframes on top.
+    ``camera`` is one of the model's cameras ("front", "overhead", "wrist") or "view": a free camera framing
+    the arm and the table from the front right. Needs an OpenGL backend (``MUJOCO_GL=egl``, or ``osmesa``).
+    """
+    os.environ.setdefault("MUJOCO_GL", "egl")
+    from PIL import Image
+
+    from lerobot_pnp.expert import run_expert_episode
+
+    env = make_env({"control_mode": "keyframe", "fps": 1})
+    ticks: list[tuple[int, np.ndarray, np.ndarray]] = []
+    env.on_control_tick = lambda e: ticks.append((e._step_count, e.data.qpos.copy(), e.ee_pose()[0]))
+    ep = run_expert_episode(env, seed)
+    env.on_control_tick = None
+    in_step = [t for t in ticks if t[0] == step]
+    if not in_step:
+        raise ConfigError(f"step must be in 0..{ticks[-1][0]}, got {step}")
+    _, qpos, _ = in_step[min(len(in_step) - 1, int(fraction * len(in_step)))]
+    scene = SceneModel(env.model)
+    m, d = env.model, env.data
+    scratch = mujoco.MjData(m)
+    kf_ee = [scene.ee_position(d, s[: robot.N_JOINTS], scratch) for s in ep.keyframe_states]
+    path = np.asarray([t[2] for t in ticks])[::4]
+    d.qpos[:] = qpos
+    mujoco.mj_forward(m, d)
+
+    h, w = size
+    renderer = mujoco.Renderer(m, height=h, width=w)
+    if camera == "view":
+        cam = mujoco.MjvCamera()
+        cam.type = mujoco.mjtCamera.mjCAMERA_FREE
+        cam.lookat[:] = (0.55, 0.12, -0.08)
+        cam.distance, cam.azimuth, cam.elevation = 1.05, 205.0, -38.0
+        renderer.update_scene(d, camera=cam)
+    else:
+        renderer.update_scene(d, camera=camera)
+    scn = renderer.scene
+    scn.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = 0  # shadow acne on the large table top at this resolution
+
+    def add(kind, size3, pos, rgba, label=""):
+        if scn.ngeom >= scn.maxgeom:
+            return None
+        g = scn.geoms[scn.ngeom]
+        mujoco.mjv_initGeom(g, kind, np.asarray(size3, float), np.asarray(pos, float), np.eye(3).ravel(), np.asarray(rgba, np.float32))
+        g.label = label
+        scn.ngeom += 1
+        return g
+
+    for a, b in zip(path[:-1], path[1:]):
+        g = add(mujoco.mjtGeom.mjGEOM_CAPSULE, [0, 0, 0], a, [1.0, 0.78, 0.0, 1.0])
+        if g is not None:
+            mujoco.mjv_connector(g, mujoco.mjtGeom.mjGEOM_CAPSULE, 0.003, a, b)
+    for k, p in enumerate(kf_ee):
+        # States at (nearly) the same place, e.g. grasp/close: stack their markers so every label shows.
+        offset = sum(np.linalg.norm(p - q) < 0.03 for q in kf_ee[:k])
+        color = np.asarray(_phase_color(k), float) / 255
+        add(mujoco.mjtGeom.mjGEOM_SPHERE, [0.012] * 3, p + [0, 0, 0.045 * offset], [*color, 1.0], robot.PHASE_NAMES[k])
+    img = renderer.render().copy()
+    renderer.close()
+    env.close()
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    Image.fromarray(img).save(out, optimize=True)
+    if out.stat().st_size > 300_000:
+        Image.fromarray(img).quantize(colors=256).save(out, optimize=True)
+    return {"path": str(out), "bytes": out.stat().st_size, "seed": seed, "step": step, "mujoco_gl": os.environ["MUJOCO_GL"]}
