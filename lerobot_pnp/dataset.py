@@ -132,6 +132,26 @@ class GenerateConfig:
         }
 
 
+_BOOL_FLAGS = ("resume", "overwrite", "progress", "private", "push_videos")
+
+
+def normalize_cli_args(args: list[str]) -> list[str]:
+    """Accept the issue's spellings before draccus parses: bare ``--resume`` / ``--overwrite`` (-> ``=true``)
+    and hyphenated names (``--repo-id`` -> ``--repo_id``). Called by ``lerobot_pnp.cli``."""
+    out = []
+    for i, arg in enumerate(args):
+        if arg.startswith("--"):
+            name, eq, val = arg[2:].partition("=")
+            name = name.replace("-", "_")
+            nxt = args[i + 1] if i + 1 < len(args) else "--"
+            if not eq and name in _BOOL_FLAGS and (nxt.startswith("--") or nxt.lower() not in
+                                                   ("true", "false", "1", "0", "yes", "no")):
+                eq, val = "=", "true"
+            arg = f"--{name}{eq}{val}"
+        out.append(arg)
+    return out
+
+
 @dataclass
 class PushConfig:
     """``lerobot-pnp push``: upload a generated dataset to the Hugging Face Hub (tagged v3.0)."""
@@ -585,6 +605,8 @@ def _run_jobs(todo: list[dict], workers: int, cfg: GenerateConfig, initial: int)
                             else:
                                 still.append(res)
                         pending = still
+                    pool.close()  # let the workers exit normally (terminate() leaks their semaphores)
+                    pool.join()
                     try:
                         while True:
                             tick(progress_q.get_nowait())
@@ -631,6 +653,8 @@ def _merge_and_commit(cfg: GenerateConfig, root: Path, jobs: list[dict], records
     info = load_info(merged)
     n = cfg.num_episodes
     n_train = min(n, max(1, round(cfg.train_fraction * n)))
+    if cfg.train_fraction < 1 and n >= 2:
+        n_train = min(n_train, n - 1)  # a test split is never empty when one was asked for
     info.splits = {"train": f"0:{n_train}"}
     if n_train < n:
         info.splits["test"] = f"{n_train}:{n}"

@@ -1,0 +1,347 @@
+"""Dataset writer: LeRobot v3.0 round trip, exact re-simulation, split, determinism, crash safety, push."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from lerobot_pnp import robot
+from lerobot_pnp.dataset import (
+    GenerateConfig,
+    data_hash,
+    generate,
+    load_split,
+    validate_dataset,
+    verify_dataset,
+)
+from lerobot_pnp.errors import ConfigError, DatasetError
+
+REPO = "test/pnp_kf"
+
+
+def _cfg(root, **kw) -> GenerateConfig:
+    base = {"repo_id": REPO, "root": str(root), "num_episodes": 10, "seed": 0, "workers": 1, "progress": False}
+    base.update(kw)
+    return GenerateConfig(**base)
+
+
+def _snapshot(root: Path) -> dict:
+    """Every file's content hash and mtime, to prove a folder was not touched."""
+    out = {}
+    for p in sorted(Path(root).rglob("*")):
+        if p.is_file():
+            out[str(p.relative_to(root))] = (hashlib.sha256(p.read_bytes()).hexdigest(), p.stat().st_mtime_ns)
+    return out
+
+
+def _cli_env(**extra) -> dict:
+    env = {k: v for k, v in os.environ.items() if not k.startswith("HF_")}
+    env.update({"OMP_NUM_THREADS": "1", "PYTHONUNBUFFERED": "1"}, **extra)
+    return env
+
+
+def _cli(*args, env=None, timeout=120) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "lerobot_pnp.cli", *args], capture_output=True, text=True,
+                          env=env or _cli_env(HF_HUB_OFFLINE="1"), timeout=timeout)
+
+
+@pytest.fixture(scope="module")
+def kf(tmp_path_factory):
+    """10 keyframe episodes in 3 shards (4+4+2) merged with LeRobot's aggregate_datasets."""
+    root = tmp_path_factory.mktemp("ds") / "kf"
+    summary = generate(_cfg(root, shard_size=4))
+    return root, summary
+
+
+# ---------------------------------------------------------------------------------------------- content
+def test_keyframe_dataset_loads_with_stock_loader(kf):
+    root, summary = kf
+    assert summary["episodes"] == 10 and summary["frames"] == 10 * robot.N_KEYFRAMES and summary["shards"] == 3
+    code = (
+        "import json; from lerobot.datasets.lerobot_dataset import LeRobotDataset\n"
+        f"ds = LeRobotDataset({REPO!r}, root={str(root)!r}, video_backend='pyav')\n"
+        "item = ds[9]\n"
+        "print(json.dumps({'n': len(ds), 'eps': ds.num_episodes, 'fps': ds.fps, 'keys': sorted(item),"
+        " 'done': bool(item['next.done']), 'phase': int(item['phase.index']), 'task': item['task'],"
+        " 'names': ds.features['observation.state']['names'], 'splits': ds.meta.info.splits}))\n"
+    )
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         env=_cli_env(HF_HUB_OFFLINE="1"), timeout=120)
+    assert res.returncode == 0, res.stderr
+    assert "libtorchcodec" not in res.stderr  # video_backend="pyav": no torchcodec traceback
+    out = json.loads(res.stdout.strip().splitlines()[-1])
+    assert out["n"] == 100 and out["eps"] == 10 and out["fps"] == 1
+    assert out["done"] and out["phase"] == 9 and out["task"] == robot.TASK
+    assert out["names"] == list(robot.STATE_NAMES)
+    for key in ("observation.state", "observation.environment_state", "action", "next.done", "next.success",
+                "phase.index", "phase.subtask", "episode.seed"):
+        assert key in out["keys"]
+    assert not any(k.startswith("observation.") and k.split(".")[1] in ("phase", "seed") for k in out["keys"])
+    assert out["splits"] == {"train": "0:8", "test": "8:10"}
+
+
+def test_keyframe_episodes_reproduce_the_expert_exactly(kf):
+    import gymnasium as gym
+    import pyarrow.parquet as pq
+
+    from lerobot_pnp.expert import run_expert_episode
+
+    root, _ = kf
+    table = pq.read_table(sorted((root / "data").rglob("*.parquet"))).sort_by("index").to_pydict()
+    ep_index = np.array(table["episode_index"])
+    env = gym.make("lerobot_pnp/BaxterPnP-v0")  # a fresh env: nothing carried over from the writer
+    try:
+        for e in (0, 5, 9):
+            rows = np.flatnonzero(ep_index == e)
+            assert len(rows) == robot.N_KEYFRAMES
+            seeds = {table["episode.seed"][i] for i in rows}
+            assert len(seeds) == 1
+            ep = run_expert_episode(env, seeds.pop())
+            np.testing.assert_array_equal(np.array([table["observation.state"][i] for i in rows], np.float32), ep.states)
+            np.testing.assert_array_equal(np.array([table["action"][i] for i in rows], np.float32), ep.actions)
+            np.testing.assert_array_equal(
+                np.array([table["observation.environment_state"][i] for i in rows], np.float32), ep.object_positions)
+            np.testing.assert_array_equal([table["phase.index"][i] for i in rows], np.arange(robot.N_KEYFRAMES))
+            np.testing.assert_array_equal([table["phase.subtask"][i] for i in rows], np.arange(10) // 5)
+            assert [table["next.done"][i] for i in rows] == [False] * 9 + [True]
+            # keyframe k's action is the commanded keyframe k+1 (the last one holds)
+            np.testing.assert_array_equal(ep.actions[:-1], ep.keyframes[1:])
+    finally:
+        env.close()
+
+
+def test_split_is_80_20_disjoint_and_stats_verified(kf):
+    root, _ = kf
+    split = load_split(root)
+    assert split == {"train": list(range(8)), "test": [8, 9]}
+    assert not set(split["train"]) & set(split["test"])
+    info = verify_dataset(root)  # stats.json recomputed from the data, distinct seeds
+    assert info["total_episodes"] == 10
+    record = json.loads((root / "meta" / "pnp_generate.json").read_text())
+    assert record["config"]["num_episodes"] == 10 and record["config"]["seed"] == 0
+    assert not (root / ".pnp_work").exists()
+
+
+@pytest.mark.slow
+def test_deterministic_across_worker_counts(kf, tmp_path):
+    root, _ = kf
+    summary = generate(_cfg(tmp_path / "w2", workers=2))  # 2 shards of 5, two spawned workers
+    assert summary["workers"] == 2 and summary["shards"] == 2
+    assert data_hash(tmp_path / "w2") == data_hash(root)
+
+
+# ---------------------------------------------------------------------------------------------- existing roots
+def test_existing_root_is_an_error_and_untouched(kf):
+    root, _ = kf
+    before = _snapshot(root)
+    with pytest.raises(DatasetError, match="already exists.*--resume.*--overwrite"):
+        generate(_cfg(root, shard_size=4))
+    res = _cli("generate", f"--repo_id={REPO}", f"--root={root}", "--num_episodes=10", "--progress=false")
+    assert res.returncode == 1 and "already exists" in res.stderr
+    # --resume on a finished dataset: verified, reported, untouched; different settings are refused
+    assert generate(_cfg(root, resume=True))["status"] == "already complete"
+    with pytest.raises(ConfigError, match="num_episodes"):
+        generate(_cfg(root, num_episodes=11, resume=True))
+    assert _snapshot(root) == before
+
+
+def test_overwrite_replaces_and_refuses_foreign_folders(tmp_path):
+    root = tmp_path / "ow"
+    generate(_cfg(root, num_episodes=3))
+    summary = generate(_cfg(root, num_episodes=4, seed=100, overwrite=True))
+    assert summary["episodes"] == 4 and validate_dataset(root)["total_episodes"] == 4
+    foreign = tmp_path / "home"
+    foreign.mkdir()
+    (foreign / "notes.txt").write_text("keep me")
+    with pytest.raises(DatasetError, match="refusing to --overwrite"):
+        generate(_cfg(foreign, overwrite=True))
+    assert (foreign / "notes.txt").read_text() == "keep me"
+
+
+def test_corrupt_dataset_is_detected(kf, tmp_path):
+    root, _ = kf
+    broken = tmp_path / "broken"
+    shutil.copytree(root, broken)
+    data = sorted((broken / "data").rglob("*.parquet"))[0]
+    data.write_bytes(data.read_bytes()[: data.stat().st_size // 2])
+    with pytest.raises(DatasetError, match="corrupt or truncated"):
+        validate_dataset(broken)
+    with pytest.raises(DatasetError, match="corrupt or truncated"):
+        generate(_cfg(broken, resume=True))
+    (broken / "meta" / "info.json").unlink()
+    with pytest.raises(DatasetError, match="meta/info.json missing"):
+        validate_dataset(broken)
+    (broken / "meta" / "info.json").write_text("{not json")
+    with pytest.raises(DatasetError, match="meta/info.json is corrupt"):
+        load_split(broken)
+
+
+# ---------------------------------------------------------------------------------------------- crash safety
+def _children(pid: int) -> list[int]:
+    try:
+        return [int(c) for c in Path(f"/proc/{pid}/task/{pid}/children").read_text().split()]
+    except FileNotFoundError:
+        return []
+
+
+def _alive(pid: int) -> bool:
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().split()[2] != "Z"
+    except FileNotFoundError:
+        return False
+
+
+@pytest.mark.slow
+def test_kill_9_then_resume(tmp_path):
+    root = tmp_path / "crash"
+    n = 60
+    args = [f"--repo_id={REPO}", f"--root={root}", f"--num_episodes={n}", "--shard_size=5", "--progress=false"]
+    proc = subprocess.Popen([sys.executable, "-m", "lerobot_pnp.cli", "generate", *args, "--workers=2"],
+                            env=_cli_env(HF_HUB_OFFLINE="1"), stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    shards = root / ".pnp_work" / "shards"
+    deadline = time.time() + 90
+    workers = []
+    while time.time() < deadline:  # kill once 2 shards are finished and others are being written
+        workers = workers or [c for c in _children(proc.pid) if _alive(c)]
+        done = [p for p in shards.glob("shard-*") if not p.name.endswith(".tmp")] if shards.exists() else []
+        if len(done) >= 2 and list(shards.glob("*.tmp")):
+            break
+        assert proc.poll() is None, proc.communicate()
+        time.sleep(0.02)
+    workers = [c for c in _children(proc.pid) if c not in workers] + workers
+    assert workers  # the pool's worker processes (spawned), which outlive a SIGKILL of their parent
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.communicate()
+    # The orphaned pool workers notice and stop without finishing their shard.
+    for w in workers:
+        for _ in range(200):
+            if not _alive(w):
+                break
+            time.sleep(0.05)
+    assert not [w for w in workers if _alive(w) and "python" in Path(f"/proc/{w}/cmdline").read_text()]
+
+    with pytest.raises(DatasetError, match="interrupted generation"):
+        validate_dataset(root)
+    before = _snapshot(root)
+    res = _cli("generate", *args)  # no --resume: error, nothing touched
+    assert res.returncode == 1 and "interrupted generation" in res.stderr
+    assert _snapshot(root) == before
+
+    summary = generate(_cfg(root, num_episodes=n, shard_size=5, resume=True))
+    assert summary["status"] == "resumed" and 10 <= summary["episodes_reused"] < n
+    info = verify_dataset(root)  # exactly n distinct seeds, stats recomputed from the data
+    assert info["total_episodes"] == n and info["total_frames"] == n * robot.N_KEYFRAMES
+    clean = generate(_cfg(tmp_path / "clean", num_episodes=n, shard_size=n))
+    assert clean["episodes"] == n
+    assert data_hash(root) == data_hash(tmp_path / "clean")  # none lost, none duplicated, same content
+
+
+# ---------------------------------------------------------------------------------------------- push
+def test_push_without_token_or_network_fails_fast_and_touches_nothing(kf, tmp_path):
+    root, _ = kf
+    before = _snapshot(root)
+    home = tmp_path / "hf_home"
+    t0 = time.time()
+    res = _cli("push", f"--repo_id={REPO}", f"--root={root}", env=_cli_env(HF_HOME=str(home)))
+    assert res.returncode == 1 and "no Hugging Face token" in res.stderr, res.stderr
+    res = _cli("push", f"--repo_id={REPO}", f"--root={root}", "--connect_timeout_s=3",
+               env=_cli_env(HF_HOME=str(home), HF_TOKEN="hf_not_a_real_token"))
+    assert res.returncode == 1 and "cannot push" in res.stderr, res.stderr
+    assert time.time() - t0 < 60
+    res = _cli("push", f"--repo_id={REPO}", f"--root={root}", env=_cli_env(HF_HUB_OFFLINE="1", HF_TOKEN="hf_x"))
+    assert res.returncode == 1 and "HF_HUB_OFFLINE" in res.stderr
+    assert _snapshot(root) == before
+
+
+# ---------------------------------------------------------------------------------------------- dense
+def test_dense_small(tmp_path):
+    import gymnasium as gym
+
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    from lerobot_pnp.expert import run_expert_episode
+
+    root = tmp_path / "dense"
+    summary = generate(_cfg(root, repo_id="test/pnp_dense", num_episodes=2, representation="dense", fps=20))
+    ds = LeRobotDataset("test/pnp_dense", root=root, video_backend="pyav")
+    assert ds.fps == 20 and ds.num_episodes == 2
+    env = gym.make("lerobot_pnp/BaxterPnPDense-v0")
+    lengths = [run_expert_episode(env, s).num_frames for s in (0, 1)]
+    env.close()
+    assert [int(x) for x in ds.meta.episodes["length"]] == lengths
+    assert summary["frames"] == sum(lengths) and 100 < lengths[0] < 300
+    assert load_split(root) == {"train": [0], "test": [1]}
+
+
+@pytest.mark.slow
+def test_dense_with_camera_video(tmp_path):
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    root = tmp_path / "cam"
+    generate(_cfg(root, repo_id="test/pnp_cam", num_episodes=1, representation="dense", cameras=["front"],
+                  image_height=32, image_width=32))
+    ds = LeRobotDataset("test/pnp_cam", root=root, video_backend="pyav")
+    assert ds.meta.video_keys == ["observation.images.front"]
+    frame = ds[len(ds) - 1]["observation.images.front"]
+    assert tuple(frame.shape) == (3, 32, 32) and float(frame.std()) > 0
+
+
+@pytest.mark.slow
+def test_lerobot_dataset_viz_runs(kf, tmp_path):
+    root, _ = kf
+    out = tmp_path / "viz"
+    res = subprocess.run(
+        [str(Path(sys.executable).parent / "lerobot-dataset-viz"), "--repo-id", REPO, "--root", str(root), "--episode-index", "0", "--save", "1",
+         "--output-dir", str(out)],
+        capture_output=True, text=True, env=_cli_env(HF_HUB_OFFLINE="1"), timeout=180,
+        cwd=tmp_path,
+    )
+    assert res.returncode == 0, res.stderr[-3000:]
+    assert list(out.glob("*.rrd"))
+
+
+def test_expert_failures_are_retried_with_disjoint_seeds_and_reported(tmp_path, monkeypatch):
+    import lerobot_pnp.expert as expert
+    from lerobot_pnp.errors import ExpertFailure, UnreachableError
+
+    real = expert.run_expert_episode
+
+    def flaky(env, seed, config=None):
+        if seed == 1:
+            raise ExpertFailure(f"seed {seed}: expert failed: grasp_missed")
+        if seed == 3:
+            raise UnreachableError("no IK solution")
+        return real(env, seed, config)
+
+    monkeypatch.setattr(expert, "run_expert_episode", flaky)
+    root = tmp_path / "flaky"
+    summary = generate(_cfg(root, num_episodes=4))
+    assert summary["expert_failures"] == 2
+    assert summary["failure_causes"] == {"grasp_missed": 1, "unreachable": 1}
+    record = json.loads((root / "meta" / "pnp_generate.json").read_text())
+    assert [f["seed"] for f in record["failures"]] == [1, 3]
+    verify_dataset(root, expected_seeds=[0, 1 + 4, 2, 3 + 4])  # slot i, retry r -> seed + i + N * r
+
+
+def test_config_validation():
+    with pytest.raises(ConfigError):
+        GenerateConfig(representation="video")
+    with pytest.raises(ConfigError):
+        GenerateConfig(cameras=["nope"])
+    with pytest.raises(ConfigError):
+        GenerateConfig(resume=True, overwrite=True)
+    assert GenerateConfig().fps == 1 and GenerateConfig().num_episodes == 1400
+    from lerobot_pnp.dataset import normalize_cli_args
+
+    assert normalize_cli_args(["--repo-id", "a/b", "--resume", "--num-episodes=3", "--overwrite", "false"]) == [
+        "--repo_id", "a/b", "--resume=true", "--num_episodes=3", "--overwrite", "false"]
