@@ -272,7 +272,7 @@ class BaxterPnPEnv(gym.Env):
         grip_ctrl = grip * robot.FINGER_TRAVEL
         if abs(grip_ctrl - d.ctrl[self._grip_act]) > 1e-9:
             d.ctrl[self._grip_act] = grip_ctrl
-            self._run(round(0.15 / self.model.opt.timestep))
+            self._run(round(0.1 / self.model.opt.timestep))
             self._settle(lambda: np.max(np.abs(d.qvel[self._finger_dofadr])) < 1e-3, max_time=0.8)
 
     def _settle(self, done, max_time: float) -> None:

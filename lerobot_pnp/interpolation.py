@@ -34,11 +34,13 @@ def move_duration(q0: np.ndarray, q1: np.ndarray, speed: float = 1.0) -> float:
 
 
 def joint_trajectory(q0, q1, rate_hz: float, speed: float = 1.0, ik=None) -> np.ndarray:
-    """Setpoints at ``rate_hz`` from ``q0`` (excluded) to ``q1`` (included), shape (n, 7).
+    """Setpoints at ``rate_hz`` from ``q0`` (excluded) to ``q1`` (included), shape (n, 7); (0, 7) for a hold.
 
     With ``ik`` (an ``ArmIK``), the gripper follows a straight line between the two keyframes' poses.
     """
     q0, q1 = np.asarray(q0, dtype=float), np.asarray(q1, dtype=float)
+    if np.array_equal(q0, q1):  # a hold (e.g. while the gripper acts): nothing to interpolate
+        return np.empty((0, q0.size))
     n = math.ceil(move_duration(q0, q1, speed) * rate_hz)
     max_step = robot.JOINT_VEL_LIMIT * speed / rate_hz
     knot_offsets = None
