@@ -29,6 +29,7 @@ NEUTRAL_Q = np.array([0.0, -0.55, 0.0, 0.75, 0.0, 1.26, 0.0])
 # 1 = fully open); in actions it is the command (0 = close, 1 = open).
 GRIPPER_NAME = "gripper"
 FINGER_TRAVEL = 0.020833  # m, per finger (URDF slide limit)
+JAW_GAP_CLOSED = 0.036  # m, between the paddle pads with the fingers in the wide slot (77.7 mm fully open)
 GRIPPER_OPEN = 1.0
 GRIPPER_CLOSED = 0.0
 

@@ -37,7 +37,9 @@ def test_grasp_lifts_the_cube_and_release_places_it(keyframe_env):
     cube, _ = env.object_pose()
     assert env.object_in_grasp(), "both pads must touch the cube after the retract"
     assert cube[2] > start_cube[2] + 0.1, "the cube must be lifted with the gripper"
-    assert 0.6 < env.gripper_opening() < 0.95  # stopped by the 5 cm cube, not closed
+    # the fingers stopped on the 5 cm cube (not closed, not open)
+    expected = (robot.CUBE_SIZE - robot.JAW_GAP_CLOSED) / 2 / robot.FINGER_TRAVEL
+    assert env.gripper_opening() == pytest.approx(expected, abs=0.05)
     info = {}
     for _ in range(5):  # hold, approach place, descend, open, retract
         _, _, terminated, _, info = keyframe_env.step(expert.next_keyframe())
