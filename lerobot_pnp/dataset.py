@@ -264,17 +264,6 @@ def slot_seed(base_seed: int, num_episodes: int, slot: int, retry: int) -> int:
     return base_seed + slot + num_episodes * retry
 
 
-def _failure_cause(err: Exception) -> str:
-    if isinstance(err, UnreachableError):
-        return "unreachable"
-    text = str(err)
-    if "expert failed:" in text:
-        return text.split("expert failed:", 1)[1].strip().split(" ")[0]
-    if "truncated" in text:
-        return "truncated"
-    return type(err).__name__
-
-
 def _episode_frames(ep, pixels, cameras) -> list[dict]:
     T = ep.num_frames
     frames = []
@@ -305,7 +294,7 @@ def build_shard(job: dict, progress=None) -> dict:
     """
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
-    from lerobot_pnp.expert import run_expert_episode
+    from lerobot_pnp.expert import failure_cause, run_expert_episode
 
     _quiet_libraries()
     final = Path(job["dir"])
@@ -337,7 +326,7 @@ def build_shard(job: dict, progress=None) -> dict:
                     raise ExpertFailure(f"seed {seed}: expert failed: short_episode ({ep.num_frames} frames)")
             except (UnreachableError, ExpertFailure) as err:
                 sim_s += time.perf_counter() - t0
-                failures.append({"slot": slot, "seed": seed, "cause": _failure_cause(err), "message": str(err)})
+                failures.append({"slot": slot, "seed": seed, "cause": failure_cause(err), "message": str(err)})
                 if progress:
                     progress("failure")
                 continue

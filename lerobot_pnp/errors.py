@@ -14,7 +14,14 @@ class UnreachableError(PnPError):
 
 
 class ExpertFailure(PnPError):
-    """The scripted expert executed its plan but the task did not succeed (e.g. the grasp slipped)."""
+    """The scripted expert executed its plan but the task did not succeed (e.g. the grasp slipped).
+
+    ``cause`` is a short, groupable name: grasp_missed, dropped, not_placed, truncated.
+    """
+
+    def __init__(self, message: str, cause: str = "unknown"):
+        super().__init__(message)
+        self.cause = cause
 
 
 class DatasetError(PnPError):

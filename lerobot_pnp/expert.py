@@ -16,7 +16,7 @@ import gymnasium as gym
 import numpy as np
 
 from lerobot_pnp import robot
-from lerobot_pnp.errors import ConfigError, ExpertFailure
+from lerobot_pnp.errors import ConfigError, ExpertFailure, UnreachableError
 from lerobot_pnp.interpolation import joint_trajectory
 
 
@@ -55,6 +55,13 @@ class ExpertEpisode:
     @property
     def num_frames(self) -> int:
         return len(self.actions)
+
+
+def failure_cause(err: Exception) -> str:
+    """A short, groupable name for why an expert episode failed."""
+    if isinstance(err, UnreachableError):
+        return "unreachable"
+    return getattr(err, "cause", type(err).__name__)
 
 
 def grasp_yaw(cube_yaw: float) -> float:
@@ -146,7 +153,9 @@ def run_expert_episode(env: gym.Env, seed: int, config: ExpertConfig | None = No
             states.append(state), objects.append(obj), actions.append(action), phases.append(phase)
             obs, _, terminated, truncated, info = env.step(action)
             if truncated:
-                raise ExpertFailure(f"seed {seed}: episode truncated by the time limit in phase {robot.PHASE_NAMES[phase]}")
+                raise ExpertFailure(
+                    f"seed {seed}: episode truncated by the time limit in phase {robot.PHASE_NAMES[phase]}", "truncated"
+                )
             done = terminated
         kf_states.append(np.concatenate(_frame(obs)))
         if phase == 2:
@@ -160,14 +169,14 @@ def run_expert_episode(env: gym.Env, seed: int, config: ExpertConfig | None = No
     states.append(state), objects.append(obj), actions.append(keyframes[-1]), phases.append(robot.N_KEYFRAMES - 1)
     success = bool(info["is_success"])
     if not success:
+        cube, _ = base.object_pose()
         if not checks.get("grasped", False):
             cause = "grasp_missed"
         elif not checks.get("held_at_target", False):
             cause = "dropped"
         else:
-            cube, _ = base.object_pose()
-            cause = f"not_placed (cube at {np.round(cube, 3).tolist()})"
-        raise ExpertFailure(f"seed {seed}: expert failed: {cause}")
+            cause = "not_placed"
+        raise ExpertFailure(f"seed {seed}: expert failed: {cause} (cube at {np.round(cube, 3).tolist()})", cause)
     return ExpertEpisode(
         seed=seed,
         states=np.stack(states),

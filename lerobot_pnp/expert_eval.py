@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import collections
-import re
 import time
 from dataclasses import dataclass
 
@@ -12,7 +11,7 @@ from tqdm import tqdm
 
 from lerobot_pnp.env_config import GYM_ID
 from lerobot_pnp.errors import ConfigError, ExpertFailure, UnreachableError
-from lerobot_pnp.expert import run_expert_episode
+from lerobot_pnp.expert import failure_cause, run_expert_episode
 
 
 @dataclass
@@ -25,14 +24,6 @@ class ExpertEvalConfig:
     def __post_init__(self):
         if self.n_episodes < 1:
             raise ConfigError(f"n_episodes must be >= 1, got {self.n_episodes}")
-
-
-def failure_cause(err: Exception) -> str:
-    """A short, groupable name for why an expert episode failed."""
-    if isinstance(err, UnreachableError):
-        return "unreachable"
-    match = re.search(r"expert failed: (\w+)", str(err))
-    return match.group(1) if match else type(err).__name__
 
 
 def evaluate_expert(cfg: ExpertEvalConfig) -> dict:

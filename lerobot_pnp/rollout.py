@@ -21,7 +21,8 @@ import numpy as np
 from lerobot_pnp import robot
 from lerobot_pnp.errors import ConfigError
 
-OBS_STATE, OBS_ENV, ACTION = "observation.state", "observation.environment_state", "action"
+from lerobot.utils.constants import ACTION, OBS_STATE
+from lerobot.utils.constants import OBS_ENV_STATE as OBS_ENV
 CONFIG_NAME = "config.json"
 
 

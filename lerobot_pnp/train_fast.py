@@ -47,9 +47,7 @@ from lerobot_pnp.policy import PnpLstmConfig, PnpLstmPolicy
 
 logger = logging.getLogger(__name__)
 
-OBS_STATE = "observation.state"
-OBS_ENV_STATE = "observation.environment_state"
-ACTION = "action"
+from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_STATE  # noqa: E402
 # The keyframe dataset's model features and their shapes (one source of truth: lerobot_pnp.robot).
 KEYFRAME_FEATURES: dict[str, tuple[int, ...]] = {
     OBS_STATE: (robot.STATE_DIM,),

@@ -70,7 +70,8 @@ from lerobot_pnp.errors import ConfigError, PnPError
 logger = logging.getLogger(__name__)
 
 APPLICATION_ID = "lerobot_pnp"
-OBS_STATE, OBS_ENV, ACTION = "observation.state", "observation.environment_state", "action"
+from lerobot.utils.constants import ACTION, OBS_STATE  # noqa: E402
+from lerobot.utils.constants import OBS_ENV_STATE as OBS_ENV  # noqa: E402
 PHASE_INDEX, EPISODE_SEED, SUCCESS = "phase.index", "episode.seed", "next.success"
 # Where the env settings of a dataset are looked for (``lerobot-pnp generate`` writes the first one).
 ENV_CONFIG_FILES = ("meta/pnp_generate.json", "meta/env_config.json")

@@ -318,7 +318,7 @@ def test_expert_failures_are_retried_with_disjoint_seeds_and_reported(tmp_path, 
 
     def flaky(env, seed, config=None):
         if seed == 1:
-            raise ExpertFailure(f"seed {seed}: expert failed: grasp_missed")
+            raise ExpertFailure(f"seed {seed}: expert failed: grasp_missed", "grasp_missed")
         if seed == 3:
             raise UnreachableError("no IK solution")
         return real(env, seed, config)

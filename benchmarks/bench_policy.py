@@ -1,0 +1,420 @@
+"""Policy benchmarks, measured side by side in one run.
+
+    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_policy.py [--quick] [--out outputs/bench_policy.json]
+
+a. Time to target (fast path): ``train_fast`` on the keyframe dataset with a checkpoint every
+   ``--ckpt_every`` epochs; each checkpoint is rolled out closed loop in-process with
+   ``lerobot_pnp.rollout.run_policy_episode`` (the same pipeline as ``lerobot-eval``: preprocess_observation
+   -> pre-processor -> select_action -> post-processor -> env.step) on ``--curve_episodes`` unseen seeds
+   (100000 + i; the dataset uses seeds < 20000). "Wall time to target" = from calling ``train_fast`` (dataset
+   load included) to the checkpoint file of the first checkpoint whose success >= ``--target`` %; the
+   evaluation time is not included (it is printed separately). In full mode that checkpoint is re-checked
+   with the real ``lerobot-eval`` (``demo.run_eval``) on ``--confirm_episodes`` episodes.
+b. The same number of optimiser steps through stock ``lerobot-train`` (subprocess, batch 64, num_workers 0)
+   and through the fast path: wall time of each, the ratio, and lerobot-train's start-up time (process start
+   to its "Start offline training" log line) and loop time, stamped from its output as it arrives.
+c. ``select_action`` latency of pnp_lstm at batch 1 and 50 next to LeRobot's ACT (default config, built on
+   the same features: observation.state 8, observation.environment_state 3, action 8). pnp_lstm: mean per
+   call over whole 10-step episodes (reset every 10 calls, so every call runs the LSTM). ACT: per model call
+   (first select_action after reset, which computes the 100-step chunk) and per step amortised over a full
+   chunk (100 select_action calls / 100). One torch thread for both, as everything here.
+d. Memory and feedback: the default recurrent policy vs the memoryless variant (``recurrent=False``, trained
+   the same way) under nominal / nudge 3 cm / noise (object 5 mm, joints 0.01 rad) / all together;
+   ``--robust_episodes`` episodes each, in-process rollouts (``--robust_backend lerobot-eval`` runs the real
+   ``lerobot-eval`` instead).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import re
+import shutil
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("HF_HUB_OFFLINE", "1")
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+import torch  # noqa: E402
+
+torch.set_num_threads(1)
+
+import lerobot_pnp  # noqa: E402,F401  (registers env + policy)
+
+EVAL_SEED = 100_000
+CONDITIONS = {
+    "nominal": {},
+    "nudge_3cm": {"nudge_max": 0.03},
+    "noise": {"obs_noise_object": 0.005, "obs_noise_joints": 0.01},
+    "all": {"nudge_max": 0.03, "obs_noise_object": 0.005, "obs_noise_joints": 0.01},
+}
+
+
+def log(msg: str) -> None:
+    print(msg, flush=True)
+
+
+# ---------------------------------------------------------------------------------------------- helpers
+_ENVS: dict = {}
+
+
+def _env(env_args: dict):
+    import gymnasium as gym
+
+    from lerobot_pnp.env_config import GYM_ID
+
+    key = json.dumps(env_args, sort_keys=True)
+    if key not in _ENVS:
+        _ENVS[key] = gym.make(GYM_ID, max_episode_steps=10, disable_env_checker=True, **env_args)
+    return _ENVS[key]
+
+
+def rollout_success(ckpt: Path, n_episodes: int, env_args: dict | None = None, seed: int = EVAL_SEED) -> dict:
+    """Closed-loop success (%) of a checkpoint over seeds seed .. seed + n - 1 (in-process rollouts)."""
+    from lerobot_pnp.rollout import load_policy, run_policy_episode
+
+    loaded = load_policy(ckpt)
+    env = _env(env_args or {})
+    start = time.perf_counter()
+    ok = sum(run_policy_episode(env, loaded, seed + i).success for i in range(n_episodes))
+    return {"pc_success": 100.0 * ok / n_episodes, "n_episodes": n_episodes, "eval_s": time.perf_counter() - start}
+
+
+def lerobot_eval_success(ckpt: Path, out: Path, n_episodes: int, env_args: dict | None = None) -> dict:
+    from lerobot_pnp.demo import EvalSpec, run_eval
+
+    if out.exists():
+        shutil.rmtree(out)
+    start = time.perf_counter()
+    res = run_eval(ckpt, out, EvalSpec(out.name, n_episodes, dict(env_args or {})), EVAL_SEED, 50)
+    res["eval_s"] = time.perf_counter() - start
+    return res
+
+
+def train(dataset: tuple[str, str], out: Path, progress: bool = False, **kwargs):
+    from lerobot_pnp.policy import PnpLstmConfig
+    from lerobot_pnp.train_fast import TrainFastConfig, train_fast
+
+    policy_kwargs = kwargs.pop("policy", {})
+    cfg = TrainFastConfig(dataset_repo_id=dataset[0], dataset_root=dataset[1], output_dir=str(out), overwrite=True,
+                          progress=progress, policy=PnpLstmConfig(**policy_kwargs), **kwargs)
+    if out.exists():
+        shutil.rmtree(out)
+    start_wall = time.time()
+    start = time.perf_counter()
+    result = train_fast(cfg)
+    return result, start_wall, time.perf_counter() - start
+
+
+def checkpoints(run_dir: Path) -> list[tuple[int, Path]]:
+    found = []
+    for d in (run_dir / "checkpoints").iterdir():
+        if d.name.isdigit() and (d / "pretrained_model" / "model.safetensors").is_file():
+            found.append((int(d.name), d / "pretrained_model"))
+    return sorted(found)
+
+
+# ---------------------------------------------------------------------------------------------- a
+def bench_time_to_target(args, dataset, work: Path) -> dict:
+    log(f"\n=== a. fast path: time to {args.target:.0f}% closed-loop success ===")
+    run_dir = work / "fast_recurrent"
+    result, start_wall, total_s = train(dataset, run_dir, epochs=args.epochs, save_every_epochs=args.ckpt_every,
+                                        seed=args.seed)
+    epoch_of_step = {h["step"]: h["epoch"] for h in result.history}
+    loop_time_of_step = {h["step"]: h["time_s"] for h in result.history}
+    log(f"trained {args.epochs} epochs ({result.steps} steps) in {total_s:.1f} s; "
+        f"final test MSE {result.final_test_mse:.3g}")
+    curve, reached = [], None
+    for step, ckpt in checkpoints(run_dir):
+        wall = (ckpt / "model.safetensors").stat().st_mtime - start_wall
+        is_last = step == result.steps
+        if reached is not None and not is_last:
+            continue  # after the target: only the final checkpoint is still evaluated
+        ev = rollout_success(ckpt, args.curve_episodes)
+        point = {"epoch": epoch_of_step.get(step), "step": step, "wall_s_since_start": wall,
+                 "train_loop_s": loop_time_of_step.get(step), "pc_success": ev["pc_success"],
+                 "n_episodes": ev["n_episodes"], "eval_s": ev["eval_s"], "checkpoint": str(ckpt)}
+        curve.append(point)
+        log(f"  epoch {point['epoch']:>4} step {step:>5}  wall {wall:6.1f} s  success {ev['pc_success']:5.1f}% "
+            f"({ev['n_episodes']} ep, eval {ev['eval_s']:.1f} s)")
+        if reached is None and ev["pc_success"] >= args.target:
+            reached = point
+    out = {"eval_method": f"in-process rollout.run_policy_episode on {args.curve_episodes} unseen seeds "
+                          f"{EVAL_SEED}..{EVAL_SEED + args.curve_episodes - 1}",
+           "epochs": args.epochs, "ckpt_every_epochs": args.ckpt_every, "train_total_s": total_s,
+           "final_test_mse": result.final_test_mse, "curve": curve, "target_pc": args.target,
+           "time_to_target_s": reached["wall_s_since_start"] if reached else None,
+           "epoch_at_target": reached["epoch"] if reached else None,
+           "final_checkpoint": str(result.checkpoint_dir)}
+    if reached and args.confirm_episodes > 0:
+        conf = lerobot_eval_success(Path(reached["checkpoint"]), work / "confirm_target", args.confirm_episodes)
+        out["confirm_lerobot_eval"] = conf
+        log(f"  lerobot-eval check of that checkpoint: {conf['pc_success']:.1f}% over {conf['n_episodes']} episodes")
+    return out
+
+
+# ---------------------------------------------------------------------------------------------- b
+_LOG_RE = re.compile(r"updt_s:([0-9.]+).*data_s:([0-9.]+)")
+
+
+def bench_vs_lerobot_train(args, dataset, work: Path) -> dict:
+    n = args.steps
+    log(f"\n=== b. {n} optimiser steps: stock lerobot-train vs fast path ===")
+    out_dir = work / "lerobot_train"
+    if out_dir.exists():
+        shutil.rmtree(out_dir)
+    cmd = [str(Path(sys.executable).with_name("lerobot-train")), f"--dataset.repo_id={dataset[0]}",
+           f"--dataset.root={dataset[1]}", "--dataset.video_backend=pyav", "--policy.type=pnp_lstm",
+           "--policy.device=cpu", "--policy.push_to_hub=false", f"--steps={n}", "--batch_size=64",
+           "--num_workers=0", f"--save_freq={n}", f"--log_freq={max(1, n // 5)}", "--env_eval_freq=0",
+           f"--seed={args.seed}", f"--output_dir={out_dir}"]
+    log(" ".join(cmd))
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                            env={**os.environ, "OMP_NUM_THREADS": "1"})
+    t_start_loop = t_end_loop = None
+    updt = data = None
+    tail: list[str] = []
+    assert proc.stdout is not None
+    for line in proc.stdout:
+        now = time.perf_counter() - t0
+        tail = (tail + [line])[-40:]
+        if t_start_loop is None and "Start offline training" in line:
+            t_start_loop = now
+        if "End of training" in line:
+            t_end_loop = now
+        m = _LOG_RE.search(line)
+        if m:
+            updt, data = float(m.group(1)), float(m.group(2))
+    rc = proc.wait()
+    lt_total = time.perf_counter() - t0
+    if rc != 0:
+        raise RuntimeError(f"lerobot-train failed ({rc}):\n{''.join(tail)}")
+    lt = {"wall_s": lt_total, "startup_s": t_start_loop, "loop_s": (t_end_loop or lt_total) - (t_start_loop or 0),
+          "steps_per_s_loop": n / ((t_end_loop or lt_total) - (t_start_loop or 0)),
+          "last_log_updt_s": updt, "last_log_data_s": data}
+    log(f"  lerobot-train: {lt_total:.1f} s total, start-up {t_start_loop or float('nan'):.1f} s, "
+        f"loop {lt['loop_s']:.1f} s ({lt['steps_per_s_loop']:.1f} steps/s; last log updt_s {updt} data_s {data})")
+
+    result, _, fast_total = train(dataset, work / "fast_steps", steps=n, seed=args.seed)
+    fast_loop = result.history[-1]["time_s"]
+    fast = {"wall_s": fast_total, "loop_s": fast_loop, "steps_per_s_loop": n / fast_loop, "steps": result.steps}
+    log(f"  fast path: {fast_total:.1f} s total (loop {fast_loop:.2f} s, {fast['steps_per_s_loop']:.0f} steps/s)")
+    ratio = lt_total / fast_total
+    loop_ratio = lt["loop_s"] / fast_loop
+    log(f"  ratio lerobot-train / fast: {ratio:.1f}x wall, {loop_ratio:.1f}x training loop")
+    return {"steps": n, "batch_size": 64, "lerobot_train": lt, "fast": fast, "ratio_wall": ratio,
+            "ratio_loop": loop_ratio,
+            "note": "lerobot-train: batch = 64 windows of 10 frames sampled from all episodes (per-frame windows); "
+                    "fast: batch = 64 whole 10-frame episodes of the train split, tensors preloaded"}
+
+
+# ---------------------------------------------------------------------------------------------- c
+def _time_calls(fn, n: int) -> list[float]:
+    out = []
+    for _ in range(n):
+        t = time.perf_counter()
+        fn()
+        out.append(time.perf_counter() - t)
+    return out
+
+
+def _ms(xs: list[float]) -> dict:
+    return {"mean_ms": 1e3 * statistics.fmean(xs), "median_ms": 1e3 * statistics.median(xs)}
+
+
+@torch.inference_mode()
+def bench_latency(args, ckpt: Path) -> dict:
+    from lerobot.configs import FeatureType, PolicyFeature
+    from lerobot.policies.act.configuration_act import ACTConfig
+    from lerobot.policies.act.modeling_act import ACTPolicy
+
+    from lerobot_pnp.rollout import load_policy
+
+    log("\n=== c. select_action latency (CPU, 1 torch thread) ===")
+    loaded = load_policy(ckpt)
+    pol = loaded.policy
+    reps = args.latency_reps
+    res: dict = {"pnp_lstm": {"params": sum(p.numel() for p in pol.parameters())}, "act": {}}
+    for bsz in (1, 50):
+        batch = {"observation.state": torch.randn(bsz, 8), "observation.environment_state": torch.randn(bsz, 3)}
+        for _ in range(3):  # warm-up
+            pol.reset()
+            pol.select_action(batch)
+        times = []
+        for _ in range(reps):
+            pol.reset()
+            times += _time_calls(lambda: pol.select_action(batch), 10)
+        res["pnp_lstm"][f"b{bsz}"] = _ms(times)
+        # The whole step as lerobot-eval runs it: pre-processor + select_action + post-processor.
+        raw = {"observation.state": torch.randn(bsz, 8), "observation.environment_state": torch.randn(bsz, 3),
+               "task": ["pick"] * bsz}
+
+        def full_step():
+            loaded.postprocessor(pol.select_action(loaded.preprocessor(dict(raw))))
+
+        times = []
+        for _ in range(reps):
+            pol.reset()
+            times += _time_calls(full_step, 10)
+        res["pnp_lstm"][f"b{bsz}_with_processors"] = _ms(times)
+
+    cfg = ACTConfig(device="cpu")
+    cfg.input_features = {"observation.state": PolicyFeature(FeatureType.STATE, (8,)),
+                          "observation.environment_state": PolicyFeature(FeatureType.ENV, (3,))}
+    cfg.output_features = {"action": PolicyFeature(FeatureType.ACTION, (8,))}
+    act = ACTPolicy(cfg).eval()
+    res["act"]["params"] = sum(p.numel() for p in act.parameters())
+    res["act"]["chunk_size"] = cfg.chunk_size
+    res["act"]["n_action_steps"] = cfg.n_action_steps
+    for bsz in (1, 50):
+        batch = {"observation.state": torch.randn(bsz, 8), "observation.environment_state": torch.randn(bsz, 3)}
+        act.reset()
+        act.select_action(batch)  # warm-up
+        calls = []
+        for _ in range(max(3, reps // 4)):
+            act.reset()
+            calls += _time_calls(lambda: act.select_action(batch), 1)
+        res["act"][f"b{bsz}_per_model_call"] = _ms(calls)
+        chunk = []
+        for _ in range(max(1, reps // 20)):
+            act.reset()
+            t = time.perf_counter()
+            for _ in range(cfg.n_action_steps):
+                act.select_action(batch)
+            chunk.append((time.perf_counter() - t) / cfg.n_action_steps)
+        res["act"][f"b{bsz}_per_step_amortised"] = _ms(chunk)
+    for name in ("pnp_lstm", "act"):
+        r = res[name]
+        log(f"  {name:9s} ({r['params'] / 1e6:.3f} M params): " + ", ".join(
+            f"{k} {v['mean_ms']:.3f} ms" for k, v in r.items() if isinstance(v, dict)))
+    return res
+
+
+# ---------------------------------------------------------------------------------------------- d
+def bench_memory_feedback(args, dataset, work: Path, recurrent_ckpt: Path) -> dict:
+    log(f"\n=== d. memory and feedback: recurrent vs memoryless, {args.robust_episodes} episodes each ===")
+    result, _, t = train(dataset, work / "fast_memoryless", epochs=args.epochs, seed=args.seed,
+                         policy={"recurrent": False})
+    log(f"  memoryless variant trained {args.epochs} epochs in {t:.1f} s (final test MSE {result.final_test_mse:.3g})")
+    models = {"recurrent": recurrent_ckpt, "memoryless": result.checkpoint_dir}
+    table: dict = {"eval_method": args.robust_backend, "n_episodes": args.robust_episodes,
+                   "conditions": CONDITIONS, "memoryless_final_test_mse": result.final_test_mse, "success": {}}
+    for model, ckpt in models.items():
+        table["success"][model] = {}
+        for cond, env_args in CONDITIONS.items():
+            if args.robust_backend == "lerobot-eval":
+                ev = lerobot_eval_success(ckpt, work / f"eval_{model}_{cond}", args.robust_episodes, env_args)
+            else:
+                ev = rollout_success(ckpt, args.robust_episodes, env_args)
+            table["success"][model][cond] = ev["pc_success"]
+            log(f"  {model:10s} {cond:10s} {ev['pc_success']:5.1f}%  ({ev['eval_s']:.1f} s)")
+    return table
+
+
+# ---------------------------------------------------------------------------------------------- main
+def print_summary(res: dict) -> None:
+    log("\n" + "=" * 78 + "\nSUMMARY (2-core CPU, 1 torch thread)\n" + "=" * 78)
+    a = res.get("a")
+    if a:
+        tt = a["time_to_target_s"]
+        log(f"a. fast path to >= {a['target_pc']:.0f}% success: "
+            + (f"{tt:.1f} s (epoch {a['epoch_at_target']})" if tt is not None else "NOT reached")
+            + f"   [{a['eval_method']}]")
+        log("   epoch | wall s | success %")
+        for p in a["curve"]:
+            log(f"   {p['epoch']:>5} | {p['wall_s_since_start']:6.1f} | {p['pc_success']:6.1f}")
+        if "confirm_lerobot_eval" in a:
+            c = a["confirm_lerobot_eval"]
+            log(f"   lerobot-eval check: {c['pc_success']:.1f}% over {c['n_episodes']} episodes")
+    b = res.get("b")
+    if b:
+        lt, fa = b["lerobot_train"], b["fast"]
+        log(f"b. {b['steps']} steps, batch 64      |  wall s | start-up s | loop s | steps/s (loop)")
+        log(f"   lerobot-train              | {lt['wall_s']:7.1f} | {lt['startup_s'] or float('nan'):10.1f} | "
+            f"{lt['loop_s']:6.1f} | {lt['steps_per_s_loop']:8.1f}")
+        log(f"   fast path                  | {fa['wall_s']:7.1f} |          - | {fa['loop_s']:6.2f} | "
+            f"{fa['steps_per_s_loop']:8.1f}")
+        log(f"   ratio: {b['ratio_wall']:.1f}x wall, {b['ratio_loop']:.1f}x loop")
+    c = res.get("c")
+    if c:
+        p, q = c["pnp_lstm"], c["act"]
+        log("c. select_action, mean ms     |   batch 1 |  batch 50")
+        log(f"   pnp_lstm per call          | {p['b1']['mean_ms']:9.3f} | {p['b50']['mean_ms']:9.3f}")
+        log(f"   pnp_lstm + processors      | {p['b1_with_processors']['mean_ms']:9.3f} | "
+            f"{p['b50_with_processors']['mean_ms']:9.3f}")
+        log(f"   ACT per model call         | {q['b1_per_model_call']['mean_ms']:9.3f} | "
+            f"{q['b50_per_model_call']['mean_ms']:9.3f}")
+        log(f"   ACT per step (chunk {q['n_action_steps']:>3})    | {q['b1_per_step_amortised']['mean_ms']:9.3f} | "
+            f"{q['b50_per_step_amortised']['mean_ms']:9.3f}")
+        log(f"   params: pnp_lstm {p['params']:,}, ACT {q['params']:,}")
+    d = res.get("d")
+    if d:
+        log(f"d. success % ({d['n_episodes']} episodes each, {d['eval_method']})")
+        log("   model      | " + " | ".join(f"{k:>9}" for k in CONDITIONS))
+        for model, row in d["success"].items():
+            log(f"   {model:10s} | " + " | ".join(f"{row[k]:9.1f}" for k in CONDITIONS))
+
+
+def main(argv: list[str] | None = None) -> dict:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], formatter_class=argparse.RawTextHelpFormatter)
+    p.add_argument("--dataset_root", default="outputs/demo/dataset")
+    p.add_argument("--repo_id", default="local/baxter_pnp_keyframe")
+    p.add_argument("--quick", action="store_true", help="small everything (a few minutes)")
+    p.add_argument("--sections", default="abcd", help="which of a, b, c, d to run (c and d need a)")
+    p.add_argument("--epochs", type=int, default=None, help="fast-path epochs (default 300; quick 60)")
+    p.add_argument("--ckpt_every", type=int, default=None, help="checkpoint every N epochs (default 10; quick 10)")
+    p.add_argument("--curve_episodes", type=int, default=None, help="rollouts per checkpoint (100; quick 30)")
+    p.add_argument("--confirm_episodes", type=int, default=None,
+                   help="lerobot-eval episodes to confirm the target checkpoint (200; quick 0 = skip)")
+    p.add_argument("--steps", type=int, default=None, help="optimiser steps for b (300; quick 50)")
+    p.add_argument("--latency_reps", type=int, default=None, help="10-step episodes timed in c (200; quick 40)")
+    p.add_argument("--robust_episodes", type=int, default=None, help="episodes per cell in d (200; quick 30)")
+    p.add_argument("--robust_backend", choices=("rollout", "lerobot-eval"), default="rollout")
+    p.add_argument("--target", type=float, default=98.0)
+    p.add_argument("--seed", type=int, default=1000)
+    p.add_argument("--workdir", default="outputs/bench_policy_work")
+    p.add_argument("--out", default="outputs/bench_policy.json")
+    args = p.parse_args(argv)
+    quick = args.quick
+    defaults = {"epochs": (300, 60), "ckpt_every": (10, 10), "curve_episodes": (100, 30),
+                "confirm_episodes": (200, 0), "steps": (300, 50), "latency_reps": (200, 40),
+                "robust_episodes": (200, 30)}
+    for k, (full, small) in defaults.items():
+        if getattr(args, k) is None:
+            setattr(args, k, small if quick else full)
+    root = Path(args.dataset_root)
+    if not (root / "meta" / "info.json").is_file():
+        p.error(f"no finished dataset at {root}: run `lerobot-pnp generate --root {root}` (or the demo) first")
+    dataset = (args.repo_id, str(root))
+    work = Path(args.workdir)
+    work.mkdir(parents=True, exist_ok=True)
+    res: dict = {"args": vars(args), "torch_threads": torch.get_num_threads(), "cpu_count": os.cpu_count()}
+    start = time.perf_counter()
+    if "a" in args.sections:
+        res["a"] = bench_time_to_target(args, dataset, work)
+    final_ckpt = Path(res["a"]["final_checkpoint"]) if "a" in res else None
+    if "b" in args.sections:
+        res["b"] = bench_vs_lerobot_train(args, dataset, work)
+    if "c" in args.sections and final_ckpt:
+        res["c"] = bench_latency(args, final_ckpt)
+    if "d" in args.sections and final_ckpt:
+        res["d"] = bench_memory_feedback(args, dataset, work, final_ckpt)
+    res["bench_wall_s"] = time.perf_counter() - start
+    print_summary(res)
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(res, indent=2, default=str))
+    log(f"\nnumbers: {out}  (bench wall {res['bench_wall_s']:.0f} s)")
+    return res
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,175 @@
+"""The ``lerobot-pnp`` console script, and the real CLIs end to end on a tiny scale.
+
+Fast tests call ``lerobot_pnp.cli.main([...])`` in-process (plus one subprocess call of the installed
+script). The ``slow`` test chains the real executables: ``lerobot-pnp generate`` -> ``lerobot-pnp train`` ->
+``lerobot-eval``, and checks that ``lerobot-eval`` refuses a checkpoint whose features do not fit the env.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from lerobot_pnp import cli
+
+BIN = Path(sys.executable).parent
+ENV = {**os.environ, "OMP_NUM_THREADS": "1", "HF_HUB_OFFLINE": "1", "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
+
+
+def _run(cmd: list[str], cwd: Path, timeout: float = 120) -> subprocess.CompletedProcess:
+    return subprocess.run(cmd, cwd=cwd, env=ENV, capture_output=True, text=True, timeout=timeout)
+
+
+def _exe(name: str) -> str:
+    path = BIN / name
+    if not path.exists():
+        pytest.skip(f"{name} is not installed next to {sys.executable}")
+    return str(path)
+
+
+# ---------------------------------------------------------------------------------------------- fast
+def test_help_lists_every_command(capsys):
+    assert cli.main(["--help"]) == 0
+    out = capsys.readouterr().out
+    for name in ("generate", "push", "train", "viz", "expert", "demo"):
+        assert f"  {name} " in out, f"{name!r} missing from --help:\n{out}"
+    assert cli.main([]) == 0  # no command: the same usage, not an error
+
+
+def test_help_subprocess(tmp_path):
+    proc = _run([_exe("lerobot-pnp"), "--help"], tmp_path, timeout=60)
+    assert proc.returncode == 0, proc.stderr
+    assert "usage: lerobot-pnp" in proc.stdout and "generate" in proc.stdout
+
+
+def test_unknown_command_exits_2(capsys):
+    assert cli.main(["frobnicate"]) == 2
+    err = capsys.readouterr().err
+    assert "unknown command 'frobnicate'" in err
+    assert "generate" in err  # the usage follows the message
+
+
+def _bad_value_outcome(argv: list[str], capsys) -> tuple[int, str]:
+    """(exit status, everything printed or raised) of ``cli.main(argv)``; an exception counts as status 1."""
+    try:
+        rc = cli.main(argv)
+        text = ""
+    except SystemExit as exc:  # argparse/draccus-style exit
+        rc, text = (exc.code if isinstance(exc.code, int) else 1), str(exc)
+    except Exception as exc:  # noqa: BLE001 - draccus wraps the config's own error
+        rc, chain = 1, []
+        while exc is not None:
+            chain.append(str(exc))
+            exc = exc.__cause__ or exc.__context__
+        text = "\n".join(chain)
+    captured = capsys.readouterr()
+    return rc, text + captured.out + captured.err
+
+
+@pytest.mark.parametrize(
+    ("argv", "field"),
+    [
+        (["generate", "--num_episodes=-1"], "num_episodes"),
+        (["generate", "--representation=bogus"], "representation"),
+        (["expert", "--n_episodes=0"], "n_episodes"),
+    ],
+)
+def test_bad_config_value_fails_naming_the_field(argv, field, tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)  # nothing may be written in the repo
+    rc, text = _bad_value_outcome([*argv, f"--root={tmp_path / 'ds'}"] if argv[0] == "generate" else argv, capsys)
+    assert rc != 0
+    assert field in text, text
+    assert not (tmp_path / "ds").exists()
+
+
+def test_bad_config_value_subprocess_message(tmp_path):
+    """The installed script exits non-zero and names the field; ideally with one line, not a traceback."""
+    proc = _run([_exe("lerobot-pnp"), "generate", "--num_episodes=-1", f"--root={tmp_path / 'ds'}"], tmp_path, 60)
+    assert proc.returncode != 0
+    assert "num_episodes must be an integer >= 1" in proc.stderr
+    if "Traceback" in proc.stderr:
+        pytest.xfail("lerobot-pnp prints a draccus traceback for a bad config value (cli.py parses outside try)")
+
+
+def test_expert_three_episodes(capsys):
+    assert cli.main(["expert", "--n_episodes", "3"]) == 0
+    out = capsys.readouterr().out
+    result = json.loads(out[out.index("{"):])
+    assert result["n_episodes"] == 3
+    assert result["success_rate"] == 1.0
+
+
+# ---------------------------------------------------------------------------------------------- slow
+def _write_mismatched_checkpoint(out: Path) -> None:
+    """A valid pnp_lstm checkpoint for a robot with 14 state dims (e.g. two arms): not this env's 8."""
+    import torch
+    from lerobot.configs import FeatureType, PolicyFeature
+    from lerobot.policies.factory import make_pre_post_processors
+
+    from lerobot_pnp.policy import PnpLstmConfig, PnpLstmPolicy
+
+    cfg = PnpLstmConfig(hidden_size=8)
+    cfg.input_features = {
+        "observation.state": PolicyFeature(FeatureType.STATE, (14,)),
+        "observation.environment_state": PolicyFeature(FeatureType.ENV, (3,)),
+    }
+    cfg.output_features = {"action": PolicyFeature(FeatureType.ACTION, (8,))}
+    policy = PnpLstmPolicy(cfg)
+
+    def unit(n: int) -> dict:
+        return {"mean": torch.zeros(n), "std": torch.ones(n)}
+
+    stats = {"observation.state": unit(14), "observation.environment_state": unit(3), "action": unit(8)}
+    pre, post = make_pre_post_processors(cfg, dataset_stats=stats)
+    for obj in (policy, pre, post):
+        obj.save_pretrained(out)
+
+
+def _eval_cmd(policy_path: Path, out: Path) -> list[str]:
+    return [
+        _exe("lerobot-eval"), f"--policy.path={policy_path}", "--env.type=baxter_pnp", "--eval.n_episodes=2",
+        "--eval.batch_size=2", "--eval.use_async_envs=false", "--policy.device=cpu", f"--output_dir={out}",
+    ]
+
+
+@pytest.mark.slow
+def test_end_to_end_real_clis(tmp_path):
+    pnp = _exe("lerobot-pnp")
+    ds = tmp_path / "ds"
+    proc = _run([pnp, "generate", "--repo_id=local/cli_e2e", f"--root={ds}", "--num_episodes=12", "--workers=1",
+                 "--progress=false"], tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    info = json.loads((ds / "meta" / "info.json").read_text())
+    assert info["total_episodes"] == 12 and info["splits"] == {"train": "0:10", "test": "10:12"}
+
+    train = tmp_path / "train"
+    proc = _run([pnp, "train", "--dataset_repo_id=local/cli_e2e", f"--dataset_root={ds}", "--epochs=3",
+                 f"--output_dir={train}", "--progress=false"], tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    ckpt = train / "checkpoints" / "last" / "pretrained_model"
+    for name in ("config.json", "model.safetensors", "train_config.json", "policy_preprocessor.json",
+                 "policy_postprocessor.json"):
+        assert (ckpt / name).is_file(), name
+
+    out = tmp_path / "eval"
+    proc = _run(_eval_cmd(ckpt, out), tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    overall = json.loads((out / "eval_info.json").read_text())["overall"]
+    assert "pc_success" in overall and 0.0 <= overall["pc_success"] <= 100.0
+    assert overall["n_episodes"] == 2
+
+    # A checkpoint trained for other features must not run, and must not write results.
+    bad = tmp_path / "bad_ckpt"
+    _write_mismatched_checkpoint(bad)
+    bad_out = tmp_path / "eval_bad"
+    proc = _run(_eval_cmd(bad, bad_out), tmp_path)
+    assert proc.returncode != 0
+    assert not (bad_out / "eval_info.json").exists()
+    # What happens today (lerobot 0.6.1): the normaliser fails deep in a traceback with
+    # "The size of tensor a (8) must match the size of tensor b (14)", naming neither the feature nor the env.
+    assert "size of tensor" in proc.stderr or "observation.state" in proc.stderr, proc.stderr[-3000:]
