@@ -131,7 +131,7 @@ def bench_time_to_target(args, dataset, work: Path) -> dict:
     loop_time_of_step = {h["step"]: h["time_s"] for h in result.history}
     log(f"trained {args.epochs} epochs ({result.steps} steps) in {total_s:.1f} s; "
         f"final test MSE {result.final_test_mse:.3g}")
-    curve, reached = [], None
+    curve, reached, n_confirms = [], None, 0
     for step, ckpt in checkpoints(run_dir):
         wall = (ckpt / "model.safetensors").stat().st_mtime - start_wall
         is_last = step == result.steps
@@ -145,6 +145,15 @@ def bench_time_to_target(args, dataset, work: Path) -> dict:
         log(f"  epoch {point['epoch']:>4} step {step:>5}  wall {wall:6.1f} s  success {ev['pc_success']:5.1f}% "
             f"({ev['n_episodes']} ep, eval {ev['eval_s']:.1f} s)")
         if reached is None and ev["pc_success"] >= args.target:
+            if args.confirm_episodes > 0 and n_confirms < 3:
+                # Re-check with the real lerobot-eval on more episodes; only a confirmed checkpoint counts.
+                n_confirms += 1
+                conf = lerobot_eval_success(ckpt, work / f"confirm_{step}", args.confirm_episodes)
+                point["confirm_lerobot_eval"] = conf
+                log(f"    lerobot-eval check: {conf['pc_success']:.1f}% over {conf['n_episodes']} episodes "
+                    f"({conf['eval_s']:.0f} s)")
+                if conf["pc_success"] < args.target:
+                    continue
             reached = point
     out = {"eval_method": f"in-process rollout.run_policy_episode on {args.curve_episodes} unseen seeds "
                           f"{EVAL_SEED}..{EVAL_SEED + args.curve_episodes - 1}",
@@ -153,10 +162,9 @@ def bench_time_to_target(args, dataset, work: Path) -> dict:
            "time_to_target_s": reached["wall_s_since_start"] if reached else None,
            "epoch_at_target": reached["epoch"] if reached else None,
            "final_checkpoint": str(result.checkpoint_dir)}
-    if reached and args.confirm_episodes > 0:
-        conf = lerobot_eval_success(Path(reached["checkpoint"]), work / "confirm_target", args.confirm_episodes)
-        out["confirm_lerobot_eval"] = conf
-        log(f"  lerobot-eval check of that checkpoint: {conf['pc_success']:.1f}% over {conf['n_episodes']} episodes")
+    out["target_rule"] = (f"first checkpoint with >= {args.target:.0f}% on the rollouts"
+                          + (f" and on a {args.confirm_episodes}-episode lerobot-eval check (at most 3 checks)"
+                             if args.confirm_episodes > 0 else ""))
     return out
 
 
@@ -328,12 +336,12 @@ def print_summary(res: dict) -> None:
         log(f"a. fast path to >= {a['target_pc']:.0f}% success: "
             + (f"{tt:.1f} s (epoch {a['epoch_at_target']})" if tt is not None else "NOT reached")
             + f"   [{a['eval_method']}]")
-        log("   epoch | wall s | success %")
+        log(f"   rule: {a['target_rule']}")
+        log("   epoch | wall s | success % | lerobot-eval check %")
         for p in a["curve"]:
-            log(f"   {p['epoch']:>5} | {p['wall_s_since_start']:6.1f} | {p['pc_success']:6.1f}")
-        if "confirm_lerobot_eval" in a:
-            c = a["confirm_lerobot_eval"]
-            log(f"   lerobot-eval check: {c['pc_success']:.1f}% over {c['n_episodes']} episodes")
+            c = p.get("confirm_lerobot_eval")
+            log(f"   {p['epoch']:>5} | {p['wall_s_since_start']:6.1f} | {p['pc_success']:9.1f} | "
+                + (f"{c['pc_success']:.1f} ({c['n_episodes']} ep)" if c else "-"))
     b = res.get("b")
     if b:
         lt, fa = b["lerobot_train"], b["fast"]
@@ -370,7 +378,7 @@ def main(argv: list[str] | None = None) -> dict:
     p.add_argument("--quick", action="store_true", help="small everything (a few minutes)")
     p.add_argument("--sections", default="abcd", help="which of a, b, c, d to run (c and d need a)")
     p.add_argument("--epochs", type=int, default=None, help="fast-path epochs (default 300; quick 60)")
-    p.add_argument("--ckpt_every", type=int, default=None, help="checkpoint every N epochs (default 10; quick 10)")
+    p.add_argument("--ckpt_every", type=int, default=None, help="checkpoint every N epochs (default 5; quick 10)")
     p.add_argument("--curve_episodes", type=int, default=None, help="rollouts per checkpoint (100; quick 30)")
     p.add_argument("--confirm_episodes", type=int, default=None,
                    help="lerobot-eval episodes to confirm the target checkpoint (200; quick 0 = skip)")
@@ -384,7 +392,7 @@ def main(argv: list[str] | None = None) -> dict:
     p.add_argument("--out", default="outputs/bench_policy.json")
     args = p.parse_args(argv)
     quick = args.quick
-    defaults = {"epochs": (300, 60), "ckpt_every": (10, 10), "curve_episodes": (100, 30),
+    defaults = {"epochs": (300, 60), "ckpt_every": (5, 10), "curve_episodes": (100, 30),
                 "confirm_episodes": (200, 0), "steps": (300, 50), "latency_reps": (200, 40),
                 "robust_episodes": (200, 30)}
     for k, (full, small) in defaults.items():

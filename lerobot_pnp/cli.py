@@ -60,9 +60,15 @@ def main(argv: list[str] | None = None) -> int:
     normalize = getattr(importlib.import_module(config_ref.split(":")[0]), "normalize_cli_args", None)
     if normalize is not None:
         args = normalize(args)
-    cfg = draccus.parse(config_class=config_cls, config_path=config_path, args=args)
     from lerobot_pnp.errors import PnPError
 
+    try:
+        cfg = draccus.parse(config_class=config_cls, config_path=config_path, args=args)
+    except (PnPError, draccus.utils.ParsingError, ValueError, TypeError, FileNotFoundError) as err:
+        # a config dataclass rejected a value (its message names the field), or the config file is unreadable
+        cause = err.__cause__ if isinstance(err.__cause__, PnPError) else err
+        print(f"lerobot-pnp {name}: invalid configuration: {cause}", file=sys.stderr)
+        return 2
     try:
         result = func(cfg)
     except PnPError as err:

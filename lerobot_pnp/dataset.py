@@ -757,9 +757,13 @@ def _data_table(root: Path):
 _INDEX_COLUMNS = ("index", "episode_index", "task_index")
 
 
-def verify_dataset(root: str | Path, expected_seeds: list[int] | None = None, rtol: float = 1e-4) -> dict:
+def verify_dataset(root: str | Path, expected_seeds: list[int] | None = None, rtol: float = 1e-3) -> dict:
     """validate_dataset + content checks: distinct episode seeds (in order, if given) and meta/stats.json
-    (mean/std/min/max/count of every numeric feature) equal to the statistics recomputed from the data."""
+    (mean/std/min/max/count of every numeric feature) equal to the statistics recomputed from the data.
+
+    ``rtol``: LeRobot combines per-episode float32 statistics, so a std over thousands of dense frames can
+    differ from the float64 recomputation by ~2e-4 relative; a lost or duplicated episode shows in the
+    count and seed checks, which are exact."""
     root = Path(root)
     info = validate_dataset(root)
     table = _data_table(root)
