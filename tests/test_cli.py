@@ -82,18 +82,18 @@ def _bad_value_outcome(argv: list[str], capsys) -> tuple[int, str]:
 def test_bad_config_value_fails_naming_the_field(argv, field, tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)  # nothing may be written in the repo
     rc, text = _bad_value_outcome([*argv, f"--root={tmp_path / 'ds'}"] if argv[0] == "generate" else argv, capsys)
-    assert rc != 0
+    assert rc == 2
     assert field in text, text
+    assert "Traceback" not in text
     assert not (tmp_path / "ds").exists()
 
 
 def test_bad_config_value_subprocess_message(tmp_path):
-    """The installed script exits non-zero and names the field; ideally with one line, not a traceback."""
+    """The installed script exits 2 with one line naming the field, not a traceback."""
     proc = _run([_exe("lerobot-pnp"), "generate", "--num_episodes=-1", f"--root={tmp_path / 'ds'}"], tmp_path, 60)
-    assert proc.returncode != 0
+    assert proc.returncode == 2
     assert "num_episodes must be an integer >= 1" in proc.stderr
-    if "Traceback" in proc.stderr:
-        pytest.xfail("lerobot-pnp prints a draccus traceback for a bad config value (cli.py parses outside try)")
+    assert "Traceback" not in proc.stderr, proc.stderr
 
 
 def test_expert_three_episodes(capsys):
