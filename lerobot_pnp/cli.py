@@ -74,6 +74,8 @@ def main(argv: list[str] | None = None) -> int:
     except PnPError as err:
         print(f"lerobot-pnp {name}: error: {err}", file=sys.stderr)
         return 1
+    if hasattr(result, "summary"):
+        result = result.summary()
     if result is not None:
         print(json.dumps(result, indent=2, default=str))
     return 0

@@ -128,6 +128,16 @@ class TrainFastResult:
     test_keyframe_error: dict[str, Any]
     history: list[dict[str, float]]
 
+    def summary(self) -> dict[str, Any]:
+        """What a person wants printed: where the checkpoint is and how good it is."""
+        return {
+            "checkpoint": str(self.checkpoint_dir),
+            "steps": self.steps,
+            "final_train_mse": self.final_train_mse,
+            "final_test_mse": self.final_test_mse,
+            "mean_joint_mae_deg": self.test_keyframe_error.get("mean_joint_mae_deg"),
+        }
+
 
 def policy_config_from_dict(policy: dict[str, Any]) -> PnpLstmConfig:
     """Build a ``PnpLstmConfig`` from the ``policy`` block of a LeRobot config JSON (draccus decoding)."""
@@ -494,10 +504,7 @@ def train_fast(cfg: TrainFastConfig) -> TrainFastResult:
 def main() -> None:
     logging.basicConfig(level=logging.INFO)
     cfg = draccus.parse(TrainFastConfig)
-    res = train_fast(cfg)
-    print(json.dumps({"checkpoint": str(res.checkpoint_dir), "final_train_mse": res.final_train_mse,
-                      "final_test_mse": res.final_test_mse,
-                      "mean_joint_mae_deg": res.test_keyframe_error.get("mean_joint_mae_deg")}, indent=2))
+    print(json.dumps(train_fast(cfg).summary(), indent=2))
 
 
 if __name__ == "__main__":

@@ -170,6 +170,6 @@ def test_end_to_end_real_clis(tmp_path):
     proc = _run(_eval_cmd(bad, bad_out), tmp_path)
     assert proc.returncode != 0
     assert not (bad_out / "eval_info.json").exists()
-    # What happens today (lerobot 0.6.1): the normaliser fails deep in a traceback with
-    # "The size of tensor a (8) must match the size of tensor b (14)", naming neither the feature nor the env.
-    assert "size of tensor" in proc.stderr or "observation.state" in proc.stderr, proc.stderr[-3000:]
+    # The policy's pre-processor names the feature and both shapes (not a bare tensor-size error).
+    assert "observation 'observation.state' has shape (2, 8)" in proc.stderr, proc.stderr[-3000:]
+    assert "trained on (14,)" in proc.stderr
