@@ -569,3 +569,15 @@ def test_lerobot_train_cli(dataset_root, tmp_path):
     assert policy.config.hidden_size == 16
     obs = {OBS_STATE: torch.zeros(2, 8), OBS_ENV: torch.zeros(2, 3)}
     assert torch.isfinite(policy.select_action(obs)).all()
+
+
+def test_loading_a_checkpoint_for_other_features_names_the_mismatch(trained):
+    """make_policy swaps in the env's output features; a different action size must fail clearly."""
+    from lerobot.configs import FeatureType, PolicyFeature
+
+    path = trained[0].checkpoint_dir
+    cfg = PnpLstmConfig.from_pretrained(path)
+    cfg.output_features = {"action": PolicyFeature(FeatureType.ACTION, (14,))}
+    with pytest.raises(ValueError, match=r"trained with action of shape \(8,\), but the env/dataset provides \(14,\)"):
+        PnpLstmPolicy.from_pretrained(path, config=cfg)
+    assert PnpLstmPolicy.from_pretrained(path, config=PnpLstmConfig.from_pretrained(path)) is not None

@@ -20,6 +20,7 @@ last action it predicted (the hold of the place-retract state). ``reset()`` clea
 from __future__ import annotations
 
 import logging
+from pathlib import Path
 from typing import Any
 
 import torch
@@ -61,6 +62,26 @@ class PnpLstmPolicy(PreTrainedPolicy):
 
     config_class = PnpLstmConfig
     name = "pnp_lstm"
+
+    @classmethod
+    def from_pretrained(cls, pretrained_name_or_path, *, config: PnpLstmConfig | None = None, **kwargs):
+        """LeRobot's loader, plus a clear error when the caller's features do not fit the checkpoint.
+
+        ``make_policy`` replaces the checkpoint's output features with the env's (or dataset's); without this
+        check a different action size surfaces as a bare state_dict size mismatch.
+        """
+        path = Path(str(pretrained_name_or_path))
+        if config is not None and (path / "config.json").is_file():
+            saved = PnpLstmConfig.from_pretrained(path)
+            for group in ("input_features", "output_features"):
+                for key, ft in (getattr(config, group) or {}).items():
+                    saved_ft = (getattr(saved, group) or {}).get(key)
+                    if saved_ft is not None and tuple(saved_ft.shape) != tuple(ft.shape):
+                        raise ValueError(
+                            f"pnp_lstm checkpoint {path} was trained with {key} of shape {tuple(saved_ft.shape)}, "
+                            f"but the env/dataset provides {tuple(ft.shape)}: it belongs to a different robot or task"
+                        )
+        return super().from_pretrained(pretrained_name_or_path, config=config, **kwargs)
 
     def __init__(self, config: PnpLstmConfig, dataset_stats: Any = None, dataset_meta: Any = None, **kwargs):
         super().__init__(config)
