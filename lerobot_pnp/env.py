@@ -203,7 +203,7 @@ class BaxterPnPEnv(gym.Env):
         d.ctrl[self._arm_act] = q
         d.ctrl[self._grip_act] = robot.FINGER_TRAVEL
         mujoco.mj_forward(m, d)
-        mujoco.mj_step(m, d, 50)  # let contacts settle (0.1 s)
+        mujoco.mj_step(m, d, round(0.1 / m.opt.timestep))  # let contacts settle (0.1 s)
         self._step_count = 0
         return self._get_obs(), self._get_info()
 

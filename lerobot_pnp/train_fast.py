@@ -62,7 +62,7 @@ FALLBACK_TEST_FRACTION = 0.2
 class TrainFastConfig:
     """Configuration of :func:`train_fast`. Defaults live here; ``from_train_config`` reads a ``lerobot-train`` JSON."""
 
-    dataset_repo_id: str = "lerobot_pnp/baxter_pnp_keyframe"
+    dataset_repo_id: str = "local/baxter_pnp_keyframe"
     dataset_root: str | None = None  # local dataset folder; None: LeRobot's cache / the Hub
     policy: PnpLstmConfig = field(default_factory=PnpLstmConfig)
     epochs: int = 300
