@@ -100,7 +100,8 @@ class BaxterPnPEnv(gym.Env):
         self._cube_body = m.body(robot.CUBE_BODY).id
         self._cube_geom = m.geom("cube").id
         self._pad_geoms = {m.geom("l_pad").id, m.geom("r_pad").id}
-        self._finger_body_ids = np.array([m.body(n).id for n in ("l_finger", "r_finger", "l_finger_tip", "r_finger_tip")])
+        self._is_finger_body = np.zeros(m.nbody, dtype=bool)
+        self._is_finger_body[[m.body(n).id for n in ("l_finger", "r_finger", "l_finger_tip", "r_finger_tip")]] = True
         self._ee_site = m.site(robot.EE_SITE).id
         target = m.site(robot.TARGET_SITE).id
         m.site_pos[target][:2] = self.task_config.place_xy
@@ -164,15 +165,17 @@ class BaxterPnPEnv(gym.Env):
         return self._pad_geoms.issubset(self._cube_contacts().tolist())
 
     def _gripper_touches_object(self) -> bool:
-        bodies = self.model.geom_bodyid[self._cube_contacts()]
-        return bool(np.isin(bodies, self._finger_body_ids).any())
+        return bool(self._is_finger_body[self.model.geom_bodyid[self._cube_contacts()]].any())
 
     def is_success(self) -> bool:
-        cube_pos, _ = self.object_pose()
+        """The task's success test (see TaskConfig.cube_placed / gripper_released) on the current state."""
+        cube_pos = self.data.xpos[self._cube_body]
         cube_speed = float(np.linalg.norm(self.data.qvel[self._cube_dofadr : self._cube_dofadr + 3]))
+        if not self.task_config.cube_placed(cube_pos, cube_speed):
+            return False
         pad_bottom = self.data.site_xpos[self._ee_site][2] - 0.0035
-        return self.task_config.is_success(
-            cube_pos, cube_speed, self._gripper_touches_object(), self.gripper_opening(), pad_bottom
+        return self.task_config.gripper_released(
+            cube_pos, self._gripper_touches_object(), self.gripper_opening(), pad_bottom
         )
 
     def state_vector(self) -> np.ndarray:

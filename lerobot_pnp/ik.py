@@ -49,6 +49,7 @@ class ArmIK:
         self._jac = np.zeros((6, robot.N_JOINTS))
         self._err = np.zeros(6)
         self._damp6 = damping * np.eye(6)
+        self._eye7 = np.eye(robot.N_JOINTS)
         self.posture = robot.NEUTRAL_Q.copy()
 
     def forward(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -94,8 +95,8 @@ class ArmIK:
             jjt = jac @ jac.T + self.damping * eye6
             dq = jac.T @ np.linalg.solve(jjt, err)
             # Null-space pull toward a comfortable posture keeps solutions continuous and away from limits.
-            # (exact projector, so the pull never leaks into the task error)
-            null = np.eye(7) - np.linalg.pinv(jac) @ jac
+            # (exact projector J^T (J J^T)^-1 J for a full-rank J, so the pull never leaks into the task error)
+            null = self._eye7 - jac.T @ np.linalg.solve(jac @ jac.T + 1e-12 * eye6, jac)
             dq += null @ (0.05 * (self.posture - q))
             step = np.max(np.abs(dq))
             if step > 0.3:

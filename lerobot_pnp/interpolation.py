@@ -18,7 +18,7 @@ from lerobot_pnp import robot
 
 MIN_MOVE_TIME = 0.2  # s
 PATH_KINDS = ("straight", "joint")
-_KNOTS = 12
+_KNOTS = 8
 _KNOT_S = np.linspace(0.0, 1.0, _KNOTS)
 
 
@@ -63,22 +63,34 @@ def _straightening(q0: np.ndarray, q1: np.ndarray, ik) -> np.ndarray:
     """Joint offsets at the knots (``_KNOT_S``) that put the path on the straight Cartesian segment."""
     p0, r0 = ik.forward(q0)
     p1, r1 = ik.forward(q1)
+    slerp = _Slerp(r0, r1)
     offsets = np.zeros((_KNOTS, 7))
     for k in range(1, _KNOTS - 1):
         u = _KNOT_S[k]
         q = q0 + u * (q1 - q0) + offsets[k - 1]
-        q = ik.refine(q, p0 + u * (p1 - p0), _slerp_rot(r0, r1, u), iters=2)
+        q = ik.refine(q, p0 + u * (p1 - p0), slerp(u), iters=2)
         offsets[k] = q - (q0 + u * (q1 - q0))
     return offsets
 
 
-def _slerp_rot(r0: np.ndarray, r1: np.ndarray, u: float) -> np.ndarray:
-    """Rotation a fraction ``u`` of the way from r0 to r1 (about the relative rotation's axis)."""
-    rel = r0.T @ r1
-    angle = math.acos(np.clip((np.trace(rel) - 1) / 2, -1.0, 1.0))
-    if angle < 1e-9:
-        return r0
-    axis = np.array([rel[2, 1] - rel[1, 2], rel[0, 2] - rel[2, 0], rel[1, 0] - rel[0, 1]]) / (2 * math.sin(angle))
-    a = u * angle
-    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
-    return r0 @ (np.eye(3) + math.sin(a) * k + (1 - math.cos(a)) * k @ k)
+class _Slerp:
+    """Rotations a fraction ``u`` of the way from r0 to r1 (about the relative rotation's fixed axis)."""
+
+    def __init__(self, r0: np.ndarray, r1: np.ndarray):
+        self.r0 = r0
+        rel = r0.T @ r1
+        self.angle = math.acos(np.clip((np.trace(rel) - 1) / 2, -1.0, 1.0))
+        if self.angle < 1e-9:
+            self.k = None
+            return
+        axis = np.array([rel[2, 1] - rel[1, 2], rel[0, 2] - rel[2, 0], rel[1, 0] - rel[0, 1]]) / (
+            2 * math.sin(self.angle)
+        )
+        self.k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+        self.k2 = self.k @ self.k
+
+    def __call__(self, u: float) -> np.ndarray:
+        if self.k is None:
+            return self.r0
+        a = u * self.angle
+        return self.r0 @ (np.eye(3) + math.sin(a) * self.k + (1 - math.cos(a)) * self.k2)

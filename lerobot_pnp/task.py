@@ -97,11 +97,14 @@ class TaskConfig:
         radius = self.nudge_max * np.sqrt(rng.uniform())
         return np.array([radius * np.cos(angle), radius * np.sin(angle), 0.0])
 
-    def is_success(self, cube_pos: np.ndarray, cube_speed: float, touching: bool, gripper_open: float,
-                   pad_bottom_z: float) -> bool:
-        """Cube resting on the table within tolerance of the target, released, and the gripper clear above it."""
+    # Success = cube_placed and gripper_released (split so the env can skip the contact query when not placed).
+    def cube_placed(self, cube_pos: np.ndarray, cube_speed: float) -> bool:
+        """Cube resting on the table within tolerance of the target."""
         on_target = np.linalg.norm(cube_pos[:2] - np.asarray(self.place_xy)) <= self.success_xy_tol
-        on_table = abs(cube_pos[2] - robot.CUBE_REST_Z) < 0.005 and cube_speed < 0.02
+        return bool(on_target and abs(cube_pos[2] - robot.CUBE_REST_Z) < 0.005 and cube_speed < 0.02)
+
+    @staticmethod
+    def gripper_released(cube_pos: np.ndarray, touching: bool, gripper_open: float, pad_bottom_z: float) -> bool:
+        """Fingers off the cube, gripper open, and the pads clear above the cube's top."""
         cube_top = cube_pos[2] + robot.CUBE_SIZE / 2
-        released = not touching and gripper_open > 0.5 and pad_bottom_z > cube_top + 0.01
-        return bool(on_target and on_table and released)
+        return bool(not touching and gripper_open > 0.5 and pad_bottom_z > cube_top + 0.01)
