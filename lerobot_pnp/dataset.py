@@ -55,7 +55,7 @@ from lerobot_pnp.errors import ConfigError, DatasetError, ExpertFailure, Unreach
 logger = logging.getLogger(__name__)
 
 REPRESENTATIONS = ("keyframe", "dense")
-KEYFRAME_FPS = 1
+KEYFRAME_FPS = robot.KEYFRAME_FPS
 ROBOT_TYPE = "baxter"
 WORK_DIR = ".pnp_work"
 TRASH_DIR = ".pnp_work.trash"

@@ -15,7 +15,7 @@ from lerobot_pnp.errors import ConfigError
 GYM_NAMESPACE = "lerobot_pnp"
 GYM_TASK = "BaxterPnP-v0"
 GYM_ID = f"{GYM_NAMESPACE}/{GYM_TASK}"
-KEYFRAME_FPS = 1  # nominal rate of a keyframe stream: one FSM state per frame
+KEYFRAME_FPS = robot.KEYFRAME_FPS
 DENSE_FPS = 20
 
 

@@ -9,6 +9,8 @@ from dataclasses import dataclass
 import gymnasium as gym
 from tqdm import tqdm
 
+from lerobot_pnp import robot
+from lerobot_pnp.env import CONTROL_MODES, DEFAULT_MAX_STEPS
 from lerobot_pnp.env_config import GYM_ID
 from lerobot_pnp.errors import ConfigError, ExpertFailure, UnreachableError
 from lerobot_pnp.expert import failure_cause, run_expert_episode
@@ -22,14 +24,17 @@ class ExpertEvalConfig:
     fps: int = 20  # dense mode only
 
     def __post_init__(self):
+        if self.control_mode not in CONTROL_MODES:
+            raise ConfigError(f"control_mode must be one of {CONTROL_MODES}, got {self.control_mode!r}")
         if self.n_episodes < 1:
             raise ConfigError(f"n_episodes must be >= 1, got {self.n_episodes}")
 
 
 def evaluate_expert(cfg: ExpertEvalConfig) -> dict:
     """Run the FSM expert on seeds ``seed .. seed + n_episodes - 1``; return the rate and failures by cause."""
-    env = gym.make(GYM_ID, control_mode=cfg.control_mode, fps=cfg.fps if cfg.control_mode == "dense" else 1,
-                   max_episode_steps=10 if cfg.control_mode == "keyframe" else 400)
+    env = gym.make(GYM_ID, control_mode=cfg.control_mode,
+                   fps=cfg.fps if cfg.control_mode == "dense" else robot.KEYFRAME_FPS,
+                   max_episode_steps=DEFAULT_MAX_STEPS[cfg.control_mode])
     causes: collections.Counter = collections.Counter()
     failed_seeds: dict[str, list[int]] = collections.defaultdict(list)
     start = time.perf_counter()

@@ -12,20 +12,20 @@ def register_all() -> None:
     import gymnasium as gym
 
     from lerobot_pnp.env import DEFAULT_MAX_STEPS
-    from lerobot_pnp.env_config import GYM_ID, GYM_NAMESPACE
+    from lerobot_pnp.env_config import DENSE_FPS, GYM_ID, GYM_NAMESPACE, KEYFRAME_FPS
 
     if GYM_ID not in gym.registry:
         gym.register(
             id=GYM_ID,
             entry_point="lerobot_pnp.env:BaxterPnPEnv",
             max_episode_steps=DEFAULT_MAX_STEPS["keyframe"],
-            kwargs={"control_mode": "keyframe", "fps": 1},
+            kwargs={"control_mode": "keyframe", "fps": KEYFRAME_FPS},
         )
         gym.register(
             id=f"{GYM_NAMESPACE}/BaxterPnPDense-v0",
             entry_point="lerobot_pnp.env:BaxterPnPEnv",
             max_episode_steps=DEFAULT_MAX_STEPS["dense"],
-            kwargs={"control_mode": "dense", "fps": 20},
+            kwargs={"control_mode": "dense", "fps": DENSE_FPS},
         )
     # LeRobot config registries (draccus choice registries) are filled by importing the modules.
     import lerobot_pnp.env_config  # noqa: F401

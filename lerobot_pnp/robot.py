@@ -49,6 +49,7 @@ PHASE_NAMES: tuple[str, ...] = tuple(f"pick/{p}" for p in PICK_PHASES) + tuple(
 )
 N_PHASES_PER_SUBTASK = 5
 N_KEYFRAMES = len(PHASE_NAMES)
+KEYFRAME_FPS = 1  # nominal frame rate of a keyframe stream (dataset and env): one FSM state per frame
 
 # Scene facts (Baxter base frame = MuJoCo world frame; see ../shared/notes/baxter.md).
 TABLE_TOP_Z = -0.155  # world z 0.775 with the base at 0.93

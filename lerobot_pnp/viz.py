@@ -66,6 +66,7 @@ import numpy as np
 
 from lerobot_pnp import robot
 from lerobot_pnp.errors import ConfigError, PnPError
+from lerobot_pnp.env_config import DENSE_FPS
 
 logger = logging.getLogger(__name__)
 
@@ -533,7 +534,7 @@ def _dataset_env_kwargs(ds) -> dict:
             keep = ("control_mode", "fps", "speed", "path", "task_config")
             return {k: cfg[k] for k in keep if k in cfg}
     fps = int(ds.fps)
-    return {"control_mode": "keyframe", "fps": 1} if fps <= 1 else {"control_mode": "dense", "fps": fps}
+    return {"control_mode": "keyframe", "fps": robot.KEYFRAME_FPS} if fps <= robot.KEYFRAME_FPS else {"control_mode": "dense", "fps": fps}
 
 
 def load_episode(ds, episode_index: int) -> EpisodeData:
@@ -652,7 +653,7 @@ def rollout_with_expert(loaded, seed: int, control_mode: str, hz: float, compare
     from lerobot_pnp.env import DEFAULT_MAX_STEPS
     from lerobot_pnp.rollout import run_policy_episode
 
-    env_kwargs = {"control_mode": control_mode, "fps": 1 if control_mode == "keyframe" else 20}
+    env_kwargs = {"control_mode": control_mode, "fps": robot.KEYFRAME_FPS if control_mode == "keyframe" else DENSE_FPS}
     env = make_env(env_kwargs)
     scene = SceneModel(env.model)
     sampler = Sampler(env, scene, hz)
@@ -876,7 +877,7 @@ def render_picture(
 
     from lerobot_pnp.expert import run_expert_episode
 
-    env = make_env({"control_mode": "keyframe", "fps": 1})
+    env = make_env({"control_mode": "keyframe", "fps": robot.KEYFRAME_FPS})
     ticks: list[tuple[int, np.ndarray, np.ndarray]] = []
     env.on_control_tick = lambda e: ticks.append((e._step_count, e.data.qpos.copy(), e.ee_pose()[0]))
     ep = run_expert_episode(env, seed)
