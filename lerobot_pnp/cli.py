@@ -9,6 +9,7 @@ from __future__ import annotations
 import importlib
 import json
 import sys
+import typing
 
 # name -> ("module:ConfigClass", "module:function", help)
 COMMANDS: dict[str, tuple[str, str, str]] = {
@@ -28,6 +29,43 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
 def _load(ref: str):
     module, name = ref.split(":")
     return getattr(importlib.import_module(module), name)
+
+
+_BOOL_WORDS = ("true", "false", "1", "0", "yes", "no")
+
+
+def normalize_args(config_cls, args: list[str]) -> list[str]:
+    """Accept the usual command-line spellings before draccus parses them, for every command alike.
+
+    ``--repo-id`` -> ``--repo_id``; a bare ``--resume`` for a bool field -> ``--resume=true``; several values
+    after a list field (``--episode-index 0 1``) -> ``--episode_index=[0,1]``. Field types come from the
+    command's config dataclass; nested fields (``--policy.path``) keep draccus's own syntax.
+    """
+    hints = typing.get_type_hints(config_cls)
+    bool_fields = {name for name, tp in hints.items() if tp is bool}
+    list_fields = {name for name, tp in hints.items() if "list[" in str(tp)}
+    out: list[str] = []
+    i = 0
+    while i < len(args):
+        arg = args[i]
+        if not arg.startswith("--"):
+            out.append(arg)
+            i += 1
+            continue
+        name, eq, val = arg[2:].partition("=")
+        name = name.replace("-", "_")
+        following = []
+        while not eq and i + 1 + len(following) < len(args) and not args[i + 1 + len(following)].startswith("--"):
+            following.append(args[i + 1 + len(following)])
+        if not eq and name in bool_fields and not (following and following[0].lower() in _BOOL_WORDS):
+            out.append(f"--{name}=true")
+        elif not eq and name in list_fields and following and "[" not in following[0]:
+            out.append(f"--{name}=[{','.join(v for f in following for v in f.replace(',', ' ').split())}]")
+            i += len(following)
+        else:
+            out.append(f"--{name}{eq}{val}")
+        i += 1
+    return out
 
 
 def _usage() -> str:
@@ -56,10 +94,7 @@ def main(argv: list[str] | None = None) -> int:
             config_path = arg.split("=", 1)[1] if "=" in arg else args[i + 1]
             args = args[:i] + args[i + (1 if "=" in arg else 2):]
             break
-    # A command may accept the issue-style spellings (--repo-id, --episode-index 0 1) by normalising argv.
-    normalize = getattr(importlib.import_module(config_ref.split(":")[0]), "normalize_cli_args", None)
-    if normalize is not None:
-        args = normalize(args)
+    args = normalize_args(config_cls, args)
     from lerobot_pnp.errors import PnPError
 
     try:

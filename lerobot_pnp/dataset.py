@@ -132,24 +132,7 @@ class GenerateConfig:
         }
 
 
-_BOOL_FLAGS = ("resume", "overwrite", "progress", "private", "push_videos")
 
-
-def normalize_cli_args(args: list[str]) -> list[str]:
-    """Accept the issue's spellings before draccus parses: bare ``--resume`` / ``--overwrite`` (-> ``=true``)
-    and hyphenated names (``--repo-id`` -> ``--repo_id``). Called by ``lerobot_pnp.cli``."""
-    out = []
-    for i, arg in enumerate(args):
-        if arg.startswith("--"):
-            name, eq, val = arg[2:].partition("=")
-            name = name.replace("-", "_")
-            nxt = args[i + 1] if i + 1 < len(args) else "--"
-            if not eq and name in _BOOL_FLAGS and (nxt.startswith("--") or nxt.lower() not in
-                                                   ("true", "false", "1", "0", "yes", "no")):
-                eq, val = "=", "true"
-            arg = f"--{name}{eq}{val}"
-        out.append(arg)
-    return out
 
 
 @dataclass

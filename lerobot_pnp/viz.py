@@ -162,34 +162,6 @@ def _episode_list(value: Any) -> list[int]:
     return value
 
 
-def normalize_cli_args(args: list[str]) -> list[str]:
-    """Accept the issue's spellings: ``--repo-id`` -> ``--repo_id``, ``--episode-index 0 1`` -> a list.
-
-    ``lerobot_pnp.cli`` may call this before draccus parses the flags.
-    """
-    out: list[str] = []
-    i = 0
-    while i < len(args):
-        arg = args[i]
-        if arg.startswith("--"):
-            name, eq, val = arg[2:].partition("=")
-            name = name.replace("-", "_")
-            if name == "episode_index" and not eq:
-                vals = []
-                while i + 1 < len(args) and not args[i + 1].startswith("--"):
-                    vals.append(args[i + 1])
-                    i += 1
-                joined = " ".join(vals)
-                if "[" not in joined:
-                    joined = "[" + ",".join(joined.replace(",", " ").split()) + "]"
-                out.append(f"--episode_index={joined}")
-                i += 1
-                continue
-            arg = f"--{name}{eq}{val}"
-        out.append(arg)
-        i += 1
-    return out
-
 
 # ---------------------------------------------------------------------------------------------- scene
 def _quat_xyzw(q_wxyz: np.ndarray) -> np.ndarray:

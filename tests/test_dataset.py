@@ -341,7 +341,7 @@ def test_config_validation():
     with pytest.raises(ConfigError):
         GenerateConfig(resume=True, overwrite=True)
     assert GenerateConfig().fps == 1 and GenerateConfig().num_episodes == 1400
-    from lerobot_pnp.dataset import normalize_cli_args
+    from lerobot_pnp.cli import normalize_args
 
-    assert normalize_cli_args(["--repo-id", "a/b", "--resume", "--num-episodes=3", "--overwrite", "false"]) == [
+    assert normalize_args(GenerateConfig, ["--repo-id", "a/b", "--resume", "--num-episodes=3", "--overwrite", "false"]) == [
         "--repo_id", "a/b", "--resume=true", "--num_episodes=3", "--overwrite", "false"]

@@ -296,12 +296,20 @@ def test_cli_viz_saves_recording(dataset, policy_dir, tmp_path, capsys):
 
 
 def test_normalize_cli_args():
-    from lerobot_pnp.viz import VizConfig, normalize_cli_args
+    from lerobot_pnp.cli import normalize_args
+    from lerobot_pnp.viz import VizConfig
+
+    def normalize_cli_args(args):
+        return normalize_args(VizConfig, args)
 
     args = normalize_cli_args(["--repo-id", "a/b", "--episode-index", "0", "2", "--policy.path=/p", "--save", "x.rrd"])
     assert args == ["--repo_id", "a/b", "--episode_index=[0,2]", "--policy.path=/p", "--save", "x.rrd"]
     assert normalize_cli_args(["--episode-index", "3"]) == ["--episode_index=[3]"]
-    assert normalize_cli_args(["--episode_index", "[1, 4]"]) == ["--episode_index=[1, 4]"]
+    assert normalize_cli_args(["--episode_index", "[1, 4]"]) == ["--episode_index", "[1, 4]"]
+    import draccus
+
+    for argv in (["--episode-index", "1", "4"], ["--episode_index", "[1, 4]"], ["--episode_index=[1,4]"]):
+        assert draccus.parse(VizConfig, args=normalize_cli_args(argv)).episode_index == [1, 4]
     assert VizConfig(episode_index="0, 2").episode_index == [0, 2]
     assert VizConfig(episode_index=3).episode_index == [3]
     assert VizConfig(policy={"path": "/p"}).policy_path == "/p"
