@@ -871,8 +871,8 @@ def render_picture(
     if camera == "view":
         cam = mujoco.MjvCamera()
         cam.type = mujoco.mjtCamera.mjCAMERA_FREE
-        cam.lookat[:] = (0.55, 0.12, -0.08)
-        cam.distance, cam.azimuth, cam.elevation = 1.05, 205.0, -38.0
+        cam.lookat[:] = (0.55, 0.2, 0.0)
+        cam.distance, cam.azimuth, cam.elevation = 1.6, 120.0, -25.0
         renderer.update_scene(d, camera=cam)
     else:
         renderer.update_scene(d, camera=camera)
