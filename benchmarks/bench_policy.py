@@ -68,11 +68,14 @@ _ENVS: dict = {}
 def _env(env_args: dict):
     import gymnasium as gym
 
+    from lerobot_pnp.env import DEFAULT_MAX_STEPS
     from lerobot_pnp.env_config import GYM_ID
 
     key = json.dumps(env_args, sort_keys=True)
     if key not in _ENVS:
-        _ENVS[key] = gym.make(GYM_ID, max_episode_steps=10, disable_env_checker=True, **env_args)
+        _ENVS[key] = gym.make(
+            GYM_ID, max_episode_steps=DEFAULT_MAX_STEPS["keyframe"], disable_env_checker=True, **env_args
+        )
     return _ENVS[key]
 
 

@@ -23,6 +23,7 @@ import numpy as np  # noqa: E402
 
 import lerobot_pnp  # noqa: E402,F401
 from lerobot_pnp import robot  # noqa: E402
+from lerobot_pnp.env_config import DENSE_GYM_ID, GYM_ID  # noqa: E402
 from lerobot_pnp.expert import run_expert_episode  # noqa: E402
 
 
@@ -80,8 +81,7 @@ def main() -> None:
     args = parser.parse_args()
     rate = raw_step_rate()
     print(f"raw mj_step rate: {rate:,.0f} steps/s ({1e6 / rate:.1f} us/step)")
-    for name, gym_id, n in (("keyframe", "lerobot_pnp/BaxterPnP-v0", args.episodes),
-                            ("dense", "lerobot_pnp/BaxterPnPDense-v0", max(10, args.episodes // 4))):
+    for name, gym_id, n in (("keyframe", GYM_ID, args.episodes), ("dense", DENSE_GYM_ID, max(10, args.episodes // 4))):
         r = expert_rate(gym_id, n, rate)
         overhead = r["wall_over_physics"] - 1
         print(

@@ -206,12 +206,15 @@ def _get_env(env_kwargs: dict):
     key = json.dumps(env_kwargs, sort_keys=True, default=list)
     if key not in _ENV_CACHE:
         kwargs = dict(env_kwargs)
+        from lerobot_pnp.env import DEFAULT_MAX_STEPS
+        from lerobot_pnp.env_config import DENSE_GYM_ID, GYM_ID
+
         if kwargs["control_mode"] == "dense":
-            gym_id = "lerobot_pnp/BaxterPnPDense-v0"
+            gym_id = DENSE_GYM_ID
             # ~8 s of motion at any rate, with a wide margin.
-            max_steps = max(400, 30 * kwargs["fps"])
+            max_steps = max(DEFAULT_MAX_STEPS["dense"], 30 * kwargs["fps"])
         else:
-            gym_id, max_steps = "lerobot_pnp/BaxterPnP-v0", 10
+            gym_id, max_steps = GYM_ID, DEFAULT_MAX_STEPS["keyframe"]
         env = gym.make(gym_id, max_episode_steps=max_steps, disable_env_checker=True, **kwargs)
         if kwargs["cameras"]:
             env = _PixelRecorder(env)
@@ -728,6 +731,19 @@ def validate_dataset(root: str | Path) -> dict:
     return info
 
 
+def open_local_dataset(repo_id: str, root: str | Path | None):
+    """Open a dataset with LeRobot's loader (PyAV video backend, no torchcodec probe).
+
+    With a local ``root`` the folder is validated first, so a missing, interrupted or corrupt dataset is a
+    clear DatasetError instead of LeRobot falling back to downloading ``repo_id`` from the Hub.
+    """
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    if root is not None:
+        validate_dataset(root)
+    return LeRobotDataset(repo_id, root=root, video_backend="pyav")
+
+
 def _data_table(root: Path):
     import pyarrow as pa
 
@@ -815,7 +831,7 @@ def push(cfg: PushConfig) -> dict:
     from urllib.parse import urlparse
 
     root = cfg.output_root.resolve()
-    validate_dataset(root)
+    ds = open_local_dataset(cfg.repo_id, root)  # validates the folder first
     from huggingface_hub import constants, get_token
 
     if constants.HF_HUB_OFFLINE:
@@ -829,9 +845,6 @@ def push(cfg: PushConfig) -> dict:
             pass
     except OSError as err:
         raise DatasetError(f"cannot push: the Hub at {constants.ENDPOINT} is unreachable ({err})") from None
-    from lerobot.datasets.lerobot_dataset import LeRobotDataset
-
-    ds = LeRobotDataset(cfg.repo_id, root=root, video_backend="pyav")
     try:
         ds.push_to_hub(branch=cfg.branch, private=cfg.private, push_videos=cfg.push_videos)
     except Exception as err:

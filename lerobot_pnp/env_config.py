@@ -14,7 +14,8 @@ from lerobot_pnp.errors import ConfigError
 
 GYM_NAMESPACE = "lerobot_pnp"
 GYM_TASK = "BaxterPnP-v0"
-GYM_ID = f"{GYM_NAMESPACE}/{GYM_TASK}"
+GYM_ID = f"{GYM_NAMESPACE}/{GYM_TASK}"  # keyframe control (the paper's)
+DENSE_GYM_ID = f"{GYM_NAMESPACE}/BaxterPnPDense-v0"  # dense control at DENSE_FPS
 KEYFRAME_FPS = robot.KEYFRAME_FPS
 DENSE_FPS = 20
 

@@ -12,7 +12,7 @@ def register_all() -> None:
     import gymnasium as gym
 
     from lerobot_pnp.env import DEFAULT_MAX_STEPS
-    from lerobot_pnp.env_config import DENSE_FPS, GYM_ID, GYM_NAMESPACE, KEYFRAME_FPS
+    from lerobot_pnp.env_config import DENSE_FPS, DENSE_GYM_ID, GYM_ID, KEYFRAME_FPS
 
     if GYM_ID not in gym.registry:
         gym.register(
@@ -22,7 +22,7 @@ def register_all() -> None:
             kwargs={"control_mode": "keyframe", "fps": KEYFRAME_FPS},
         )
         gym.register(
-            id=f"{GYM_NAMESPACE}/BaxterPnPDense-v0",
+            id=DENSE_GYM_ID,
             entry_point="lerobot_pnp.env:BaxterPnPEnv",
             max_episode_steps=DEFAULT_MAX_STEPS["dense"],
             kwargs={"control_mode": "dense", "fps": DENSE_FPS},

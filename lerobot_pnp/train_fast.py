@@ -228,9 +228,9 @@ def load_keyframe_data(
     repo_id: str, root: str | Path | None, test_override: str | None = None
 ) -> tuple[Any, KeyframeData]:
     """Load a keyframe LeRobotDataset into tensors. Returns ``(dataset, data)``."""
-    from lerobot.datasets import LeRobotDataset
+    from lerobot_pnp.dataset import open_local_dataset
 
-    ds = LeRobotDataset(repo_id, root=root, video_backend="pyav")
+    ds = open_local_dataset(repo_id, root)
     validate_keyframe_dataset(ds.meta)
     t_ep = robot.N_KEYFRAMES
     cols = [OBS_STATE, OBS_ENV_STATE, ACTION, "episode_index", "frame_index"]

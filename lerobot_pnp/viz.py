@@ -473,14 +473,6 @@ class EpisodeData:
     env_kwargs: dict
 
 
-def _quiet_lerobot_dataset(repo_id: str, root: str | None, **kwargs):
-    from lerobot.datasets.lerobot_dataset import LeRobotDataset
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        return LeRobotDataset(repo_id, root=root, video_backend="pyav", **kwargs)
-
-
 def open_dataset(repo_id: str, root: str | None):
     """Open a LeRobotDataset; a missing local folder is a ``DatasetNotFoundError`` (no Hub download)."""
     if root is not None:
@@ -490,7 +482,11 @@ def open_dataset(repo_id: str, root: str | None):
                 f"no LeRobot dataset at root={root!r} (missing {info}); generate one with `lerobot-pnp generate`"
             )
     try:
-        return _quiet_lerobot_dataset(repo_id, root)
+        from lerobot_pnp.dataset import open_local_dataset
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return open_local_dataset(repo_id, root)
     except Exception as err:
         raise DatasetNotFoundError(f"cannot open dataset repo_id={repo_id!r} root={root!r}: {err}") from err
 

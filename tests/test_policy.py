@@ -581,3 +581,14 @@ def test_loading_a_checkpoint_for_other_features_names_the_mismatch(trained):
     with pytest.raises(ValueError, match=r"trained with action of shape \(8,\), but the env/dataset provides \(14,\)"):
         PnpLstmPolicy.from_pretrained(path, config=cfg)
     assert PnpLstmPolicy.from_pretrained(path, config=PnpLstmConfig.from_pretrained(path)) is not None
+
+
+def test_train_fast_on_a_missing_local_dataset_is_a_clear_error(tmp_path):
+    """A wrong --dataset_root must not fall back to downloading repo_id from the Hub."""
+    from lerobot_pnp.errors import DatasetError
+
+    cfg = TrainFastConfig(dataset_repo_id="local/nothing", dataset_root=str(tmp_path / "missing"), epochs=1,
+                          output_dir=str(tmp_path / "out"), progress=False)
+    with pytest.raises(DatasetError, match="no dataset at"):
+        train_fast(cfg)
+    assert not (tmp_path / "out").exists()
