@@ -66,16 +66,11 @@ _ENVS: dict = {}
 
 
 def _env(env_args: dict):
-    import gymnasium as gym
-
-    from lerobot_pnp.env import DEFAULT_MAX_STEPS
-    from lerobot_pnp.env_config import GYM_ID
+    from lerobot_pnp.env_config import make_env
 
     key = json.dumps(env_args, sort_keys=True)
     if key not in _ENVS:
-        _ENVS[key] = gym.make(
-            GYM_ID, max_episode_steps=DEFAULT_MAX_STEPS["keyframe"], disable_env_checker=True, **env_args
-        )
+        _ENVS[key] = make_env(render_mode=None, **env_args)
     return _ENVS[key]
 
 

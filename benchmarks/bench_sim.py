@@ -23,7 +23,7 @@ import numpy as np  # noqa: E402
 
 import lerobot_pnp  # noqa: E402,F401
 from lerobot_pnp import robot  # noqa: E402
-from lerobot_pnp.env_config import DENSE_GYM_ID, GYM_ID  # noqa: E402
+from lerobot_pnp.env_config import make_env  # noqa: E402
 from lerobot_pnp.expert import run_expert_episode  # noqa: E402
 
 
@@ -52,9 +52,9 @@ class _TimedStep:
         self.seconds += time.perf_counter() - start
 
 
-def expert_rate(gym_id: str, episodes: int, step_rate: float) -> dict:
-    env = gym.make(gym_id)
-    base = env.unwrapped
+def expert_rate(control_mode: str, episodes: int, step_rate: float) -> dict:
+    env = make_env(control_mode=control_mode, render_mode=None)
+    physics = env.unwrapped.physics
     run_expert_episode(env, seed=10_000)  # warm-up
     timed = _TimedStep()
     mujoco.mj_step = timed
@@ -64,7 +64,7 @@ def expert_rate(gym_id: str, episodes: int, step_rate: float) -> dict:
             start = time.perf_counter()
             run_expert_episode(env, seed=seed)
             wall += time.perf_counter() - start
-            physics_steps += round(base.data.time / base.model.opt.timestep)
+            physics_steps += round(physics.data.time / physics.timestep)
     finally:
         mujoco.mj_step = timed.inner
     return {
@@ -81,7 +81,7 @@ def main() -> None:
     args = parser.parse_args()
     rate = raw_step_rate()
     print(f"raw mj_step rate: {rate:,.0f} steps/s ({1e6 / rate:.1f} us/step)")
-    for name, gym_id, n in (("keyframe", GYM_ID, args.episodes), ("dense", DENSE_GYM_ID, max(10, args.episodes // 4))):
+    for name, gym_id, n in (("keyframe", "keyframe", args.episodes), ("dense", "dense", max(10, args.episodes // 4))):
         r = expert_rate(gym_id, n, rate)
         overhead = r["wall_over_physics"] - 1
         print(

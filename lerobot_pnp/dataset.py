@@ -101,7 +101,7 @@ class GenerateConfig:
             self.fps = KEYFRAME_FPS
         elif not 1 <= self.fps <= 500:
             raise ConfigError(f"fps must be in [1, 500], got {self.fps}")
-        from lerobot_pnp.env import CAMERAS
+        from lerobot_pnp.physics import CAMERAS
 
         self.cameras = list(self.cameras or [])
         unknown = [c for c in self.cameras if c not in CAMERAS]
@@ -206,16 +206,11 @@ def _get_env(env_kwargs: dict):
     key = json.dumps(env_kwargs, sort_keys=True, default=list)
     if key not in _ENV_CACHE:
         kwargs = dict(env_kwargs)
-        from lerobot_pnp.env import DEFAULT_MAX_STEPS
-        from lerobot_pnp.env_config import DENSE_GYM_ID, GYM_ID
+        from lerobot_pnp.env_config import make_env
 
-        if kwargs["control_mode"] == "dense":
-            gym_id = DENSE_GYM_ID
-            # ~8 s of motion at any rate, with a wide margin.
-            max_steps = max(DEFAULT_MAX_STEPS["dense"], 30 * kwargs["fps"])
-        else:
-            gym_id, max_steps = GYM_ID, DEFAULT_MAX_STEPS["keyframe"]
-        env = gym.make(gym_id, max_episode_steps=max_steps, disable_env_checker=True, **kwargs)
+        h, w = kwargs["image_size"]
+        env = make_env(None, control_mode=kwargs["control_mode"], fps=kwargs["fps"], cameras=list(kwargs["cameras"]),
+                       image_height=h, image_width=w, speed=kwargs["speed"])
         if kwargs["cameras"]:
             env = _PixelRecorder(env)
         _ENV_CACHE[key] = env

@@ -1,87 +1,289 @@
-"""LeRobot env config ``baxter_pnp``: lets ``lerobot-eval``/``lerobot-train`` build the env (vectorised)."""
+"""The one description of the task: the LeRobot env config ``baxter_pnp``.
+
+Every env in this project is built from a ``BaxterPnPEnvConfig`` through ``make_env`` (``lerobot-eval`` and
+``lerobot-train`` build it through ``create_envs``, which calls the same ``gym.make`` with ``gym_kwargs``;
+``gym.make("lerobot_pnp/BaxterPnP-v0", **fields)`` is the same path).
+It holds the whole task: where the object and the gripper start, where the object goes, the perturbations,
+the control mode and the episode length. Every field is a flag (``--env.<field>``) and a key of the JSON
+files under ``configs/``.
+
+Task fields default to ``None``, which means "not set here". They are resolved once, in this order:
+
+1. the named preset (``--env.preset``; ``paper`` = the paper's task),
+2. unless a preset was named explicitly, the task recorded with the data the run uses
+   (``task_source``: a dataset folder or a checkpoint; on the command line of ``lerobot-train`` it is
+   ``--dataset.root`` and of ``lerobot-eval`` ``--policy.path``, so a policy trained on a dataset with a
+   non-default task is evaluated on that task with no extra flag),
+3. fields given explicitly.
+
+A generated dataset stores the resolved config in ``meta/baxter_pnp_env.json`` (``write_recorded``).
+"""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import json
+import math
+import sys
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Any
 
 from lerobot.configs import FeatureType, PolicyFeature
 from lerobot.envs.configs import EnvConfig
 from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_IMAGES, OBS_STATE
 
 from lerobot_pnp import robot
-from lerobot_pnp.env import CAMERAS, CONTROL_MODES, DEFAULT_MAX_STEPS
 from lerobot_pnp.errors import ConfigError
+from lerobot_pnp.physics import CAMERAS
 
+ENV_TYPE = "baxter_pnp"
 GYM_NAMESPACE = "lerobot_pnp"
 GYM_TASK = "BaxterPnP-v0"
-GYM_ID = f"{GYM_NAMESPACE}/{GYM_TASK}"  # keyframe control (the paper's)
-DENSE_GYM_ID = f"{GYM_NAMESPACE}/BaxterPnPDense-v0"  # dense control at DENSE_FPS
+GYM_ID = f"{GYM_NAMESPACE}/{GYM_TASK}"
+CONTROL_MODES = ("keyframe", "dense")
 KEYFRAME_FPS = robot.KEYFRAME_FPS
 DENSE_FPS = 20
+KEYFRAME_EPISODE_LENGTH = robot.N_KEYFRAMES  # the paper's 10 FSM states
+DENSE_EPISODE_SECONDS = 30  # dense episodes: 30 s of control (the expert needs about 12 s)
+RECORDED_FILE = "meta/baxter_pnp_env.json"
+
+# The task fields and their values in each preset (fields not listed keep the "paper" value).
+PAPER_TASK: dict[str, Any] = {
+    "object_low": (0.45, 0.10),  # object xy box (m, base frame); fully reachable gripper-down
+    "object_high": (0.75, 0.50),
+    "yaw_range": (0.0, 0.0),  # object yaw (rad); the paper varies position only
+    "place_xy": (0.60, -0.05),  # the place target, outside the object box (no episode starts solved)
+    "start_low": (0.45, 0.0, 0.05),  # the gripper (pointing down) starts at a random point of this box
+    "start_high": (0.75, 0.45, 0.25),
+    "hover_height": 0.15,  # the paper's h: approach / retract height above the object
+    "success_xy_tol": 0.02,  # object within this distance (xy) of the target counts as placed
+    "nudge_max": 0.0,  # perturbation: object pushed by up to this (m, xy) after `nudge_at_step` steps
+    "nudge_at_step": 1,
+    "obs_noise_object": 0.0,  # Gaussian observation noise (std) on the object position (m)
+    "obs_noise_joints": 0.0,  # ... and on the joint angles (rad)
+}
+PRESETS: dict[str, dict[str, Any]] = {"paper": PAPER_TASK}
+TASK_FIELDS = tuple(PAPER_TASK)
+_PAIRS = (("object_low", "object_high"), ("start_low", "start_high"))
 
 
-@EnvConfig.register_subclass("baxter_pnp")
+@EnvConfig.register_subclass(ENV_TYPE)
 @dataclass
 class BaxterPnPEnvConfig(EnvConfig):
-    """``--env.type=baxter_pnp``. ``fps`` defaults to 1 in keyframe mode and 20 in dense mode."""
+    """``--env.type=baxter_pnp``: Baxter pick-and-place, the whole task in one place (see module doc)."""
 
-    task: str | None = GYM_TASK
-    fps: int | None = None
-    control_mode: str = "keyframe"
-    episode_length: int | None = None  # env steps; default 10 (keyframe) / 400 (dense)
-    cameras: list[str] = field(default_factory=list)
+    task: str | None = GYM_TASK  # gymnasium id suffix (LeRobot builds ``lerobot_pnp/<task>``)
+    fps: int | None = None  # keyframe: 1 (one FSM state per step); dense: control rate, default 20
+    # Named task preset: "paper" (the paper's setting). None = the recorded task if any, else "paper".
+    preset: str | None = None
+    # A dataset folder or checkpoint whose recorded task to use (default: from the command line, see above).
+    task_source: str | None = None
+    control_mode: str = "keyframe"  # keyframe (one step = move to a joint keyframe) | dense (one control period)
+    episode_length: int | None = None  # env steps before truncation; default 10 (keyframe) / 30 s (dense)
+    cameras: list[str] = field(default_factory=list)  # rendered camera observations: front, overhead, wrist
     image_height: int = 240
     image_width: int = 320
-    speed: float = 1.0
-    # Perturbations for robustness evaluation (see TaskConfig).
-    nudge_max: float = 0.0
-    nudge_at_step: int = 1
-    obs_noise_object: float = 0.0
-    obs_noise_joints: float = 0.0
+    speed: float = 1.0  # fraction of Baxter's joint velocity limits used by the interpolator
+    straight_paths: bool = True  # keyframe moves keep the gripper on a straight line (else joint-linear)
+    # ---- task (None = from the preset / recorded task; see PAPER_TASK for meanings and defaults)
+    object_low: tuple[float, float] | None = None
+    object_high: tuple[float, float] | None = None
+    yaw_range: tuple[float, float] | None = None
+    place_xy: tuple[float, float] | None = None
+    start_low: tuple[float, float, float] | None = None
+    start_high: tuple[float, float, float] | None = None
+    hover_height: float | None = None
+    success_xy_tol: float | None = None
+    nudge_max: float | None = None
+    nudge_at_step: int | None = None
+    obs_noise_object: float | None = None
+    obs_noise_joints: float | None = None
     features: dict[str, PolicyFeature] = field(default_factory=dict)
     features_map: dict[str, str] = field(default_factory=dict)
 
     def __post_init__(self):
-        if self.control_mode not in CONTROL_MODES:
-            raise ConfigError(f"env.control_mode must be one of {CONTROL_MODES}, got {self.control_mode!r}")
-        unknown = [c for c in self.cameras if c not in CAMERAS]
-        if unknown:
-            raise ConfigError(f"env.cameras: unknown camera(s) {unknown}; available: {CAMERAS}")
+        self._resolve_task()
+        self._validate()
         if self.fps is None:
             self.fps = KEYFRAME_FPS if self.control_mode == "keyframe" else DENSE_FPS
         if self.episode_length is None:
-            self.episode_length = DEFAULT_MAX_STEPS[self.control_mode]
+            self.episode_length = (
+                KEYFRAME_EPISODE_LENGTH if self.control_mode == "keyframe" else DENSE_EPISODE_SECONDS * self.fps
+            )
         self.features = {
             ACTION: PolicyFeature(type=FeatureType.ACTION, shape=(robot.ACTION_DIM,)),
             "agent_pos": PolicyFeature(type=FeatureType.STATE, shape=(robot.STATE_DIM,)),
             "environment_state": PolicyFeature(type=FeatureType.ENV, shape=(robot.OBJECT_DIM,)),
         }
-        self.features_map = {
-            ACTION: ACTION,
-            "agent_pos": OBS_STATE,
-            "environment_state": OBS_ENV_STATE,
-        }
+        self.features_map = {ACTION: ACTION, "agent_pos": OBS_STATE, "environment_state": OBS_ENV_STATE}
         for cam in self.cameras:
             self.features[f"pixels/{cam}"] = PolicyFeature(
                 type=FeatureType.VISUAL, shape=(self.image_height, self.image_width, 3)
             )
             self.features_map[f"pixels/{cam}"] = f"{OBS_IMAGES}.{cam}"
 
+    # ------------------------------------------------------------------ resolution and validation
+    def _resolve_task(self) -> None:
+        if self.preset is not None and self.preset not in PRESETS:
+            raise ConfigError(f"env.preset must be one of {sorted(PRESETS)}, got {self.preset!r}")
+        recorded: dict = {}
+        if self.preset is None:
+            source = self.task_source or _source_from_command_line()
+            if source:
+                recorded = read_recorded(source) or {}
+        base = dict(PRESETS[self.preset or recorded.get("preset") or "paper"])
+        base.update({k: v for k, v in recorded.items() if k in TASK_FIELDS})
+        for name in TASK_FIELDS:
+            if getattr(self, name) is None:
+                setattr(self, name, base[name])
+        if self.preset is None:
+            self.preset = recorded.get("preset", "paper")
+        self.task_source = None  # resolved: the config now stands on its own
+
+    def _validate(self) -> None:
+        if self.control_mode not in CONTROL_MODES:
+            raise ConfigError(f"env.control_mode must be one of {CONTROL_MODES}, got {self.control_mode!r}")
+        self.cameras = list(self.cameras or [])
+        unknown = [c for c in self.cameras if c not in CAMERAS]
+        if unknown or len(set(self.cameras)) != len(self.cameras):
+            raise ConfigError(f"env.cameras must be distinct names from {CAMERAS}, got {self.cameras}")
+        if self.fps is not None and not (isinstance(self.fps, int) and 1 <= self.fps <= 500):
+            raise ConfigError(f"env.fps must be an integer in [1, 500], got {self.fps!r}")
+        if self.control_mode == "keyframe" and self.fps not in (None, KEYFRAME_FPS):
+            raise ConfigError(f"env.fps: keyframe control has one step per FSM state (fps {KEYFRAME_FPS}), got {self.fps}")
+        if self.episode_length is not None and not (isinstance(self.episode_length, int) and self.episode_length >= 1):
+            raise ConfigError(f"env.episode_length must be an integer >= 1, got {self.episode_length!r}")
+        if not (8 <= self.image_height <= 4096 and 8 <= self.image_width <= 4096):
+            raise ConfigError(f"env.image_height/width must be in [8, 4096], got {self.image_height}x{self.image_width}")
+        if not 0 < self.speed <= 1:
+            raise ConfigError(f"env.speed (fraction of Baxter's joint velocity limits) must be in (0, 1], got {self.speed}")
+        sizes = {"object_low": 2, "object_high": 2, "yaw_range": 2, "place_xy": 2, "start_low": 3, "start_high": 3}
+        for name, size in sizes.items():
+            value = getattr(self, name)
+            try:
+                value = tuple(float(v) for v in value)
+            except (TypeError, ValueError):
+                raise ConfigError(f"env.{name} must be {size} numbers, got {value!r}") from None
+            if len(value) != size or not all(math.isfinite(v) for v in value):
+                raise ConfigError(f"env.{name} must be {size} finite numbers, got {list(value)}")
+            setattr(self, name, value)
+        for low, high in (*_PAIRS, ("yaw_range", None)):
+            lo, hi = (getattr(self, low)[:1], getattr(self, low)[1:]) if high is None else (getattr(self, low), getattr(self, high))
+            if any(a > b for a, b in zip(lo, hi, strict=True)):
+                raise ConfigError(f"env.{low} must be <= {high or 'its upper end'} elementwise, got {list(lo)} > {list(hi)}")
+        for name in ("hover_height", "success_xy_tol"):
+            if not (isinstance(getattr(self, name), int | float) and 0 < getattr(self, name) < 1):
+                raise ConfigError(f"env.{name} must be in (0, 1) m, got {getattr(self, name)!r}")
+        for name in ("nudge_max", "obs_noise_object", "obs_noise_joints"):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and 0 <= value < 1):
+                raise ConfigError(f"env.{name} must be in [0, 1), got {value!r}")
+        if not (isinstance(self.nudge_at_step, int) and self.nudge_at_step >= 0):
+            raise ConfigError(f"env.nudge_at_step must be an integer >= 0, got {self.nudge_at_step!r}")
+        if self.start_low[2] < robot.TABLE_TOP_Z + 0.05:
+            raise ConfigError(
+                f"env.start_low z={self.start_low[2]} puts the gripper within 5 cm of the table "
+                f"(table top at z={robot.TABLE_TOP_Z})"
+            )
+
+    # ------------------------------------------------------------------ LeRobot EnvConfig API
     @property
     def package_name(self) -> str:
         return GYM_NAMESPACE
 
     @property
     def gym_kwargs(self) -> dict:
-        return {
-            "control_mode": self.control_mode,
-            "fps": self.fps,
-            "cameras": tuple(self.cameras),
-            "image_size": (self.image_height, self.image_width),
-            "speed": self.speed,
-            "max_episode_steps": self.episode_length,
-            "nudge_max": self.nudge_max,
-            "nudge_at_step": self.nudge_at_step,
-            "obs_noise_object": self.obs_noise_object,
-            "obs_noise_joints": self.obs_noise_joints,
-        }
+        """What ``gym.make`` receives: the resolved config as JSON values (the env truncates at ``episode_length``)."""
+        return {"config": self.to_dict()}
+
+    # ------------------------------------------------------------------ serialisation
+    def to_dict(self) -> dict:
+        """The resolved config as plain JSON values (what a dataset records and an env is rebuilt from)."""
+        skip = {"features", "features_map", "task_source"}
+        out = {}
+        for f in fields(self):
+            if f.name in skip:
+                continue
+            value = getattr(self, f.name)
+            out[f.name] = list(value) if isinstance(value, tuple | list) else value
+        return out
+
+    @classmethod
+    def from_dict(cls, data: dict, **overrides) -> BaxterPnPEnvConfig:
+        """Rebuild a config from ``to_dict`` output; unknown keys are an error naming the valid ones."""
+        data = {k: v for k, v in {**data, **overrides}.items() if k not in ("type", "features", "features_map")}
+        valid = {f.name for f in fields(cls)} - {"features", "features_map"}
+        unknown = sorted(set(data) - valid)
+        if unknown:
+            raise ConfigError(f"unknown baxter_pnp env field(s) {unknown}; valid fields: {sorted(valid)}")
+        if data.get("preset") is None and "preset" in data:
+            data.pop("preset")
+        return cls(**data)
+
+    def with_changes(self, **changes) -> BaxterPnPEnvConfig:
+        """A copy with some fields changed (re-validated)."""
+        return type(self).from_dict(self.to_dict(), **changes)
+
+
+def make_env(config: BaxterPnPEnvConfig | dict | None = None, render_mode: str | None = "rgb_array", **changes):
+    """The one factory: a gymnasium env (with the time limit) for ``config`` (default: the paper's task)."""
+    import gymnasium as gym
+
+    if config is None:
+        config = BaxterPnPEnvConfig.from_dict({}, **changes)
+    elif isinstance(config, dict):
+        config = BaxterPnPEnvConfig.from_dict(config, **changes)
+    elif changes:
+        config = config.with_changes(**changes)
+    return gym.make(GYM_ID, disable_env_checker=True, render_mode=render_mode, **config.gym_kwargs)
+
+
+# ---------------------------------------------------------------------------------------------- recorded task
+def write_recorded(config: BaxterPnPEnvConfig, root: str | Path) -> Path:
+    """Record ``config`` in a dataset folder (``meta/baxter_pnp_env.json``)."""
+    path = Path(root) / RECORDED_FILE
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".json.tmp")
+    tmp.write_text(json.dumps({"type": ENV_TYPE, **config.to_dict()}, indent=2))
+    tmp.replace(path)
+    return path
+
+
+def read_recorded(source: str | Path) -> dict | None:
+    """The env config recorded with a dataset folder, or with the dataset a checkpoint was trained on.
+
+    ``source`` is a dataset root, a checkpoint's ``pretrained_model`` folder, or a training output folder.
+    Returns None when nothing is recorded there.
+    """
+    source = Path(source).expanduser()
+    candidates = [source / RECORDED_FILE, source / "baxter_pnp_env.json"]
+    for path in candidates:
+        if path.is_file():
+            return _read_json(path)
+    for train_cfg in (source / "train_config.json", source / "checkpoints/last/pretrained_model/train_config.json"):
+        if train_cfg.is_file():
+            dataset = _read_json(train_cfg).get("dataset") or {}
+            if dataset.get("root") and (Path(dataset["root"]) / RECORDED_FILE).is_file():
+                return _read_json(Path(dataset["root"]) / RECORDED_FILE)
+            env = _read_json(train_cfg).get("env") or {}
+            if env.get("type") == ENV_TYPE:
+                return env
+    return None
+
+
+def _read_json(path: Path) -> dict:
+    try:
+        return json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError) as err:
+        raise ConfigError(f"cannot read the recorded env config {path}: {err}") from None
+
+
+def _source_from_command_line() -> str | None:
+    """``--dataset.root`` (lerobot-train) or ``--policy.path`` (lerobot-eval) from this process's arguments."""
+    for key in ("dataset.root", "policy.path"):
+        for i, arg in enumerate(sys.argv[1:], start=1):
+            if arg.startswith(f"--{key}="):
+                return arg.split("=", 1)[1]
+            if arg == f"--{key}" and i + 1 < len(sys.argv):
+                return sys.argv[i + 1]
+    return None

@@ -1,4 +1,17 @@
-"""Typed errors, so callers can tell a bad request from a bug."""
+"""The package's error tree: every error raised on purpose derives from ``PnPError``.
+
+The command line (``lerobot-pnp``) prints any ``PnPError`` as one line and exits with code 2; anything else
+is a bug and keeps its traceback. Messages name the bad value and, where there is a choice, the valid ones.
+
+    PnPError
+    ├── ConfigError            a configuration value or flag is invalid (also a ValueError)
+    │   └── ResetOptionError   a reset option passed to env.reset(options=...) is invalid
+    ├── UnreachableError       a gripper pose is outside the arm's reach
+    ├── ExpertFailure          the scripted expert ran but the task did not succeed (``cause``)
+    ├── DatasetError           a dataset is missing, incomplete, corrupt, or cannot be written
+    ├── PolicyError            a checkpoint is missing, unreadable or does not fit the env/dataset
+    └── PhysicsError           the simulation diverged (a bug: please report the seed)
+"""
 
 
 class PnPError(Exception):
@@ -7,6 +20,10 @@ class PnPError(Exception):
 
 class ConfigError(PnPError, ValueError):
     """A configuration value is invalid (names the field and the allowed range)."""
+
+
+class ResetOptionError(ConfigError):
+    """An ``env.reset(options=...)`` entry is unknown or invalid."""
 
 
 class UnreachableError(PnPError):
@@ -26,3 +43,11 @@ class ExpertFailure(PnPError):
 
 class DatasetError(PnPError):
     """A dataset folder is missing, incomplete, corrupt, or cannot be written/pushed as asked."""
+
+
+class PolicyError(PnPError):
+    """A policy checkpoint is missing, unreadable, or incompatible with the env or dataset."""
+
+
+class PhysicsError(PnPError, RuntimeError):
+    """The simulation produced a non-finite state."""

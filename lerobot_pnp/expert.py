@@ -73,23 +73,24 @@ class FSMExpert:
     """Plans the next keyframe (7 joints + gripper command) from the env's current state."""
 
     def __init__(self, env: gym.Env, config: ExpertConfig | None = None):
-        self.env = env.unwrapped
+        self.physics = env.unwrapped.physics
+        self.task = env.unwrapped.config  # the env config: hover height, place target
         self.config = config or ExpertConfig()
-        self.hover = self.env.task_config.hover_height
+        self.hover = self.task.hover_height
         self.reset()
 
     def reset(self) -> None:
         self.phase = 0
-        self._cmd = np.append(self.env.arm_qpos(), robot.GRIPPER_OPEN)
+        self._cmd = np.append(self.physics.arm_qpos(), robot.GRIPPER_OPEN)
         self._yaw = 0.0
 
     def next_keyframe(self) -> np.ndarray:
         """Keyframe to go to from FSM state ``self.phase`` (the command that reaches state phase+1)."""
-        env, cfg, ik = self.env, self.config, self.env.ik
+        physics, cfg, ik = self.physics, self.config, self.physics.ik
         q_prev, grip = self._cmd[:7], self._cmd[7]
-        cube, cube_yaw = env.object_pose()
-        ee, _ = env.ee_pose()
-        place = np.array([*env.task_config.place_xy, robot.CUBE_REST_Z])
+        cube, cube_yaw = physics.object_pose()
+        ee, _ = physics.ee_pose()
+        place = np.array([*self.task.place_xy, robot.CUBE_REST_Z])
         p = self.phase
         if p == 0:  # -> pick/approach: above the object
             self._yaw = grasp_yaw(cube_yaw)
@@ -133,9 +134,10 @@ def run_expert_episode(env: gym.Env, seed: int, config: ExpertConfig | None = No
     """
     cfg = config or ExpertConfig()
     base = env.unwrapped
+    physics = base.physics
     obs, info = env.reset(seed=seed)
     expert = FSMExpert(env, cfg)
-    dense = base.control_mode == "dense"
+    dense = base.config.control_mode == "dense"
     states, objects, actions, phases = [], [], [], []
     keyframes = [expert._cmd.astype(np.float32)]
     kf_states = [np.concatenate(_frame(obs))]
@@ -145,7 +147,7 @@ def run_expert_episode(env: gym.Env, seed: int, config: ExpertConfig | None = No
         target = expert.next_keyframe()
         keyframes.append(target)
         if dense:
-            segment = _dense_segment(base, keyframes[-2], target, cfg)
+            segment = _dense_segment(base.config, physics, keyframes[-2], target, cfg)
         else:
             segment = [target]
         for action in segment:
@@ -159,9 +161,9 @@ def run_expert_episode(env: gym.Env, seed: int, config: ExpertConfig | None = No
             done = terminated
         kf_states.append(np.concatenate(_frame(obs)))
         if phase == 2:
-            checks["grasped"] = base.object_in_grasp()
+            checks["grasped"] = physics.object_in_grasp()
         if phase == 6:
-            checks["held_at_target"] = base.object_in_grasp()
+            checks["held_at_target"] = physics.object_in_grasp()
         if done and phase < robot.N_KEYFRAMES - 2:
             break
     # The final observed state, with a hold action, ends the episode.
@@ -169,7 +171,7 @@ def run_expert_episode(env: gym.Env, seed: int, config: ExpertConfig | None = No
     states.append(state), objects.append(obj), actions.append(keyframes[-1]), phases.append(robot.N_KEYFRAMES - 1)
     success = bool(info["is_success"])
     if not success:
-        cube, _ = base.object_pose()
+        cube, _ = physics.object_pose()
         if not checks.get("grasped", False):
             cause = "grasp_missed"
         elif not checks.get("held_at_target", False):
@@ -190,10 +192,10 @@ def run_expert_episode(env: gym.Env, seed: int, config: ExpertConfig | None = No
     )
 
 
-def _dense_segment(env, start: np.ndarray, target: np.ndarray, cfg: ExpertConfig) -> list[np.ndarray]:
+def _dense_segment(env_cfg, physics, start: np.ndarray, target: np.ndarray, cfg: ExpertConfig) -> list[np.ndarray]:
     """Dense actions executing one keyframe: interpolated arm setpoints, a settle, then the gripper."""
-    fps = env.fps
-    arm = joint_trajectory(start[:7], target[:7], fps, env.speed, ik=env._path_ik)
+    fps = env_cfg.fps
+    arm = joint_trajectory(start[:7], target[:7], fps, env_cfg.speed, ik=physics.path_ik)
     steps = [np.append(q, start[7]) for q in arm]
     steps += [np.append(target[:7], start[7])] * math.ceil(cfg.settle_time * fps)
     if target[7] != start[7]:

@@ -4,41 +4,39 @@ from __future__ import annotations
 
 import collections
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
-import gymnasium as gym
 from tqdm import tqdm
 
-from lerobot_pnp import robot
-from lerobot_pnp.env import CONTROL_MODES, DEFAULT_MAX_STEPS
-from lerobot_pnp.env_config import GYM_ID
+from lerobot_pnp.env_config import BaxterPnPEnvConfig, make_env
 from lerobot_pnp.errors import ConfigError, ExpertFailure, UnreachableError
 from lerobot_pnp.expert import failure_cause, run_expert_episode
 
 
 @dataclass
 class ExpertEvalConfig:
-    n_episodes: int = 1000
-    seed: int = 0
-    control_mode: str = "keyframe"
-    fps: int = 20  # dense mode only
+    """``lerobot-pnp expert``: run the FSM expert on seeds ``seed .. seed + n_episodes - 1``."""
+
+    n_episodes: int = 1000  # number of seeded episodes
+    seed: int = 0  # first seed
+    env: BaxterPnPEnvConfig = field(default_factory=BaxterPnPEnvConfig)  # the task (``--env.<field>``)
+    progress: bool = True  # a tqdm progress bar
 
     def __post_init__(self):
-        if self.control_mode not in CONTROL_MODES:
-            raise ConfigError(f"control_mode must be one of {CONTROL_MODES}, got {self.control_mode!r}")
-        if self.n_episodes < 1:
-            raise ConfigError(f"n_episodes must be >= 1, got {self.n_episodes}")
+        if not (isinstance(self.n_episodes, int) and self.n_episodes >= 1):
+            raise ConfigError(f"n_episodes must be an integer >= 1, got {self.n_episodes!r}")
+        if not (isinstance(self.seed, int) and 0 <= self.seed < 2**63 - self.n_episodes):
+            raise ConfigError(f"seed must be an integer in [0, 2**63 - n_episodes), got {self.seed!r}")
 
 
 def evaluate_expert(cfg: ExpertEvalConfig) -> dict:
-    """Run the FSM expert on seeds ``seed .. seed + n_episodes - 1``; return the rate and failures by cause."""
-    env = gym.make(GYM_ID, control_mode=cfg.control_mode,
-                   fps=cfg.fps if cfg.control_mode == "dense" else robot.KEYFRAME_FPS,
-                   max_episode_steps=DEFAULT_MAX_STEPS[cfg.control_mode])
+    """Success rate and failures by cause of the expert on ``cfg.env``."""
+    env = make_env(cfg.env, render_mode=None)
     causes: collections.Counter = collections.Counter()
     failed_seeds: dict[str, list[int]] = collections.defaultdict(list)
     start = time.perf_counter()
-    for seed in tqdm(range(cfg.seed, cfg.seed + cfg.n_episodes), desc="expert episodes", unit="ep"):
+    seeds = range(cfg.seed, cfg.seed + cfg.n_episodes)
+    for seed in tqdm(seeds, desc="expert episodes", unit="ep", disable=not cfg.progress, mininterval=1.0):
         try:
             run_expert_episode(env, seed)
         except (ExpertFailure, UnreachableError) as err:
@@ -50,7 +48,7 @@ def evaluate_expert(cfg: ExpertEvalConfig) -> dict:
     n_fail = sum(causes.values())
     return {
         "n_episodes": cfg.n_episodes,
-        "control_mode": cfg.control_mode,
+        "env": cfg.env.to_dict(),
         "success_rate": 1 - n_fail / cfg.n_episodes,
         "failures_by_cause": dict(causes),
         "failed_seeds": {k: v[:20] for k, v in failed_seeds.items()},

@@ -20,7 +20,6 @@ import numpy as np
 
 from lerobot_pnp import robot
 from lerobot_pnp.errors import ConfigError
-from lerobot_pnp.env import DEFAULT_MAX_STEPS
 
 from lerobot.utils.constants import ACTION, OBS_STATE
 from lerobot.utils.constants import OBS_ENV_STATE as OBS_ENV
@@ -172,7 +171,7 @@ def run_policy_episode(
     base = env.unwrapped
     if max_steps is None:
         max_steps = getattr(env, "_max_episode_steps", None) or getattr(base, "_max_episode_steps", None)
-        max_steps = max_steps or DEFAULT_MAX_STEPS[base.control_mode]
+        max_steps = max_steps or base.config.episode_length
     loaded.reset()
     obs, info = env.reset(seed=seed, options=reset_options)
     states = [np.asarray(obs["agent_pos"], np.float32)]

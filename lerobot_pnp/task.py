@@ -1,110 +1,146 @@
-"""Task logic, separate from the physics wrapper: the reset distribution, perturbations and success.
+"""The pick-and-place task on top of the physics: reset distribution, perturbations, observations, success.
 
-Everything here is plain numbers and numpy; the env applies it to the MuJoCo state.
+``PickPlaceTask`` reads its numbers from the env config (``env_config.BaxterPnPEnvConfig``, the one
+description of the task) and acts on a ``physics.BaxterPhysics``. It never steps the simulation itself
+except through the physics' primitives, and it draws every random number from the generator it is given
+(the env's seeded ``np_random``), always in the same order, so an episode is a function of its seed.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from lerobot_pnp import robot
-from lerobot_pnp.errors import ConfigError
+from lerobot_pnp.errors import ConfigError, ResetOptionError, UnreachableError
+from lerobot_pnp.physics import BaxterPhysics
+
+RESET_OPTIONS = ("arm_qpos", "object_pos", "object_yaw")
+_START_TRIES = 20
 
 
-@dataclass
-class TaskConfig:
-    """Where the cube and the arm start, where the cube goes, and what counts as success.
+class PickPlaceTask:
+    """Where things start, what disturbs them, what the policy observes and what counts as success."""
 
-    Positions are in Baxter's base frame (metres). The default cube box is fully reachable with the
-    gripper pointing down (grasp and hover); the place target lies outside it so no episode starts solved.
-    """
+    def __init__(self, config):
+        self.config = config
 
-    object_low: tuple[float, float] = (0.45, 0.10)
-    object_high: tuple[float, float] = (0.75, 0.50)
-    # Cube yaw range (rad). The paper varies position only, and the policy observes xyz only, so 0 by default.
-    yaw_range: tuple[float, float] = (0.0, 0.0)
-    place_xy: tuple[float, float] = (0.60, -0.05)
-    # Random start: the gripper (pointing down) at a random point of this box above the table.
-    start_low: tuple[float, float, float] = (0.45, 0.0, 0.05)
-    start_high: tuple[float, float, float] = (0.75, 0.45, 0.25)
-    hover_height: float = 0.15  # the paper's h: approach/retract height above the object
-    success_xy_tol: float = 0.02
-    # Perturbations (the paper's feedback claims): nudge the cube after `nudge_at_step` env steps by up to
-    # `nudge_max` metres in xy; Gaussian observation noise on the object position and the joints.
-    nudge_max: float = 0.0
-    nudge_at_step: int = 1
-    obs_noise_object: float = 0.0
-    obs_noise_joints: float = 0.0
-
-    def __post_init__(self):
-        for name in ("object_low", "object_high", "yaw_range", "place_xy", "start_low", "start_high"):
-            value = tuple(float(v) for v in getattr(self, name))
-            if not np.all(np.isfinite(value)):
-                raise ConfigError(f"TaskConfig.{name} must be finite, got {value}")
-            setattr(self, name, value)
-        for low, high in (("object_low", "object_high"), ("start_low", "start_high"), ("yaw_range", "yaw_range")):
-            lo, hi = np.array(getattr(self, low)), np.array(getattr(self, high))
-            if low == "yaw_range":
-                lo, hi = lo[:1], lo[1:]
-            if np.any(lo > hi):
-                raise ConfigError(f"TaskConfig.{low} must be <= {high} elementwise, got {lo.tolist()} > {hi.tolist()}")
-        if not self.hover_height > 0:
-            raise ConfigError(f"TaskConfig.hover_height must be > 0 (metres above the object), got {self.hover_height}")
-        if not self.success_xy_tol > 0:
-            raise ConfigError(f"TaskConfig.success_xy_tol must be > 0, got {self.success_xy_tol}")
-        for name in ("nudge_max", "obs_noise_object", "obs_noise_joints"):
-            if not getattr(self, name) >= 0:
-                raise ConfigError(f"TaskConfig.{name} must be >= 0, got {getattr(self, name)}")
-        if self.nudge_at_step < 0:
-            raise ConfigError(f"TaskConfig.nudge_at_step must be >= 0, got {self.nudge_at_step}")
-        if self.start_low[2] < robot.TABLE_TOP_Z + 0.05:
-            raise ConfigError(
-                f"TaskConfig.start_low z={self.start_low[2]} puts the gripper within 5 cm of the table "
-                f"(table top at z={robot.TABLE_TOP_Z})"
-            )
-
-    # The reachability check needs IK, which needs the model: the env calls this with its solver.
-    def check_reachable(self, ik) -> None:
+    # ------------------------------------------------------------------ set-up
+    def check_reachable(self, physics: BaxterPhysics) -> None:
         """Raise ConfigError if any corner of the object box (grasp and hover) or the place target is unreachable."""
-        from lerobot_pnp.errors import UnreachableError
-
-        yaws = sorted(set(self.yaw_range))
-        points = [(x, y) for x in (self.object_low[0], self.object_high[0]) for y in (self.object_low[1], self.object_high[1])]
-        checks = [("object box corner", p, yaw) for p in points for yaw in yaws] + [("place target", self.place_xy, 0.0)]
+        c = self.config
+        yaws = sorted(set(c.yaw_range))
+        corners = [(x, y) for x in (c.object_low[0], c.object_high[0]) for y in (c.object_low[1], c.object_high[1])]
+        checks = [("object box corner", p, yaw) for p in corners for yaw in yaws] + [("place target", c.place_xy, 0.0)]
         for what, (x, y), yaw in checks:
             seed = robot.NEUTRAL_Q
             try:
-                for z in (robot.CUBE_REST_Z + self.hover_height, robot.CUBE_REST_Z):
-                    seed = ik.solve(np.array([x, y, z]), yaw, seed)
+                for z in (robot.CUBE_REST_Z + c.hover_height, robot.CUBE_REST_Z):
+                    seed = physics.ik.solve(np.array([x, y, z]), yaw, seed)
             except UnreachableError as err:
                 raise ConfigError(
-                    f"{what} ({x:.3f}, {y:.3f}) with hover {self.hover_height} m is out of the arm's reach: {err}"
+                    f"env: {what} ({x:.3f}, {y:.3f}) with hover {c.hover_height} m is out of the arm's reach: {err}"
                 ) from None
 
-    def sample_object(self, rng: np.random.Generator) -> tuple[np.ndarray, float]:
-        xy = rng.uniform(self.object_low, self.object_high)
-        yaw = float(rng.uniform(*self.yaw_range)) if self.yaw_range[1] > self.yaw_range[0] else self.yaw_range[0]
-        return np.array([xy[0], xy[1], robot.CUBE_REST_Z]), yaw
+    def initialize_episode(self, physics: BaxterPhysics, rng: np.random.Generator, options: dict | None) -> None:
+        """Sample (or take from ``options``) the object pose and the start pose, and reset the physics."""
+        options = dict(options or {})
+        unknown = sorted(set(options) - set(RESET_OPTIONS))
+        if unknown:
+            raise ResetOptionError(f"unknown reset option(s) {unknown}; valid options: {list(RESET_OPTIONS)}")
+        c = self.config
+        xy = rng.uniform(c.object_low, c.object_high)
+        yaw = float(rng.uniform(*c.yaw_range)) if c.yaw_range[1] > c.yaw_range[0] else c.yaw_range[0]
+        object_pos = np.array([xy[0], xy[1], robot.CUBE_REST_Z])
+        if "object_pos" in options:
+            object_pos = _vector_option(options, "object_pos", 3)
+            object_pos[2] = robot.CUBE_REST_Z
+            self._check_object_option(physics, object_pos)
+        if "object_yaw" in options:
+            yaw = float(_vector_option(options, "object_yaw", 1)[0])
+        if "arm_qpos" in options:
+            q = _vector_option(options, "arm_qpos", robot.N_JOINTS)
+            outside = (q < robot.JOINT_LOWER - 1e-6) | (q > robot.JOINT_UPPER + 1e-6)
+            if outside.any():
+                names = [robot.JOINT_NAMES[i] for i in np.flatnonzero(outside)]
+                raise ResetOptionError(f"reset option 'arm_qpos' is outside the joint limits at {names}")
+        else:
+            q = self._sample_start_q(physics, rng)
+        physics.set_place_target(c.place_xy)
+        physics.reset(q, object_pos, yaw)
 
-    def sample_start(self, rng: np.random.Generator) -> np.ndarray:
-        return rng.uniform(self.start_low, self.start_high)
+    def _check_object_option(self, physics: BaxterPhysics, pos: np.ndarray) -> None:
+        c = self.config
+        if np.linalg.norm(pos[:2] - np.asarray(c.place_xy)) <= c.success_xy_tol + robot.CUBE_SIZE / 2:
+            raise ResetOptionError(
+                f"reset option 'object_pos' {np.round(pos[:2], 3).tolist()} is on the place target {list(c.place_xy)}: "
+                "the episode would start solved"
+            )
+        try:
+            physics.ik.solve(pos + [0, 0, c.hover_height], 0.0, robot.NEUTRAL_Q)
+        except UnreachableError:
+            raise ResetOptionError(
+                f"reset option 'object_pos' {np.round(pos[:2], 3).tolist()} is out of the arm's reach "
+                f"(the object box is {list(c.object_low)}..{list(c.object_high)})"
+            ) from None
 
-    def sample_nudge(self, rng: np.random.Generator) -> np.ndarray:
-        """A uniformly random xy offset of length <= nudge_max."""
-        angle = rng.uniform(0, 2 * np.pi)
-        radius = self.nudge_max * np.sqrt(rng.uniform())
-        return np.array([radius * np.cos(angle), radius * np.sin(angle), 0.0])
+    def _sample_start_q(self, physics: BaxterPhysics, rng: np.random.Generator) -> np.ndarray:
+        c = self.config
+        for _ in range(_START_TRIES):
+            start = rng.uniform(c.start_low, c.start_high)
+            try:
+                return physics.ik.solve(start, 0.0, robot.NEUTRAL_Q)
+            except UnreachableError:
+                continue
+        raise UnreachableError(f"no reachable start pose found in the box {c.start_low}..{c.start_high}")
 
-    # Success = cube_placed and gripper_released (split so the env can skip the contact query when not placed).
-    def cube_placed(self, cube_pos: np.ndarray, cube_speed: float) -> bool:
-        """Cube resting on the table within tolerance of the target."""
-        on_target = np.linalg.norm(cube_pos[:2] - np.asarray(self.place_xy)) <= self.success_xy_tol
-        return bool(on_target and abs(cube_pos[2] - robot.CUBE_REST_Z) < 0.005 and cube_speed < 0.02)
+    # ------------------------------------------------------------------ during the episode
+    def after_step(self, physics: BaxterPhysics, step_count: int, rng: np.random.Generator) -> None:
+        """Apply the perturbations scheduled after env step ``step_count``."""
+        c = self.config
+        if c.nudge_max > 0 and step_count == c.nudge_at_step and not physics.object_in_grasp():
+            angle = rng.uniform(0, 2 * np.pi)
+            radius = c.nudge_max * np.sqrt(rng.uniform())
+            physics.displace_object(np.array([radius * np.cos(angle), radius * np.sin(angle), 0.0]))
+
+    def observe(self, physics: BaxterPhysics, rng: np.random.Generator) -> dict[str, np.ndarray]:
+        """The policy's view: ``agent_pos`` (joints + gripper) and ``environment_state`` (object xyz), noisy."""
+        c = self.config
+        state = physics.state_vector()
+        object_pos, _ = physics.object_pose()
+        if c.obs_noise_joints > 0:
+            state[: robot.N_JOINTS] += rng.normal(0, c.obs_noise_joints, robot.N_JOINTS).astype(np.float32)
+        if c.obs_noise_object > 0:
+            object_pos = object_pos + rng.normal(0, c.obs_noise_object, 3)
+        return {"agent_pos": state, "environment_state": object_pos.astype(np.float32)}
+
+    # ------------------------------------------------------------------ success
+    def object_placed(self, physics: BaxterPhysics) -> bool:
+        """The object rests on the table within tolerance of the target."""
+        pos, _ = physics.object_pose()
+        on_target = np.linalg.norm(pos[:2] - np.asarray(self.config.place_xy)) <= self.config.success_xy_tol
+        return bool(on_target and abs(pos[2] - robot.CUBE_REST_Z) < 0.005 and physics.object_speed() < 0.02)
 
     @staticmethod
-    def gripper_released(cube_pos: np.ndarray, touching: bool, gripper_open: float, pad_bottom_z: float) -> bool:
-        """Fingers off the cube, gripper open, and the pads clear above the cube's top."""
-        cube_top = cube_pos[2] + robot.CUBE_SIZE / 2
-        return bool(not touching and gripper_open > 0.5 and pad_bottom_z > cube_top + 0.01)
+    def gripper_released(physics: BaxterPhysics) -> bool:
+        """Fingers off the object, gripper open, and the pads clear above the object's top."""
+        pos, _ = physics.object_pose()
+        object_top = pos[2] + robot.CUBE_SIZE / 2
+        return bool(
+            not physics.gripper_touches_object()
+            and physics.gripper_opening() > 0.5
+            and physics.pad_bottom_z() > object_top + 0.01
+        )
+
+    def is_success(self, physics: BaxterPhysics) -> bool:
+        # The contact query is skipped unless the object is placed (most steps).
+        return self.object_placed(physics) and self.gripper_released(physics)
+
+
+def _vector_option(options: dict, key: str, size: int) -> np.ndarray:
+    try:
+        value = np.asarray(options[key], dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise ResetOptionError(f"reset option {key!r} must be {size} finite number(s), got {options[key]!r}") from None
+    if value.shape != (size,) or not np.all(np.isfinite(value)):
+        raise ResetOptionError(f"reset option {key!r} must be {size} finite number(s), got {options[key]!r}")
+    return value

@@ -275,7 +275,7 @@ def test_dense_small(tmp_path):
     summary = generate(_cfg(root, repo_id="test/pnp_dense", num_episodes=2, representation="dense", fps=20))
     ds = LeRobotDataset("test/pnp_dense", root=root, video_backend="pyav")
     assert ds.fps == 20 and ds.num_episodes == 2
-    env = gym.make("lerobot_pnp/BaxterPnPDense-v0")
+    env = gym.make("lerobot_pnp/BaxterPnP-v0", control_mode="dense")
     lengths = [run_expert_episode(env, s).num_frames for s in (0, 1)]
     env.close()
     assert [int(x) for x in ds.meta.episodes["length"]] == lengths

@@ -8,10 +8,9 @@ from gymnasium.utils.env_checker import check_env
 
 from lerobot_pnp import robot
 from lerobot_pnp.env import BaxterPnPEnv
-from lerobot_pnp.env_config import GYM_ID, BaxterPnPEnvConfig
+from lerobot_pnp.env_config import GYM_ID, PAPER_TASK, BaxterPnPEnvConfig, make_env
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.ik import ArmIK, gripper_down_rotation
-from lerobot_pnp.task import TaskConfig
 
 # Reference poses of Rethink's left arm (shared/notes/baxter.md): joints -> left_gripper position, z axis.
 REFERENCE_POSES = [
@@ -56,11 +55,19 @@ def test_ik_reaches_gripper_down_pose_and_rejects_out_of_reach(model):
 
 def test_gym_make_and_env_checker():
     env = gym.make(GYM_ID)
-    assert env.spec.max_episode_steps == 10
+    assert env.unwrapped._max_episode_steps == 10
     check_env(env.unwrapped, skip_render_check=True)
-    dense = gym.make("lerobot_pnp/BaxterPnPDense-v0")
-    assert dense.unwrapped.control_mode == "dense" and dense.spec.max_episode_steps == 400
+    dense = make_env(control_mode="dense")
+    assert dense.unwrapped.control_mode == "dense" and dense.unwrapped._max_episode_steps == 600
     check_env(dense.unwrapped, skip_render_check=True)
+
+
+def test_episode_truncates_at_the_configured_length():
+    env = make_env(episode_length=2)
+    obs, _ = env.reset(seed=0)
+    hold = np.append(obs["agent_pos"][:7], 1.0).astype(np.float32)
+    assert env.step(hold)[3] is False
+    assert env.step(hold)[3] is True  # the one episode-length rule: the config's episode_length
 
 
 def test_reset_is_seeded_and_in_the_workspace(keyframe_env):
@@ -71,18 +78,18 @@ def test_reset_is_seeded_and_in_the_workspace(keyframe_env):
     np.testing.assert_array_equal(obs_a["environment_state"], obs_b["environment_state"])
     assert not np.array_equal(obs_a["environment_state"], obs_c["environment_state"])
     assert info["is_success"] is False
-    tc = TaskConfig()
+    tc = keyframe_env.unwrapped.config
     cube = obs_a["environment_state"]
     assert tc.object_low[0] <= cube[0] <= tc.object_high[0] and tc.object_low[1] <= cube[1] <= tc.object_high[1]
     assert cube[2] == pytest.approx(robot.CUBE_REST_Z, abs=2e-3)
-    ee, rot = keyframe_env.unwrapped.ee_pose()
+    ee, rot = keyframe_env.unwrapped.physics.ee_pose()
     assert ee[2] > robot.TABLE_TOP_Z + 0.15 and rot[2, 2] < -0.99  # random start above the table, pointing down
     assert obs_a["agent_pos"][-1] == pytest.approx(1.0, abs=1e-3)  # gripper open
 
 
 def test_keyframe_step_reaches_the_commanded_keyframe(keyframe_env):
     obs, _ = keyframe_env.reset(seed=3)
-    env = keyframe_env.unwrapped
+    env = keyframe_env.unwrapped.physics
     target = env.ik.solve(np.array([0.55, 0.25, 0.0]), 0.0, obs["agent_pos"][:7])
     obs, reward, terminated, truncated, info = keyframe_env.step(np.append(target, 1.0).astype(np.float32))
     np.testing.assert_allclose(obs["agent_pos"][:7], target, atol=5e-3)
@@ -103,7 +110,7 @@ def test_straight_path_keeps_the_gripper_on_the_segment(model):
 
     straight = max_sideways(joint_trajectory(q0, q1, 100, ik=ik))
     plain = max_sideways(joint_trajectory(q0, q1, 100))
-    assert straight < 1.5e-3 < plain  # the open gripper has 3.9 mm of clearance around the cube
+    assert straight < 1.5e-3 < plain  # bowing would eat most of the open gripper's 13.9 mm clearance
 
 
 def test_invalid_actions_raise(keyframe_env):
@@ -118,12 +125,15 @@ def test_invalid_actions_raise(keyframe_env):
     "kwargs, message",
     [
         ({"control_mode": "teleport"}, "control_mode must be one of"),
-        ({"hover_height": -0.1}, "hover_height must be > 0"),
+        ({"hover_height": -0.1}, "hover_height must be in"),
         ({"object_low": (0.9, 0.1), "object_high": (1.2, 0.5)}, "out of the arm's reach"),
         ({"object_low": (0.7, 0.1), "object_high": (0.5, 0.5)}, "object_low must be <= object_high"),
-        ({"cameras": ("ceiling",)}, "unknown camera"),
+        ({"cameras": ("ceiling",)}, "cameras must be distinct names from"),
         ({"speed": 2.0}, "speed"),
-        ({"nudge_max": -0.01}, "nudge_max must be >= 0"),
+        ({"nudge_max": -0.01}, "nudge_max must be in"),
+        ({"preset": "hard"}, "preset must be one of"),
+        ({"yaw_range": (0.1, float("nan"))}, "finite"),
+        ({"bogus_field": 1}, "unknown baxter_pnp env field"),
     ],
 )
 def test_bad_configs_raise_clear_errors(kwargs, message):
@@ -134,13 +144,14 @@ def test_bad_configs_raise_clear_errors(kwargs, message):
 def test_nudge_moves_the_cube_before_the_grasp_and_noise_only_touches_observations():
     env = BaxterPnPEnv(nudge_max=0.03, nudge_at_step=1, obs_noise_object=0.005, obs_noise_joints=0.01)
     obs, _ = env.reset(seed=5)
-    before, _ = env.object_pose()
+    physics = env.physics
+    before, _ = physics.object_pose()
     assert np.linalg.norm(obs["environment_state"] - before) > 0  # noisy observation
-    obs, *_ = env.step(np.append(env.arm_qpos(), 1.0).astype(np.float32))
-    after, _ = env.object_pose()
+    obs, *_ = env.step(np.append(physics.arm_qpos(), 1.0).astype(np.float32))
+    after, _ = physics.object_pose()
     moved = np.linalg.norm(after[:2] - before[:2])
     assert 0 < moved <= 0.03 + 1e-6
-    assert np.linalg.norm(obs["agent_pos"][:7] - env.arm_qpos()) > 0
+    assert np.linalg.norm(obs["agent_pos"][:7] - physics.arm_qpos()) > 0
 
 
 def test_reset_options_pin_the_start_state(keyframe_env):
@@ -152,9 +163,43 @@ def test_reset_options_pin_the_start_state(keyframe_env):
         keyframe_env.reset(options={"object_pos": [0.5, np.nan, 0.0]})
 
 
+@pytest.mark.parametrize(
+    "options, message",
+    [
+        ({"object_yaw": float("nan")}, "object_yaw"),
+        ({"object_pos": [1.3, 0.2, 0.0]}, "out of the arm's reach"),
+        ({"object_pos": [*PAPER_TASK["place_xy"], 0.0]}, "start solved"),
+        ({"arm_qpos": [5.0, 0, 0, 0, 0, 0, 0]}, "joint limits"),
+        ({"object_position": [0.5, 0.3, 0.0]}, "unknown reset option"),
+    ],
+)
+def test_bad_reset_options_raise(keyframe_env, options, message):
+    from lerobot_pnp.errors import ResetOptionError
+
+    with pytest.raises(ResetOptionError, match=message):
+        keyframe_env.reset(seed=0, options=options)
+
+
+def test_task_is_settable_from_the_env_config_and_recorded(tmp_path):
+    from lerobot_pnp.env_config import read_recorded, write_recorded
+
+    cfg = BaxterPnPEnvConfig(object_low=(0.5, 0.2), object_high=(0.6, 0.3), place_xy=(0.65, -0.1))
+    env = make_env(cfg)
+    obs, _ = env.reset(seed=1)
+    assert 0.5 <= obs["environment_state"][0] <= 0.6 and 0.2 <= obs["environment_state"][1] <= 0.3
+    np.testing.assert_allclose(env.unwrapped.physics.place_target(), (0.65, -0.1))
+    write_recorded(cfg, tmp_path)
+    again = BaxterPnPEnvConfig(task_source=str(tmp_path))
+    assert again.to_dict() == cfg.to_dict()
+    assert read_recorded(tmp_path)["place_xy"] == [0.65, -0.1]
+    # a preset named explicitly wins over the recorded task; explicit fields win over both
+    assert BaxterPnPEnvConfig(task_source=str(tmp_path), preset="paper").place_xy == PAPER_TASK["place_xy"]
+    assert BaxterPnPEnvConfig(task_source=str(tmp_path), nudge_max=0.01).place_xy == (0.65, -0.1)
+
+
 def test_camera_observations_render_lazily():
-    env = BaxterPnPEnv(cameras=("front",), image_size=(48, 64))
-    assert env._renderer is None  # nothing rendered before it is needed
+    env = BaxterPnPEnv(cameras=["front"], image_height=48, image_width=64)
+    assert not env.physics._renderers  # nothing rendered before it is needed
     obs, _ = env.reset(seed=0)
     img = obs["pixels"]["front"]
     assert img.shape == (48, 64, 3) and img.dtype == np.uint8 and img.std() > 0
@@ -178,7 +223,7 @@ def test_lerobot_env_config_builds_vector_envs():
     assert envs.call("_max_episode_steps")[0] == 10
     envs.close()
     dense = BaxterPnPEnvConfig(control_mode="dense", cameras=["front"])
-    assert dense.fps == 20 and dense.episode_length == 400
+    assert dense.fps == 20 and dense.episode_length == 600
     assert dense.features_map["pixels/front"] == "observation.images.front"
     with pytest.raises(ConfigError, match="control_mode"):
         BaxterPnPEnvConfig(control_mode="bogus")

@@ -28,7 +28,7 @@ def test_expert_episode_has_the_papers_ten_states(keyframe_env):
 
 
 def test_grasp_lifts_the_cube_and_release_places_it(keyframe_env):
-    env = keyframe_env.unwrapped
+    env = keyframe_env.unwrapped.physics
     keyframe_env.reset(seed=11)
     expert = FSMExpert(keyframe_env)
     start_cube, _ = env.object_pose()
@@ -45,7 +45,7 @@ def test_grasp_lifts_the_cube_and_release_places_it(keyframe_env):
         _, _, terminated, _, info = keyframe_env.step(expert.next_keyframe())
     cube, _ = env.object_pose()
     assert not env.object_in_grasp()
-    assert np.linalg.norm(cube[:2] - np.array(env.task_config.place_xy)) < 0.02
+    assert np.linalg.norm(cube[:2] - np.array(keyframe_env.unwrapped.config.place_xy)) < 0.02
     assert cube[2] == pytest.approx(robot.CUBE_REST_Z, abs=3e-3)
     assert info["is_success"] and terminated
 
@@ -64,7 +64,7 @@ def test_expert_success_on_a_seeded_sample(keyframe_env):
 
 
 def test_expert_dense_mode_and_cube_yaw():
-    env = gym.make("lerobot_pnp/BaxterPnPDense-v0", yaw_range=(-0.6, 0.6))
+    env = gym.make("lerobot_pnp/BaxterPnP-v0", control_mode="dense", yaw_range=(-0.6, 0.6))
     ep = run_expert_episode(env, seed=4)
     assert ep.success and 60 < ep.num_frames < 400
     assert np.all(np.diff(ep.phases) >= 0) and ep.phases[0] == 0 and ep.phases[-1] == 9
@@ -86,7 +86,8 @@ def test_expert_recovers_from_a_nudged_cube():
 
 def test_unreachable_object_raises_a_typed_error():
     env = BaxterPnPEnv()
-    env.reset(seed=0, options={"object_pos": [1.3, 0.2, 0.0]})
+    env.reset(seed=0)
+    env.physics.displace_object(np.array([0.6, 0.0, 0.0]))  # pushed out of reach after the reset
     with pytest.raises(UnreachableError, match="IK did not converge"):
         FSMExpert(env).next_keyframe()
 

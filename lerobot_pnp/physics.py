@@ -1,0 +1,208 @@
+"""MuJoCo physics of Baxter's left arm, its gripper, the cube and the place target (no task, no gym).
+
+``BaxterPhysics`` owns the ``MjModel`` / ``MjData`` and is the only code that steps MuJoCo. It offers
+named queries (arm joints, gripper opening, end-effector pose, object pose, contacts) and control
+primitives (move to a joint keyframe through the straight-path interpolator, one dense control period,
+set the whole state, displace the object). The task (``task.py``) decides what happens; the gym env
+(``env.py``) exposes it; the expert and the viewer use these public methods only.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+
+import mujoco
+import numpy as np
+
+from lerobot_pnp import robot
+from lerobot_pnp.errors import PhysicsError
+from lerobot_pnp.ik import ArmIK
+from lerobot_pnp.interpolation import joint_trajectory
+
+CAMERAS = ("front", "overhead", "wrist")
+CONTROL_DT = 0.01  # interpolator update period in keyframe mode (100 Hz)
+_FINGER_JOINTS = ("l_gripper_l_finger_joint", "l_gripper_r_finger_joint")
+_FINGER_BODIES = ("l_finger", "r_finger", "l_finger_tip", "r_finger_tip")
+_PAD_HALF_THICKNESS = 0.0035  # m, from the gripper site down to the pads' bottom face
+
+
+class BaxterPhysics:
+    """The simulated scene. ``straight_paths`` makes keyframe moves follow straight Cartesian segments."""
+
+    def __init__(self, straight_paths: bool = True):
+        self.model = mujoco.MjModel.from_xml_path(str(robot.scene_path()))
+        self.data = mujoco.MjData(self.model)
+        self.ik = ArmIK(self.model)
+        self.path_ik = self.ik if straight_paths else None
+        m = self.model
+        self._qadr = np.array([m.joint(n).qposadr[0] for n in robot.JOINT_NAMES])
+        self._dofadr = np.array([m.joint(n).dofadr[0] for n in robot.JOINT_NAMES])
+        self._finger_qadr = np.array([m.joint(n).qposadr[0] for n in _FINGER_JOINTS])
+        self._finger_dofadr = np.array([m.joint(n).dofadr[0] for n in _FINGER_JOINTS])
+        self._arm_act = np.array([m.actuator(n).id for n in robot.JOINT_NAMES])
+        self._grip_act = m.actuator("gripper").id
+        object_joint = m.joint(robot.CUBE_JOINT)
+        self._object_qadr, self._object_dofadr = object_joint.qposadr[0], object_joint.dofadr[0]
+        self._object_body = m.body(robot.CUBE_BODY).id
+        self._object_geom = m.geom("cube").id
+        self._pad_geoms = {m.geom("l_pad").id, m.geom("r_pad").id}
+        self._is_finger_body = np.zeros(m.nbody, dtype=bool)
+        self._is_finger_body[[m.body(n).id for n in _FINGER_BODIES]] = True
+        self._ee_site = m.site(robot.EE_SITE).id
+        self._target_site = m.site(robot.TARGET_SITE).id
+        self._substeps_keyframe = round(CONTROL_DT / m.opt.timestep)
+        self._renderers: dict[tuple[int, int], mujoco.Renderer] = {}
+        # Optional observer called after every control tick (100 Hz for keyframe moves, once per dense
+        # period), e.g. by the viewer to record the motion between keyframes. It must not change the state.
+        self.on_control_tick = None
+
+    # ------------------------------------------------------------------ named queries
+    @property
+    def timestep(self) -> float:
+        return float(self.model.opt.timestep)
+
+    def arm_qpos(self) -> np.ndarray:
+        return self.data.qpos[self._qadr].copy()
+
+    def arm_command(self) -> np.ndarray:
+        """The arm's current joint setpoints (what the servos are tracking)."""
+        return self.data.ctrl[self._arm_act].copy()
+
+    def gripper_opening(self) -> float:
+        """Measured opening, 0 (closed) .. 1 (fully open)."""
+        opening = 0.5 * (self.data.qpos[self._finger_qadr[0]] - self.data.qpos[self._finger_qadr[1]])
+        return float(np.clip(opening / robot.FINGER_TRAVEL, 0.0, 1.0))
+
+    def state_vector(self) -> np.ndarray:
+        """Noise-free agent state: joints + gripper opening (float32, the ``agent_pos`` layout)."""
+        return np.append(self.arm_qpos(), self.gripper_opening()).astype(np.float32)
+
+    def object_pose(self) -> tuple[np.ndarray, float]:
+        """Object position and yaw (rad) in the base frame (ground truth)."""
+        pos = self.data.xpos[self._object_body].copy()
+        rot = self.data.xmat[self._object_body].reshape(3, 3)
+        return pos, float(math.atan2(rot[1, 0], rot[0, 0]))
+
+    def object_speed(self) -> float:
+        return float(np.linalg.norm(self.data.qvel[self._object_dofadr : self._object_dofadr + 3]))
+
+    def ee_pose(self) -> tuple[np.ndarray, np.ndarray]:
+        """Gripper site position and rotation matrix."""
+        return self.data.site_xpos[self._ee_site].copy(), self.data.site_xmat[self._ee_site].reshape(3, 3).copy()
+
+    def pad_bottom_z(self) -> float:
+        return float(self.data.site_xpos[self._ee_site][2] - _PAD_HALF_THICKNESS)
+
+    def place_target(self) -> np.ndarray:
+        return self.model.site_pos[self._target_site][:2].copy()
+
+    def _object_contacts(self) -> np.ndarray:
+        """Geoms in contact with the object."""
+        pairs = self.data.contact.geom[: self.data.ncon]
+        mask = (pairs == self._object_geom).any(axis=1)
+        return pairs[mask].sum(axis=1) - self._object_geom
+
+    def object_in_grasp(self) -> bool:
+        """Both finger pads touch the object."""
+        return self._pad_geoms.issubset(self._object_contacts().tolist())
+
+    def gripper_touches_object(self) -> bool:
+        return bool(self._is_finger_body[self.model.geom_bodyid[self._object_contacts()]].any())
+
+    def is_finite(self) -> bool:
+        return bool(np.all(np.isfinite(self.data.qpos)))
+
+    # ------------------------------------------------------------------ state
+    def set_place_target(self, xy) -> None:
+        self.model.site_pos[self._target_site][:2] = xy
+
+    def set_state(
+        self,
+        arm_q: np.ndarray,
+        gripper_opening: float,
+        object_pos: np.ndarray,
+        object_yaw: float = 0.0,
+        hold_command: bool = True,
+    ) -> None:
+        """Put the arm, gripper and object in a given configuration (at rest) and recompute kinematics.
+
+        With ``hold_command`` the servos' setpoints are set to the same configuration, so the state holds.
+        Used by resets and by the viewer's replay of recorded frames.
+        """
+        d = self.data
+        opening = float(gripper_opening) * robot.FINGER_TRAVEL
+        d.qpos[self._qadr] = arm_q
+        d.qpos[self._finger_qadr] = (opening, -opening)
+        d.qpos[self._object_qadr : self._object_qadr + 3] = object_pos
+        d.qpos[self._object_qadr + 3 : self._object_qadr + 7] = (math.cos(object_yaw / 2), 0.0, 0.0, math.sin(object_yaw / 2))
+        if hold_command:
+            d.ctrl[self._arm_act] = arm_q
+            d.ctrl[self._grip_act] = opening
+        mujoco.mj_forward(self.model, d)
+
+    def reset(self, arm_q: np.ndarray, object_pos: np.ndarray, object_yaw: float, settle_time: float = 0.1) -> None:
+        """Fresh state: the arm at ``arm_q`` with the gripper open, the object at rest; contacts settle."""
+        mujoco.mj_resetData(self.model, self.data)
+        self.set_state(arm_q, robot.GRIPPER_OPEN, object_pos, object_yaw)
+        mujoco.mj_step(self.model, self.data, round(settle_time / self.timestep))
+
+    def displace_object(self, offset: np.ndarray) -> None:
+        """Teleport the object by ``offset`` (m, base frame) and stop it."""
+        self.data.qpos[self._object_qadr : self._object_qadr + 3] += offset
+        self.data.qvel[self._object_dofadr : self._object_dofadr + 6] = 0
+        mujoco.mj_forward(self.model, self.data)
+
+    # ------------------------------------------------------------------ control primitives
+    def _run(self, substeps: int) -> None:
+        mujoco.mj_step(self.model, self.data, substeps)
+        if self.on_control_tick is not None:
+            self.on_control_tick(self)
+
+    def move_to_keyframe(self, q_target: np.ndarray, grip: float, speed: float) -> None:
+        """Interpolate the arm to ``q_target`` (min-jerk, within the joint velocity limits), settle, then grip."""
+        d = self.data
+        for setpoint in joint_trajectory(d.ctrl[self._arm_act], q_target, 1.0 / CONTROL_DT, speed, ik=self.path_ik):
+            d.ctrl[self._arm_act] = setpoint
+            self._run(self._substeps_keyframe)
+        self._settle(lambda: np.max(np.abs(d.qvel[self._dofadr])) < 0.02, max_time=1.0)
+        grip_ctrl = grip * robot.FINGER_TRAVEL
+        if abs(grip_ctrl - d.ctrl[self._grip_act]) > 1e-9:
+            d.ctrl[self._grip_act] = grip_ctrl
+            self._run(round(0.1 / self.timestep))
+            self._settle(lambda: np.max(np.abs(d.qvel[self._finger_dofadr])) < 1e-3, max_time=0.8)
+
+    def _settle(self, done, max_time: float) -> None:
+        for _ in range(math.ceil(max_time / CONTROL_DT)):
+            if done():
+                return
+            self._run(self._substeps_keyframe)
+
+    def dense_step(self, q_target: np.ndarray, grip: float, fps: int, speed: float) -> None:
+        """One control period: joint setpoints rate-limited by the velocity limits, then physics."""
+        d = self.data
+        max_delta = robot.JOINT_VEL_LIMIT * speed / fps
+        q_prev = d.ctrl[self._arm_act]
+        d.ctrl[self._arm_act] = q_prev + np.clip(q_target - q_prev, -max_delta, max_delta)
+        d.ctrl[self._grip_act] = grip * robot.FINGER_TRAVEL
+        self._run(max(1, round(1.0 / (fps * self.timestep))))
+
+    def check_finite(self) -> None:
+        if not self.is_finite():
+            raise PhysicsError("physics diverged (non-finite state); this is a bug, please report the seed and actions")
+
+    # ------------------------------------------------------------------ rendering
+    def render(self, camera: str, height: int, width: int) -> np.ndarray:
+        """An RGB image (HxWx3 uint8) from a named MJCF camera (headless EGL by default)."""
+        key = (height, width)
+        if key not in self._renderers:
+            os.environ.setdefault("MUJOCO_GL", "egl")
+            self._renderers[key] = mujoco.Renderer(self.model, height=height, width=width)
+        renderer = self._renderers[key]
+        renderer.update_scene(self.data, camera=camera)
+        return renderer.render().copy()
+
+    def close(self) -> None:
+        for renderer in self._renderers.values():
+            renderer.close()
+        self._renderers.clear()
