@@ -25,8 +25,8 @@ from pathlib import Path
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
 
-import lerobot_pnp  # noqa: E402,F401
-from lerobot_pnp import dataset as D  # noqa: E402
+import lerobot_pnp  # noqa: F401
+from lerobot_pnp import dataset as D
 
 
 class _Timer:
@@ -62,8 +62,17 @@ def breakdown(representation: str, episodes: int, out: Path) -> dict:
     cfg = D.GenerateConfig(repo_id="bench/breakdown", representation=representation, num_episodes=episodes)
     D._single_thread()
     D._get_env(cfg.env_kwargs())  # env construction is not counted
-    job = {"index": 0, "start": 0, "stop": episodes, "seed": 0, "num_episodes": episodes, "max_retries": 10,
-           "repo_id": cfg.repo_id, "env_kwargs": cfg.env_kwargs(), "dir": str(out / f"breakdown_{representation}")}
+    job = {
+        "index": 0,
+        "start": 0,
+        "stop": episodes,
+        "seed": 0,
+        "num_episodes": episodes,
+        "max_retries": 10,
+        "repo_id": cfg.repo_id,
+        "env_kwargs": cfg.env_kwargs(),
+        "dir": str(out / f"breakdown_{representation}"),
+    }
     try:
         t0 = time.perf_counter()
         rec = D.build_shard(job)
@@ -86,15 +95,34 @@ def breakdown(representation: str, episodes: int, out: Path) -> dict:
 
 def end_to_end(representation: str, episodes: int, workers: int, out: Path) -> dict:
     root = out / f"e2e_{representation}"
-    cfg = D.GenerateConfig(repo_id=f"bench/{representation}", root=str(root), representation=representation,
-                           num_episodes=episodes, workers=workers, overwrite=root.exists())
+    cfg = D.GenerateConfig(
+        repo_id=f"bench/{representation}",
+        root=str(root),
+        representation=representation,
+        num_episodes=episodes,
+        workers=workers,
+        overwrite=root.exists(),
+    )
     t0 = time.perf_counter()
     summary = D.generate(cfg)
     wall = time.perf_counter() - t0
-    keep = ("episodes", "frames", "shards", "workers", "generate_wall_s", "merge_wall_s", "simulate_cpu_s",
-            "write_cpu_s", "expert_failures")
-    return {"representation": representation, "wall_s": round(wall, 2),
-            "episodes_per_s": round(episodes / wall, 2), **{k: summary[k] for k in keep}}
+    keep = (
+        "episodes",
+        "frames",
+        "shards",
+        "workers",
+        "generate_wall_s",
+        "merge_wall_s",
+        "simulate_cpu_s",
+        "write_cpu_s",
+        "expert_failures",
+    )
+    return {
+        "representation": representation,
+        "wall_s": round(wall, 2),
+        "episodes_per_s": round(episodes / wall, 2),
+        **{k: summary[k] for k in keep},
+    }
 
 
 def main(argv=None) -> int:
@@ -120,9 +148,11 @@ def main(argv=None) -> int:
         results["dense_breakdown"] = breakdown("dense", max(5, args.dense_episodes // 5), out)
         print(json.dumps(results["dense_breakdown"]), flush=True)
     kf = results["keyframe_e2e"]
-    print(f"\n{args.episodes} keyframe episodes in {kf['wall_s']} s ({kf['episodes_per_s']} episodes/s) "
-          f"with {kf['workers']} workers" + (
-              f"; target (1400 in < 60 s): {'met' if kf['wall_s'] < 60 else 'NOT met'}" if args.episodes == 1400 else ""))
+    print(
+        f"\n{args.episodes} keyframe episodes in {kf['wall_s']} s ({kf['episodes_per_s']} episodes/s) "
+        f"with {kf['workers']} workers"
+        + (f"; target (1400 in < 60 s): {'met' if kf['wall_s'] < 60 else 'NOT met'}" if args.episodes == 1400 else "")
+    )
     if args.out is None:
         shutil.rmtree(out)
     return 0

@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import re
 import shutil
@@ -42,7 +41,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
 os.environ.setdefault("MUJOCO_GL", "egl")
 
-import torch  # noqa: E402
+import torch
 
 torch.set_num_threads(1)
 
@@ -101,8 +100,15 @@ def train(dataset: tuple[str, str], out: Path, progress: bool = False, **kwargs)
     from lerobot_pnp.train_fast import TrainFastConfig, train_fast
 
     policy_kwargs = kwargs.pop("policy", {})
-    cfg = TrainFastConfig(dataset_repo_id=dataset[0], dataset_root=dataset[1], output_dir=str(out), overwrite=True,
-                          progress=progress, policy=PnpLstmConfig(**policy_kwargs), **kwargs)
+    cfg = TrainFastConfig(
+        dataset_repo_id=dataset[0],
+        dataset_root=dataset[1],
+        output_dir=str(out),
+        overwrite=True,
+        progress=progress,
+        policy=PnpLstmConfig(**policy_kwargs),
+        **kwargs,
+    )
     if out.exists():
         shutil.rmtree(out)
     start_wall = time.time()
@@ -123,12 +129,15 @@ def checkpoints(run_dir: Path) -> list[tuple[int, Path]]:
 def bench_time_to_target(args, dataset, work: Path) -> dict:
     log(f"\n=== a. fast path: time to {args.target:.0f}% closed-loop success ===")
     run_dir = work / "fast_recurrent"
-    result, start_wall, total_s = train(dataset, run_dir, epochs=args.epochs, save_every_epochs=args.ckpt_every,
-                                        seed=args.seed)
+    result, start_wall, total_s = train(
+        dataset, run_dir, epochs=args.epochs, save_every_epochs=args.ckpt_every, seed=args.seed
+    )
     epoch_of_step = {h["step"]: h["epoch"] for h in result.history}
     loop_time_of_step = {h["step"]: h["time_s"] for h in result.history}
-    log(f"trained {args.epochs} epochs ({result.steps} steps) in {total_s:.1f} s; "
-        f"final test MSE {result.final_test_mse:.3g}")
+    log(
+        f"trained {args.epochs} epochs ({result.steps} steps) in {total_s:.1f} s; "
+        f"final test MSE {result.final_test_mse:.3g}"
+    )
     curve, reached, n_confirms = [], None, 0
     for step, ckpt in checkpoints(run_dir):
         wall = (ckpt / "model.safetensors").stat().st_mtime - start_wall
@@ -136,33 +145,52 @@ def bench_time_to_target(args, dataset, work: Path) -> dict:
         if reached is not None and not is_last:
             continue  # after the target: only the final checkpoint is still evaluated
         ev = rollout_success(ckpt, args.curve_episodes)
-        point = {"epoch": epoch_of_step.get(step), "step": step, "wall_s_since_start": wall,
-                 "train_loop_s": loop_time_of_step.get(step), "pc_success": ev["pc_success"],
-                 "n_episodes": ev["n_episodes"], "eval_s": ev["eval_s"], "checkpoint": str(ckpt)}
+        point = {
+            "epoch": epoch_of_step.get(step),
+            "step": step,
+            "wall_s_since_start": wall,
+            "train_loop_s": loop_time_of_step.get(step),
+            "pc_success": ev["pc_success"],
+            "n_episodes": ev["n_episodes"],
+            "eval_s": ev["eval_s"],
+            "checkpoint": str(ckpt),
+        }
         curve.append(point)
-        log(f"  epoch {point['epoch']:>4} step {step:>5}  wall {wall:6.1f} s  success {ev['pc_success']:5.1f}% "
-            f"({ev['n_episodes']} ep, eval {ev['eval_s']:.1f} s)")
+        log(
+            f"  epoch {point['epoch']:>4} step {step:>5}  wall {wall:6.1f} s  success {ev['pc_success']:5.1f}% "
+            f"({ev['n_episodes']} ep, eval {ev['eval_s']:.1f} s)"
+        )
         if reached is None and ev["pc_success"] >= args.target:
             if args.confirm_episodes > 0 and n_confirms < 3:
                 # Re-check with the real lerobot-eval on more episodes; only a confirmed checkpoint counts.
                 n_confirms += 1
                 conf = lerobot_eval_success(ckpt, work / f"confirm_{step}", args.confirm_episodes)
                 point["confirm_lerobot_eval"] = conf
-                log(f"    lerobot-eval check: {conf['pc_success']:.1f}% over {conf['n_episodes']} episodes "
-                    f"({conf['eval_s']:.0f} s)")
+                log(
+                    f"    lerobot-eval check: {conf['pc_success']:.1f}% over {conf['n_episodes']} episodes "
+                    f"({conf['eval_s']:.0f} s)"
+                )
                 if conf["pc_success"] < args.target:
                     continue
             reached = point
-    out = {"eval_method": f"in-process rollout.run_policy_episode on {args.curve_episodes} unseen seeds "
-                          f"{EVAL_SEED}..{EVAL_SEED + args.curve_episodes - 1}",
-           "epochs": args.epochs, "ckpt_every_epochs": args.ckpt_every, "train_total_s": total_s,
-           "final_test_mse": result.final_test_mse, "curve": curve, "target_pc": args.target,
-           "time_to_target_s": reached["wall_s_since_start"] if reached else None,
-           "epoch_at_target": reached["epoch"] if reached else None,
-           "final_checkpoint": str(result.checkpoint_dir)}
-    out["target_rule"] = (f"first checkpoint with >= {args.target:.0f}% on the rollouts"
-                          + (f" and on a {args.confirm_episodes}-episode lerobot-eval check (at most 3 checks)"
-                             if args.confirm_episodes > 0 else ""))
+    out = {
+        "eval_method": f"in-process rollout.run_policy_episode on {args.curve_episodes} unseen seeds "
+        f"{EVAL_SEED}..{EVAL_SEED + args.curve_episodes - 1}",
+        "epochs": args.epochs,
+        "ckpt_every_epochs": args.ckpt_every,
+        "train_total_s": total_s,
+        "final_test_mse": result.final_test_mse,
+        "curve": curve,
+        "target_pc": args.target,
+        "time_to_target_s": reached["wall_s_since_start"] if reached else None,
+        "epoch_at_target": reached["epoch"] if reached else None,
+        "final_checkpoint": str(result.checkpoint_dir),
+    }
+    out["target_rule"] = f"first checkpoint with >= {args.target:.0f}% on the rollouts" + (
+        f" and on a {args.confirm_episodes}-episode lerobot-eval check (at most 3 checks)"
+        if args.confirm_episodes > 0
+        else ""
+    )
     return out
 
 
@@ -176,15 +204,28 @@ def bench_vs_lerobot_train(args, dataset, work: Path) -> dict:
     out_dir = work / "lerobot_train"
     if out_dir.exists():
         shutil.rmtree(out_dir)
-    cmd = [str(Path(sys.executable).with_name("lerobot-train")), f"--dataset.repo_id={dataset[0]}",
-           f"--dataset.root={dataset[1]}", "--dataset.video_backend=pyav", "--policy.type=pnp_lstm",
-           "--policy.device=cpu", "--policy.push_to_hub=false", f"--steps={n}", "--batch_size=64",
-           "--num_workers=0", f"--save_freq={n}", f"--log_freq={max(1, n // 5)}", "--env_eval_freq=0",
-           f"--seed={args.seed}", f"--output_dir={out_dir}"]
+    cmd = [
+        str(Path(sys.executable).with_name("lerobot-train")),
+        f"--dataset.repo_id={dataset[0]}",
+        f"--dataset.root={dataset[1]}",
+        "--dataset.video_backend=pyav",
+        "--policy.type=pnp_lstm",
+        "--policy.device=cpu",
+        "--policy.push_to_hub=false",
+        f"--steps={n}",
+        "--batch_size=64",
+        "--num_workers=0",
+        f"--save_freq={n}",
+        f"--log_freq={max(1, n // 5)}",
+        "--env_eval_freq=0",
+        f"--seed={args.seed}",
+        f"--output_dir={out_dir}",
+    ]
     log(" ".join(cmd))
     t0 = time.perf_counter()
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                            env={**os.environ, "OMP_NUM_THREADS": "1"})
+    proc = subprocess.Popen(
+        cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env={**os.environ, "OMP_NUM_THREADS": "1"}
+    )
     t_start_loop = t_end_loop = None
     updt = data = None
     tail: list[str] = []
@@ -203,11 +244,18 @@ def bench_vs_lerobot_train(args, dataset, work: Path) -> dict:
     lt_total = time.perf_counter() - t0
     if rc != 0:
         raise RuntimeError(f"lerobot-train failed ({rc}):\n{''.join(tail)}")
-    lt = {"wall_s": lt_total, "startup_s": t_start_loop, "loop_s": (t_end_loop or lt_total) - (t_start_loop or 0),
-          "steps_per_s_loop": n / ((t_end_loop or lt_total) - (t_start_loop or 0)),
-          "last_log_updt_s": updt, "last_log_data_s": data}
-    log(f"  lerobot-train: {lt_total:.1f} s total, start-up {t_start_loop or float('nan'):.1f} s, "
-        f"loop {lt['loop_s']:.1f} s ({lt['steps_per_s_loop']:.1f} steps/s; last log updt_s {updt} data_s {data})")
+    lt = {
+        "wall_s": lt_total,
+        "startup_s": t_start_loop,
+        "loop_s": (t_end_loop or lt_total) - (t_start_loop or 0),
+        "steps_per_s_loop": n / ((t_end_loop or lt_total) - (t_start_loop or 0)),
+        "last_log_updt_s": updt,
+        "last_log_data_s": data,
+    }
+    log(
+        f"  lerobot-train: {lt_total:.1f} s total, start-up {t_start_loop or float('nan'):.1f} s, "
+        f"loop {lt['loop_s']:.1f} s ({lt['steps_per_s_loop']:.1f} steps/s; last log updt_s {updt} data_s {data})"
+    )
 
     result, _, fast_total = train(dataset, work / "fast_steps", steps=n, seed=args.seed)
     fast_loop = result.history[-1]["time_s"]
@@ -216,10 +264,16 @@ def bench_vs_lerobot_train(args, dataset, work: Path) -> dict:
     ratio = lt_total / fast_total
     loop_ratio = lt["loop_s"] / fast_loop
     log(f"  ratio lerobot-train / fast: {ratio:.1f}x wall, {loop_ratio:.1f}x training loop")
-    return {"steps": n, "batch_size": 64, "lerobot_train": lt, "fast": fast, "ratio_wall": ratio,
-            "ratio_loop": loop_ratio,
-            "note": "lerobot-train: batch = 64 windows of 10 frames sampled from all episodes (per-frame windows); "
-                    "fast: batch = 64 whole 10-frame episodes of the train split, tensors preloaded"}
+    return {
+        "steps": n,
+        "batch_size": 64,
+        "lerobot_train": lt,
+        "fast": fast,
+        "ratio_wall": ratio,
+        "ratio_loop": loop_ratio,
+        "note": "lerobot-train: batch = 64 windows of 10 frames sampled from all episodes (per-frame windows); "
+        "fast: batch = 64 whole 10-frame episodes of the train split, tensors preloaded",
+    }
 
 
 # ---------------------------------------------------------------------------------------------- c
@@ -260,8 +314,11 @@ def bench_latency(args, ckpt: Path) -> dict:
             times += _time_calls(lambda: pol.select_action(batch), 10)
         res["pnp_lstm"][f"b{bsz}"] = _ms(times)
         # The whole step as lerobot-eval runs it: pre-processor + select_action + post-processor.
-        raw = {"observation.state": torch.randn(bsz, 8), "observation.environment_state": torch.randn(bsz, 3),
-               "task": ["pick"] * bsz}
+        raw = {
+            "observation.state": torch.randn(bsz, 8),
+            "observation.environment_state": torch.randn(bsz, 3),
+            "task": ["pick"] * bsz,
+        }
 
         def full_step():
             loaded.postprocessor(pol.select_action(loaded.preprocessor(dict(raw))))
@@ -273,8 +330,10 @@ def bench_latency(args, ckpt: Path) -> dict:
         res["pnp_lstm"][f"b{bsz}_with_processors"] = _ms(times)
 
     cfg = ACTConfig(device="cpu")
-    cfg.input_features = {"observation.state": PolicyFeature(FeatureType.STATE, (8,)),
-                          "observation.environment_state": PolicyFeature(FeatureType.ENV, (3,))}
+    cfg.input_features = {
+        "observation.state": PolicyFeature(FeatureType.STATE, (8,)),
+        "observation.environment_state": PolicyFeature(FeatureType.ENV, (3,)),
+    }
     cfg.output_features = {"action": PolicyFeature(FeatureType.ACTION, (8,))}
     act = ACTPolicy(cfg).eval()
     res["act"]["params"] = sum(p.numel() for p in act.parameters())
@@ -299,20 +358,28 @@ def bench_latency(args, ckpt: Path) -> dict:
         res["act"][f"b{bsz}_per_step_amortised"] = _ms(chunk)
     for name in ("pnp_lstm", "act"):
         r = res[name]
-        log(f"  {name:9s} ({r['params'] / 1e6:.3f} M params): " + ", ".join(
-            f"{k} {v['mean_ms']:.3f} ms" for k, v in r.items() if isinstance(v, dict)))
+        log(
+            f"  {name:9s} ({r['params'] / 1e6:.3f} M params): "
+            + ", ".join(f"{k} {v['mean_ms']:.3f} ms" for k, v in r.items() if isinstance(v, dict))
+        )
     return res
 
 
 # ---------------------------------------------------------------------------------------------- d
 def bench_memory_feedback(args, dataset, work: Path, recurrent_ckpt: Path) -> dict:
     log(f"\n=== d. memory and feedback: recurrent vs memoryless, {args.robust_episodes} episodes each ===")
-    result, _, t = train(dataset, work / "fast_memoryless", epochs=args.epochs, seed=args.seed,
-                         policy={"recurrent": False})
+    result, _, t = train(
+        dataset, work / "fast_memoryless", epochs=args.epochs, seed=args.seed, policy={"recurrent": False}
+    )
     log(f"  memoryless variant trained {args.epochs} epochs in {t:.1f} s (final test MSE {result.final_test_mse:.3g})")
     models = {"recurrent": recurrent_ckpt, "memoryless": result.checkpoint_dir}
-    table: dict = {"eval_method": args.robust_backend, "n_episodes": args.robust_episodes,
-                   "conditions": CONDITIONS, "memoryless_final_test_mse": result.final_test_mse, "success": {}}
+    table: dict = {
+        "eval_method": args.robust_backend,
+        "n_episodes": args.robust_episodes,
+        "conditions": CONDITIONS,
+        "memoryless_final_test_mse": result.final_test_mse,
+        "success": {},
+    }
     for model, ckpt in models.items():
         table["success"][model] = {}
         for cond, env_args in CONDITIONS.items():
@@ -331,35 +398,49 @@ def print_summary(res: dict) -> None:
     a = res.get("a")
     if a:
         tt = a["time_to_target_s"]
-        log(f"a. fast path to >= {a['target_pc']:.0f}% success: "
+        log(
+            f"a. fast path to >= {a['target_pc']:.0f}% success: "
             + (f"{tt:.1f} s (epoch {a['epoch_at_target']})" if tt is not None else "NOT reached")
-            + f"   [{a['eval_method']}]")
+            + f"   [{a['eval_method']}]"
+        )
         log(f"   rule: {a['target_rule']}")
         log("   epoch | wall s | success % | lerobot-eval check %")
         for p in a["curve"]:
             c = p.get("confirm_lerobot_eval")
-            log(f"   {p['epoch']:>5} | {p['wall_s_since_start']:6.1f} | {p['pc_success']:9.1f} | "
-                + (f"{c['pc_success']:.1f} ({c['n_episodes']} ep)" if c else "-"))
+            log(
+                f"   {p['epoch']:>5} | {p['wall_s_since_start']:6.1f} | {p['pc_success']:9.1f} | "
+                + (f"{c['pc_success']:.1f} ({c['n_episodes']} ep)" if c else "-")
+            )
     b = res.get("b")
     if b:
         lt, fa = b["lerobot_train"], b["fast"]
         log(f"b. {b['steps']} steps, batch 64      |  wall s | start-up s | loop s | steps/s (loop)")
-        log(f"   lerobot-train              | {lt['wall_s']:7.1f} | {lt['startup_s'] or float('nan'):10.1f} | "
-            f"{lt['loop_s']:6.1f} | {lt['steps_per_s_loop']:8.1f}")
-        log(f"   fast path                  | {fa['wall_s']:7.1f} |          - | {fa['loop_s']:6.2f} | "
-            f"{fa['steps_per_s_loop']:8.1f}")
+        log(
+            f"   lerobot-train              | {lt['wall_s']:7.1f} | {lt['startup_s'] or float('nan'):10.1f} | "
+            f"{lt['loop_s']:6.1f} | {lt['steps_per_s_loop']:8.1f}"
+        )
+        log(
+            f"   fast path                  | {fa['wall_s']:7.1f} |          - | {fa['loop_s']:6.2f} | "
+            f"{fa['steps_per_s_loop']:8.1f}"
+        )
         log(f"   ratio: {b['ratio_wall']:.1f}x wall, {b['ratio_loop']:.1f}x loop")
     c = res.get("c")
     if c:
         p, q = c["pnp_lstm"], c["act"]
         log("c. select_action, mean ms     |   batch 1 |  batch 50")
         log(f"   pnp_lstm per call          | {p['b1']['mean_ms']:9.3f} | {p['b50']['mean_ms']:9.3f}")
-        log(f"   pnp_lstm + processors      | {p['b1_with_processors']['mean_ms']:9.3f} | "
-            f"{p['b50_with_processors']['mean_ms']:9.3f}")
-        log(f"   ACT per model call         | {q['b1_per_model_call']['mean_ms']:9.3f} | "
-            f"{q['b50_per_model_call']['mean_ms']:9.3f}")
-        log(f"   ACT per step (chunk {q['n_action_steps']:>3})    | {q['b1_per_step_amortised']['mean_ms']:9.3f} | "
-            f"{q['b50_per_step_amortised']['mean_ms']:9.3f}")
+        log(
+            f"   pnp_lstm + processors      | {p['b1_with_processors']['mean_ms']:9.3f} | "
+            f"{p['b50_with_processors']['mean_ms']:9.3f}"
+        )
+        log(
+            f"   ACT per model call         | {q['b1_per_model_call']['mean_ms']:9.3f} | "
+            f"{q['b50_per_model_call']['mean_ms']:9.3f}"
+        )
+        log(
+            f"   ACT per step (chunk {q['n_action_steps']:>3})    | {q['b1_per_step_amortised']['mean_ms']:9.3f} | "
+            f"{q['b50_per_step_amortised']['mean_ms']:9.3f}"
+        )
         log(f"   params: pnp_lstm {p['params']:,}, ACT {q['params']:,}")
     d = res.get("d")
     if d:
@@ -378,8 +459,12 @@ def main(argv: list[str] | None = None) -> dict:
     p.add_argument("--epochs", type=int, default=None, help="fast-path epochs (default 300; quick 60)")
     p.add_argument("--ckpt_every", type=int, default=None, help="checkpoint every N epochs (default 5; quick 10)")
     p.add_argument("--curve_episodes", type=int, default=None, help="rollouts per checkpoint (100; quick 30)")
-    p.add_argument("--confirm_episodes", type=int, default=None,
-                   help="lerobot-eval episodes to confirm the target checkpoint (200; quick 0 = skip)")
+    p.add_argument(
+        "--confirm_episodes",
+        type=int,
+        default=None,
+        help="lerobot-eval episodes to confirm the target checkpoint (200; quick 0 = skip)",
+    )
     p.add_argument("--steps", type=int, default=None, help="optimiser steps for b (300; quick 50)")
     p.add_argument("--latency_reps", type=int, default=None, help="10-step episodes timed in c (200; quick 40)")
     p.add_argument("--robust_episodes", type=int, default=None, help="episodes per cell in d (200; quick 30)")
@@ -390,9 +475,15 @@ def main(argv: list[str] | None = None) -> dict:
     p.add_argument("--out", default="outputs/bench_policy.json")
     args = p.parse_args(argv)
     quick = args.quick
-    defaults = {"epochs": (300, 60), "ckpt_every": (5, 10), "curve_episodes": (100, 30),
-                "confirm_episodes": (200, 0), "steps": (300, 50), "latency_reps": (200, 40),
-                "robust_episodes": (200, 30)}
+    defaults = {
+        "epochs": (300, 60),
+        "ckpt_every": (5, 10),
+        "curve_episodes": (100, 30),
+        "confirm_episodes": (200, 0),
+        "steps": (300, 50),
+        "latency_reps": (200, 40),
+        "robust_episodes": (200, 30),
+    }
     for k, (full, small) in defaults.items():
         if getattr(args, k) is None:
             setattr(args, k, small if quick else full)

@@ -17,14 +17,12 @@ import time
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
-import gymnasium as gym  # noqa: E402
-import mujoco  # noqa: E402
-import numpy as np  # noqa: E402
+import mujoco
 
-import lerobot_pnp  # noqa: E402,F401
-from lerobot_pnp import robot  # noqa: E402
-from lerobot_pnp.env_config import make_env  # noqa: E402
-from lerobot_pnp.expert import run_expert_episode  # noqa: E402
+import lerobot_pnp  # noqa: F401
+from lerobot_pnp import robot
+from lerobot_pnp.env_config import make_env
+from lerobot_pnp.expert import run_expert_episode
 
 
 def raw_step_rate(n_steps: int = 20000) -> float:

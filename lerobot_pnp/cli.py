@@ -13,16 +13,28 @@ import typing
 
 # name -> ("module:ConfigClass", "module:function", help)
 COMMANDS: dict[str, tuple[str, str, str]] = {
-    "generate": ("lerobot_pnp.dataset:GenerateConfig", "lerobot_pnp.dataset:generate",
-                 "generate expert demonstrations as a LeRobotDataset v3"),
+    "generate": (
+        "lerobot_pnp.dataset:GenerateConfig",
+        "lerobot_pnp.dataset:generate",
+        "generate expert demonstrations as a LeRobotDataset v3",
+    ),
     "push": ("lerobot_pnp.dataset:PushConfig", "lerobot_pnp.dataset:push", "upload a dataset to the Hugging Face Hub"),
-    "train": ("lerobot_pnp.train_fast:TrainFastConfig", "lerobot_pnp.train_fast:train_fast",
-              "fast in-memory training of the pnp_lstm policy (same checkpoint layout as lerobot-train)"),
+    "train": (
+        "lerobot_pnp.train_fast:TrainFastConfig",
+        "lerobot_pnp.train_fast:train_fast",
+        "fast in-memory training of the pnp_lstm policy (same checkpoint layout as lerobot-train)",
+    ),
     "viz": ("lerobot_pnp.viz:VizConfig", "lerobot_pnp.viz:visualize", "inspect episodes or policy rollouts in Rerun"),
-    "expert": ("lerobot_pnp.expert_eval:ExpertEvalConfig", "lerobot_pnp.expert_eval:evaluate_expert",
-               "run the scripted expert on seeded episodes and report success and failures by cause"),
-    "demo": ("lerobot_pnp.demo:DemoConfig", "lerobot_pnp.demo:run_demo",
-             "end to end: generate, train, evaluate (the README's main job)"),
+    "expert": (
+        "lerobot_pnp.expert_eval:ExpertEvalConfig",
+        "lerobot_pnp.expert_eval:evaluate_expert",
+        "run the scripted expert on seeded episodes and report success and failures by cause",
+    ),
+    "demo": (
+        "lerobot_pnp.demo:DemoConfig",
+        "lerobot_pnp.demo:run_demo",
+        "end to end: generate, train, evaluate (the README's main job)",
+    ),
 }
 
 
@@ -92,7 +104,7 @@ def main(argv: list[str] | None = None) -> int:
     for i, arg in enumerate(args):
         if arg.startswith("--config_path"):
             config_path = arg.split("=", 1)[1] if "=" in arg else args[i + 1]
-            args = args[:i] + args[i + (1 if "=" in arg else 2):]
+            args = args[:i] + args[i + (1 if "=" in arg else 2) :]
             break
     args = normalize_args(config_cls, args)
     from lerobot_pnp.errors import PnPError

@@ -63,8 +63,20 @@ GENERATION_FILE = "meta/pnp_generate.json"
 SHARD_FILE = "pnp_shard.json"
 DEFAULT_SHARD_SIZE = {"keyframe": 100, "dense": 20, "cameras": 5}
 # Fields of GenerateConfig that define the content; a resumed run must match them.
-_CONTENT_FIELDS = ("repo_id", "num_episodes", "seed", "representation", "fps", "cameras", "image_height",
-                   "image_width", "speed", "max_retries", "train_fraction", "shard_size")
+_CONTENT_FIELDS = (
+    "repo_id",
+    "num_episodes",
+    "seed",
+    "representation",
+    "fps",
+    "cameras",
+    "image_height",
+    "image_width",
+    "speed",
+    "max_retries",
+    "train_fraction",
+    "shard_size",
+)
 
 
 # ---------------------------------------------------------------------------------------------- configs
@@ -132,9 +144,6 @@ class GenerateConfig:
         }
 
 
-
-
-
 @dataclass
 class PushConfig:
     """``lerobot-pnp push``: upload a generated dataset to the Hugging Face Hub (tagged v3.0)."""
@@ -158,7 +167,10 @@ def dataset_features(representation: str = "keyframe", cameras=(), image_size=(2
     features = {
         "observation.state": {"dtype": "float32", "shape": (robot.STATE_DIM,), "names": list(robot.STATE_NAMES)},
         "observation.environment_state": {
-            "dtype": "float32", "shape": (robot.OBJECT_DIM,), "names": list(robot.OBJECT_NAMES)},
+            "dtype": "float32",
+            "shape": (robot.OBJECT_DIM,),
+            "names": list(robot.OBJECT_NAMES),
+        },
         "action": {"dtype": "float32", "shape": (robot.ACTION_DIM,), "names": list(robot.ACTION_NAMES)},
         "next.done": {"dtype": "bool", **scalar},
         "next.success": {"dtype": "bool", **scalar},
@@ -169,7 +181,10 @@ def dataset_features(representation: str = "keyframe", cameras=(), image_size=(2
     h, w = image_size
     for cam in cameras:
         features[f"observation.images.{cam}"] = {
-            "dtype": "video", "shape": (h, w, 3), "names": ["height", "width", "channels"]}
+            "dtype": "video",
+            "shape": (h, w, 3),
+            "names": ["height", "width", "channels"],
+        }
     return features
 
 
@@ -199,7 +214,6 @@ _ENV_CACHE: dict = {}
 
 def _get_env(env_kwargs: dict):
     """One env per process and configuration (episodes are independent: reset(seed) rebuilds the state)."""
-    import gymnasium as gym
 
     import lerobot_pnp  # noqa: F401  (registers the gym ids in spawned workers)
 
@@ -209,8 +223,15 @@ def _get_env(env_kwargs: dict):
         from lerobot_pnp.env_config import make_env
 
         h, w = kwargs["image_size"]
-        env = make_env(None, control_mode=kwargs["control_mode"], fps=kwargs["fps"], cameras=list(kwargs["cameras"]),
-                       image_height=h, image_width=w, speed=kwargs["speed"])
+        env = make_env(
+            None,
+            control_mode=kwargs["control_mode"],
+            fps=kwargs["fps"],
+            cameras=list(kwargs["cameras"]),
+            image_height=h,
+            image_width=w,
+            speed=kwargs["speed"],
+        )
         if kwargs["cameras"]:
             env = _PixelRecorder(env)
         _ENV_CACHE[key] = env
@@ -332,8 +353,15 @@ def build_shard(job: dict, progress=None) -> dict:
     t0 = time.perf_counter()
     ds.finalize()
     write_s += time.perf_counter() - t0
-    record = {"index": job["index"], "start": job["start"], "stop": job["stop"], "seeds": seeds,
-              "failures": failures, "sim_s": sim_s, "write_s": write_s}
+    record = {
+        "index": job["index"],
+        "start": job["start"],
+        "stop": job["stop"],
+        "seeds": seeds,
+        "failures": failures,
+        "sim_s": sim_s,
+        "write_s": write_s,
+    }
     (tmp / SHARD_FILE).write_text(json.dumps(record, indent=1))
     if progress:
         progress("shard")
@@ -405,8 +433,13 @@ def generate(cfg: GenerateConfig) -> dict:
             _check_overwritable(root)
             shutil.rmtree(root)
         elif not cfg.resume:
-            state = ("an interrupted generation" if work.exists() else
-                     "a dataset" if (root / "meta" / "info.json").exists() else "not a dataset")
+            state = (
+                "an interrupted generation"
+                if work.exists()
+                else "a dataset"
+                if (root / "meta" / "info.json").exists()
+                else "not a dataset"
+            )
             raise DatasetError(
                 f"{root} already exists ({state}); pass --resume to finish/keep it or --overwrite to replace it"
             )
@@ -417,8 +450,13 @@ def generate(cfg: GenerateConfig) -> dict:
         info = validate_dataset(root)
         gen = _read_json(root / GENERATION_FILE, "generation record")
         _check_manifest(gen.get("config", {}), cfg)
-        return {"root": str(root), "status": "already complete", "episodes": info["total_episodes"],
-                "frames": info["total_frames"], "splits": info.get("splits")}
+        return {
+            "root": str(root),
+            "status": "already complete",
+            "episodes": info["total_episodes"],
+            "frames": info["total_frames"],
+            "splits": info.get("splits"),
+        }
 
     # 2. The work folder and its manifest (a resumed run must have the same content settings).
     work.mkdir(parents=True, exist_ok=True)
@@ -466,9 +504,19 @@ def _generate_locked(cfg: GenerateConfig, root: Path, work: Path, workers: int, 
     n, size = cfg.num_episodes, cfg.shard_size
     jobs = []
     for k in range(math.ceil(n / size)):
-        jobs.append({"index": k, "start": k * size, "stop": min(n, (k + 1) * size), "seed": cfg.seed,
-                     "num_episodes": n, "max_retries": cfg.max_retries, "repo_id": cfg.repo_id,
-                     "env_kwargs": cfg.env_kwargs(), "dir": str(shards_dir / f"shard-{k:05d}")})
+        jobs.append(
+            {
+                "index": k,
+                "start": k * size,
+                "stop": min(n, (k + 1) * size),
+                "seed": cfg.seed,
+                "num_episodes": n,
+                "max_retries": cfg.max_retries,
+                "repo_id": cfg.repo_id,
+                "env_kwargs": cfg.env_kwargs(),
+                "dir": str(shards_dir / f"shard-{k:05d}"),
+            }
+        )
     for p in shards_dir.glob("*.tmp"):
         shutil.rmtree(p)
     records = {}
@@ -495,19 +543,21 @@ def _generate_locked(cfg: GenerateConfig, root: Path, work: Path, workers: int, 
     causes: dict[str, int] = {}
     for f in failures:
         causes[f["cause"]] = causes.get(f["cause"], 0) + 1
-    summary.update({
-        "status": "resumed" if done_before else "generated",
-        "episodes_reused": done_before,
-        "expert_failures": len(failures),
-        "failure_causes": causes,
-        "workers": min(workers, max(1, len(todo))),
-        "wall_s": round(time.perf_counter() - t_start, 2),
-        "generate_wall_s": round(sim_wall, 2),
-        "merge_wall_s": round(merge_wall, 2),
-        "episodes_per_s": round((n - done_before) / sim_wall, 2) if sim_wall > 0 and n > done_before else None,
-        "simulate_cpu_s": round(sum(r["sim_s"] for r in ordered), 2),
-        "write_cpu_s": round(sum(r["write_s"] for r in ordered), 2),
-    })
+    summary.update(
+        {
+            "status": "resumed" if done_before else "generated",
+            "episodes_reused": done_before,
+            "expert_failures": len(failures),
+            "failure_causes": causes,
+            "workers": min(workers, max(1, len(todo))),
+            "wall_s": round(time.perf_counter() - t_start, 2),
+            "generate_wall_s": round(sim_wall, 2),
+            "merge_wall_s": round(merge_wall, 2),
+            "episodes_per_s": round((n - done_before) / sim_wall, 2) if sim_wall > 0 and n > done_before else None,
+            "simulate_cpu_s": round(sum(r["sim_s"] for r in ordered), 2),
+            "write_cpu_s": round(sum(r["write_s"] for r in ordered), 2),
+        }
+    )
     return summary
 
 
@@ -519,12 +569,16 @@ def _with(cfg: GenerateConfig, **changes) -> GenerateConfig:
 
 def _check_manifest(manifest: dict, cfg: GenerateConfig) -> None:
     mine = _manifest(cfg)
-    diff = {k: (manifest.get(k), mine[k]) for k in _CONTENT_FIELDS
-            if k != "shard_size" and _norm(manifest.get(k)) != _norm(mine[k])}
+    diff = {
+        k: (manifest.get(k), mine[k])
+        for k in _CONTENT_FIELDS
+        if k != "shard_size" and _norm(manifest.get(k)) != _norm(mine[k])
+    }
     if diff:
         details = ", ".join(f"{k}: on disk {a!r} vs requested {b!r}" for k, (a, b) in diff.items())
-        raise ConfigError(f"--resume with different settings than the run on disk ({details}); "
-                          "use the same settings or --overwrite")
+        raise ConfigError(
+            f"--resume with different settings than the run on disk ({details}); use the same settings or --overwrite"
+        )
 
 
 def _norm(v):
@@ -535,8 +589,15 @@ def _run_jobs(todo: list[dict], workers: int, cfg: GenerateConfig, initial: int)
     from tqdm import tqdm
 
     records = {}
-    bar = tqdm(total=cfg.num_episodes, initial=initial, desc="episodes", unit="ep", disable=not cfg.progress,
-               dynamic_ncols=True, smoothing=0.05)
+    bar = tqdm(
+        total=cfg.num_episodes,
+        initial=initial,
+        desc="episodes",
+        unit="ep",
+        disable=not cfg.progress,
+        dynamic_ncols=True,
+        smoothing=0.05,
+    )
     fails = [0]
 
     def tick(kind: str) -> None:
@@ -606,8 +667,10 @@ def _merge_and_commit(cfg: GenerateConfig, root: Path, jobs: list[dict], records
         shutil.rmtree(merged)
     seeds = [s for r in records for s in r["seeds"]]
     if len(seeds) != cfg.num_episodes or len(set(seeds)) != len(seeds):
-        raise DatasetError(f"shards hold {len(seeds)} episodes ({len(set(seeds))} distinct seeds), "
-                           f"expected {cfg.num_episodes} distinct; rerun with --overwrite")
+        raise DatasetError(
+            f"shards hold {len(seeds)} episodes ({len(set(seeds))} distinct seeds), "
+            f"expected {cfg.num_episodes} distinct; rerun with --overwrite"
+        )
     shard_roots = [Path(j["dir"]) for j in jobs]
     if len(shard_roots) == 1:
         shutil.copytree(shard_roots[0], merged, ignore=shutil.ignore_patterns(SHARD_FILE))
@@ -644,9 +707,16 @@ def _merge_and_commit(cfg: GenerateConfig, root: Path, jobs: list[dict], records
         os.replace(entry, root / entry.name)
     os.replace(work, root / TRASH_DIR)
     shutil.rmtree(root / TRASH_DIR)
-    return {"root": str(root), "repo_id": cfg.repo_id, "representation": cfg.representation, "fps": cfg.fps,
-            "episodes": check["total_episodes"], "frames": check["total_frames"], "splits": info.splits,
-            "shards": len(jobs)}
+    return {
+        "root": str(root),
+        "repo_id": cfg.repo_id,
+        "representation": cfg.representation,
+        "fps": cfg.fps,
+        "episodes": check["total_episodes"],
+        "frames": check["total_frames"],
+        "splits": info.splits,
+        "shards": len(jobs),
+    }
 
 
 def _version() -> str:
@@ -693,8 +763,10 @@ def validate_dataset(root: str | Path) -> dict:
     if not root.is_dir():
         raise DatasetError(f"no dataset at {root}")
     if (root / WORK_DIR).exists():
-        raise DatasetError(f"{root} holds an interrupted generation (found {WORK_DIR}/); finish it with "
-                           "`lerobot-pnp generate ... --resume` or start over with --overwrite")
+        raise DatasetError(
+            f"{root} holds an interrupted generation (found {WORK_DIR}/); finish it with "
+            "`lerobot-pnp generate ... --resume` or start over with --overwrite"
+        )
     info = _read_json(root / "meta" / "info.json", "meta/info.json")
     for key in ("codebase_version", "total_episodes", "total_frames", "features", "data_path"):
         if key not in info:
@@ -711,8 +783,10 @@ def validate_dataset(root: str | Path) -> dict:
     episodes = pa.concat_tables([_read_parquet(p, "episode metadata") for p in ep_files])
     ep_index = np.sort(episodes.column("episode_index").to_numpy())
     if len(ep_index) != info["total_episodes"] or not np.array_equal(ep_index, np.arange(len(ep_index))):
-        raise DatasetError(f"{root}: episode metadata lists {len(ep_index)} episodes, info.json says "
-                           f"{info['total_episodes']} (dataset not finalized or corrupt)")
+        raise DatasetError(
+            f"{root}: episode metadata lists {len(ep_index)} episodes, info.json says "
+            f"{info['total_episodes']} (dataset not finalized or corrupt)"
+        )
     data_files = sorted((root / "data").glob("chunk-*/file-*.parquet"))
     if not data_files:
         raise DatasetError(f"no data files in {root}/data")
@@ -780,8 +854,9 @@ def verify_dataset(root: str | Path, expected_seeds: list[int] | None = None, rt
         for stat, value in expect.items():
             got = np.asarray(s[stat], dtype=np.float64).reshape(-1)
             if not np.allclose(got, value, rtol=rtol, atol=1e-5):
-                raise DatasetError(f"{root}: meta/stats.json {key}.{stat} = {got.tolist()} but the data give "
-                                   f"{value.tolist()}")
+                raise DatasetError(
+                    f"{root}: meta/stats.json {key}.{stat} = {got.tolist()} but the data give {value.tolist()}"
+                )
         if int(np.asarray(s["count"]).reshape(-1)[0]) != len(table):
             raise DatasetError(f"{root}: meta/stats.json {key}.count != {len(table)} frames")
     return info
@@ -844,5 +919,9 @@ def push(cfg: PushConfig) -> dict:
         ds.push_to_hub(branch=cfg.branch, private=cfg.private, push_videos=cfg.push_videos)
     except Exception as err:
         raise DatasetError(f"push to {cfg.repo_id} failed: {err}") from err
-    return {"repo_id": cfg.repo_id, "root": str(root), "url": f"{constants.ENDPOINT}/datasets/{cfg.repo_id}",
-            "tag": "v3.0"}
+    return {
+        "repo_id": cfg.repo_id,
+        "root": str(root),
+        "url": f"{constants.ENDPOINT}/datasets/{cfg.repo_id}",
+        "tag": "v3.0",
+    }

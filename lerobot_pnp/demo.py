@@ -47,8 +47,9 @@ class DemoConfig:
     evals: list[EvalSpec] = field(
         default_factory=lambda: [
             EvalSpec("nominal", 500),
-            EvalSpec("nudge_3cm_and_noise", 200,
-                     {"nudge_max": 0.03, "obs_noise_object": 0.005, "obs_noise_joints": 0.01}),
+            EvalSpec(
+                "nudge_3cm_and_noise", 200, {"nudge_max": 0.03, "obs_noise_object": 0.005, "obs_noise_joints": 0.01}
+            ),
         ]
     )
     fresh: bool = False
@@ -89,8 +90,12 @@ def run_eval(checkpoint: Path, out: Path, spec: EvalSpec, seed: int, batch_size:
             raise PnPError(f"lerobot-eval failed ({proc.returncode}):\n{proc.stderr[-3000:]}")
         print(f"  done in {time.perf_counter() - start:.0f} s", flush=True)
     overall = json.loads(info_path.read_text())["overall"]
-    return {"pc_success": overall["pc_success"], "n_episodes": overall.get("n_episodes", spec.n_episodes),
-            "env_args": spec.env_args, "eval_info": str(info_path)}
+    return {
+        "pc_success": overall["pc_success"],
+        "n_episodes": overall.get("n_episodes", spec.n_episodes),
+        "env_args": spec.env_args,
+        "eval_info": str(info_path),
+    }
 
 
 def run_demo(cfg: DemoConfig) -> dict:
@@ -112,8 +117,16 @@ def run_demo(cfg: DemoConfig) -> dict:
         print(f"reusing the finished dataset in {root}")
         generation = {"reused": True}
     except PnPError:
-        generation = generate(GenerateConfig(repo_id=cfg.repo_id, root=str(root), num_episodes=cfg.num_episodes,
-                                             seed=cfg.seed, workers=cfg.workers, resume=root.exists()))
+        generation = generate(
+            GenerateConfig(
+                repo_id=cfg.repo_id,
+                root=str(root),
+                num_episodes=cfg.num_episodes,
+                seed=cfg.seed,
+                workers=cfg.workers,
+                resume=root.exists(),
+            )
+        )
     timings["generate_s"] = time.perf_counter() - start
 
     _stage("2/3 train the LSTM task planner (fast path)")
@@ -123,10 +136,17 @@ def run_demo(cfg: DemoConfig) -> dict:
     if checkpoint.exists() and (train_dir / "test_keyframe_error.json").exists():
         print(f"reusing the trained checkpoint {checkpoint}")
     else:
-        train_fast(TrainFastConfig(
-            dataset_repo_id=cfg.repo_id, dataset_root=str(root), epochs=cfg.epochs, batch_size=cfg.batch_size,
-            output_dir=str(train_dir), overwrite=True, policy=PnpLstmConfig(hidden_size=cfg.hidden_size),
-        ))
+        train_fast(
+            TrainFastConfig(
+                dataset_repo_id=cfg.repo_id,
+                dataset_root=str(root),
+                epochs=cfg.epochs,
+                batch_size=cfg.batch_size,
+                output_dir=str(train_dir),
+                overwrite=True,
+                policy=PnpLstmConfig(hidden_size=cfg.hidden_size),
+            )
+        )
     timings["train_s"] = time.perf_counter() - start
     keyframe_error = json.loads((train_dir / "test_keyframe_error.json").read_text())
 
@@ -156,8 +176,17 @@ def _report(summary: dict, train_dir: Path) -> str:
     lines = ["# lerobot_pnp demo report", "", "| evaluation | episodes | success |", "|---|---|---|"]
     for name, e in summary["evals"].items():
         lines.append(f"| {name} {e['env_args'] or ''} | {e['n_episodes']} | {e['pc_success']:.1f}% |")
-    lines += ["", f"Loss curves (train vs held-out MSE): `{train_dir / 'loss_curve.png'}`", "",
-              "Held-out next-keyframe error (degrees):", "", "```",
-              json.dumps(summary["held_out_keyframe_error_deg"], indent=1)[:3000], "```", "",
-              "Stage timings (s): " + ", ".join(f"{k} {v:.0f}" for k, v in summary["timings_s"].items()), ""]
+    lines += [
+        "",
+        f"Loss curves (train vs held-out MSE): `{train_dir / 'loss_curve.png'}`",
+        "",
+        "Held-out next-keyframe error (degrees):",
+        "",
+        "```",
+        json.dumps(summary["held_out_keyframe_error_deg"], indent=1)[:3000],
+        "```",
+        "",
+        "Stage timings (s): " + ", ".join(f"{k} {v:.0f}" for k, v in summary["timings_s"].items()),
+        "",
+    ]
     return "\n".join(lines)

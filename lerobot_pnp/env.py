@@ -31,7 +31,9 @@ class BaxterPnPEnv(gym.Env):
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 1}
 
-    def __init__(self, config: BaxterPnPEnvConfig | dict | None = None, render_mode: str | None = "rgb_array", **changes):
+    def __init__(
+        self, config: BaxterPnPEnvConfig | dict | None = None, render_mode: str | None = "rgb_array", **changes
+    ):
         if isinstance(config, BaxterPnPEnvConfig):
             config = config.with_changes(**changes) if changes else config
         else:
@@ -89,7 +91,9 @@ class BaxterPnPEnv(gym.Env):
     def step(self, action):
         action = np.asarray(action, dtype=np.float64).reshape(-1)
         if action.shape != (robot.ACTION_DIM,):
-            raise ConfigError(f"action must have shape ({robot.ACTION_DIM},) (7 joint targets + gripper), got {action.shape}")
+            raise ConfigError(
+                f"action must have shape ({robot.ACTION_DIM},) (7 joint targets + gripper), got {action.shape}"
+            )
         if not np.all(np.isfinite(action)):
             raise ConfigError(f"action contains NaN/inf: {action.tolist()}")
         q_target = np.clip(action[: robot.N_JOINTS], robot.JOINT_LOWER, robot.JOINT_UPPER)

@@ -150,13 +150,19 @@ class BaxterPnPEnvConfig(EnvConfig):
         if self.fps is not None and not (isinstance(self.fps, int) and 1 <= self.fps <= 500):
             raise ConfigError(f"env.fps must be an integer in [1, 500], got {self.fps!r}")
         if self.control_mode == "keyframe" and self.fps not in (None, KEYFRAME_FPS):
-            raise ConfigError(f"env.fps: keyframe control has one step per FSM state (fps {KEYFRAME_FPS}), got {self.fps}")
+            raise ConfigError(
+                f"env.fps: keyframe control has one step per FSM state (fps {KEYFRAME_FPS}), got {self.fps}"
+            )
         if self.episode_length is not None and not (isinstance(self.episode_length, int) and self.episode_length >= 1):
             raise ConfigError(f"env.episode_length must be an integer >= 1, got {self.episode_length!r}")
         if not (8 <= self.image_height <= 4096 and 8 <= self.image_width <= 4096):
-            raise ConfigError(f"env.image_height/width must be in [8, 4096], got {self.image_height}x{self.image_width}")
+            raise ConfigError(
+                f"env.image_height/width must be in [8, 4096], got {self.image_height}x{self.image_width}"
+            )
         if not 0 < self.speed <= 1:
-            raise ConfigError(f"env.speed (fraction of Baxter's joint velocity limits) must be in (0, 1], got {self.speed}")
+            raise ConfigError(
+                f"env.speed (fraction of Baxter's joint velocity limits) must be in (0, 1], got {self.speed}"
+            )
         sizes = {"object_low": 2, "object_high": 2, "yaw_range": 2, "place_xy": 2, "start_low": 3, "start_high": 3}
         for name, size in sizes.items():
             value = getattr(self, name)
@@ -168,9 +174,15 @@ class BaxterPnPEnvConfig(EnvConfig):
                 raise ConfigError(f"env.{name} must be {size} finite numbers, got {list(value)}")
             setattr(self, name, value)
         for low, high in (*_PAIRS, ("yaw_range", None)):
-            lo, hi = (getattr(self, low)[:1], getattr(self, low)[1:]) if high is None else (getattr(self, low), getattr(self, high))
+            lo, hi = (
+                (getattr(self, low)[:1], getattr(self, low)[1:])
+                if high is None
+                else (getattr(self, low), getattr(self, high))
+            )
             if any(a > b for a, b in zip(lo, hi, strict=True)):
-                raise ConfigError(f"env.{low} must be <= {high or 'its upper end'} elementwise, got {list(lo)} > {list(hi)}")
+                raise ConfigError(
+                    f"env.{low} must be <= {high or 'its upper end'} elementwise, got {list(lo)} > {list(hi)}"
+                )
         for name in ("hover_height", "success_xy_tol"):
             if not (isinstance(getattr(self, name), int | float) and 0 < getattr(self, name) < 1):
                 raise ConfigError(f"env.{name} must be in (0, 1) m, got {getattr(self, name)!r}")

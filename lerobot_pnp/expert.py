@@ -31,7 +31,9 @@ class ExpertConfig:
 
     def __post_init__(self):
         if not 0 <= self.grasp_depth <= robot.CUBE_SIZE / 2:
-            raise ConfigError(f"ExpertConfig.grasp_depth must be in [0, {robot.CUBE_SIZE / 2}] m, got {self.grasp_depth}")
+            raise ConfigError(
+                f"ExpertConfig.grasp_depth must be in [0, {robot.CUBE_SIZE / 2}] m, got {self.grasp_depth}"
+            )
         if not 0 <= self.place_clearance <= 0.02:
             raise ConfigError(f"ExpertConfig.place_clearance must be in [0, 0.02] m, got {self.place_clearance}")
         if self.settle_time < 0 or self.gripper_time <= 0:

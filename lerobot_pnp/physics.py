@@ -135,7 +135,12 @@ class BaxterPhysics:
         d.qpos[self._qadr] = arm_q
         d.qpos[self._finger_qadr] = (opening, -opening)
         d.qpos[self._object_qadr : self._object_qadr + 3] = object_pos
-        d.qpos[self._object_qadr + 3 : self._object_qadr + 7] = (math.cos(object_yaw / 2), 0.0, 0.0, math.sin(object_yaw / 2))
+        d.qpos[self._object_qadr + 3 : self._object_qadr + 7] = (
+            math.cos(object_yaw / 2),
+            0.0,
+            0.0,
+            math.sin(object_yaw / 2),
+        )
         if hold_command:
             d.ctrl[self._arm_act] = arm_q
             d.ctrl[self._grip_act] = opening

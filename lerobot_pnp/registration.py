@@ -11,9 +11,10 @@ def register_all() -> None:
 
     import gymnasium as gym
 
+    import lerobot_pnp.policy  # noqa: F401
+
     # LeRobot config registries (draccus choice registries) are filled by importing the modules.
     from lerobot_pnp import env_config
-    import lerobot_pnp.policy  # noqa: F401
 
     if env_config.GYM_ID not in gym.registry:
         gym.register(

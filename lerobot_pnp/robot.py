@@ -14,7 +14,13 @@ import numpy as np
 
 # Baxter left arm, in kinematic order (Rethink's names).
 JOINT_NAMES: tuple[str, ...] = (
-    "left_s0", "left_s1", "left_e0", "left_e1", "left_w0", "left_w1", "left_w2",
+    "left_s0",
+    "left_s1",
+    "left_e0",
+    "left_e1",
+    "left_w0",
+    "left_w1",
+    "left_w2",
 )
 JOINT_LOWER = np.array([-1.70167993878, -2.147, -3.05417993878, -0.05, -3.059, -1.57079632679, -3.059])
 JOINT_UPPER = np.array([1.70167993878, 1.047, 3.05417993878, 2.618, 3.059, 2.094, 3.059])
@@ -44,9 +50,7 @@ OBJECT_DIM = len(OBJECT_NAMES)
 PICK_PHASES: tuple[str, ...] = ("start", "approach", "grasp", "close", "retract")
 PLACE_PHASES: tuple[str, ...] = ("start", "approach", "descend", "open", "retract")
 SUBTASKS: tuple[str, ...] = ("pick", "place")
-PHASE_NAMES: tuple[str, ...] = tuple(f"pick/{p}" for p in PICK_PHASES) + tuple(
-    f"place/{p}" for p in PLACE_PHASES
-)
+PHASE_NAMES: tuple[str, ...] = tuple(f"pick/{p}" for p in PICK_PHASES) + tuple(f"place/{p}" for p in PLACE_PHASES)
 N_PHASES_PER_SUBTASK = 5
 N_KEYFRAMES = len(PHASE_NAMES)
 KEYFRAME_FPS = 1  # nominal frame rate of a keyframe stream (dataset and env): one FSM state per frame

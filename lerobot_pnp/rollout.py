@@ -12,17 +12,18 @@ observe the continuous motion between steps.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
+from lerobot.utils.constants import ACTION, OBS_STATE
+from lerobot.utils.constants import OBS_ENV_STATE as OBS_ENV
 
 from lerobot_pnp import robot
 from lerobot_pnp.errors import ConfigError
 
-from lerobot.utils.constants import ACTION, OBS_STATE
-from lerobot.utils.constants import OBS_ENV_STATE as OBS_ENV
 CONFIG_NAME = "config.json"
 
 
@@ -114,9 +115,10 @@ def check_policy_features(config: Any) -> None:
 
 def load_policy(path: str | Path, device: str = "cpu") -> LoadedPolicy:
     """Load a LeRobot checkpoint (any registered policy type) with its processors, checked against this env."""
-    import lerobot_pnp  # noqa: F401  (registers pnp_lstm)
     from lerobot.configs import PreTrainedConfig
     from lerobot.policies.factory import get_policy_class, make_pre_post_processors
+
+    import lerobot_pnp  # noqa: F401  (registers pnp_lstm)
 
     ckpt = resolve_checkpoint(path)
     try:

@@ -48,6 +48,7 @@ from lerobot_pnp.policy import PnpLstmConfig, PnpLstmPolicy
 logger = logging.getLogger(__name__)
 
 from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_STATE  # noqa: E402
+
 # The keyframe dataset's model features and their shapes (one source of truth: lerobot_pnp.robot).
 KEYFRAME_FEATURES: dict[str, tuple[int, ...]] = {
     OBS_STATE: (robot.STATE_DIM,),
@@ -347,8 +348,17 @@ def _write_curve(history: list[dict[str, float]], out_dir: Path) -> None:
 
 
 def _save(
-    out_dir: Path, step: int, total_steps: int, cfg: TrainFastConfig, policy: PnpLstmPolicy, optimizer: Any,
-    scheduler: Any, preprocessor: Any, postprocessor: Any, opt_cfg: Any, sched_cfg: Any,
+    out_dir: Path,
+    step: int,
+    total_steps: int,
+    cfg: TrainFastConfig,
+    policy: PnpLstmPolicy,
+    optimizer: Any,
+    scheduler: Any,
+    preprocessor: Any,
+    postprocessor: Any,
+    opt_cfg: Any,
+    sched_cfg: Any,
 ) -> Path:
     from lerobot.common.train_utils import get_step_checkpoint_dir, save_checkpoint, update_last_checkpoint
     from lerobot.configs.default import DatasetConfig
@@ -370,8 +380,15 @@ def _save(
     )
     ckpt = get_step_checkpoint_dir(out_dir, total_steps, step)
     save_checkpoint(
-        checkpoint_dir=ckpt, step=step, cfg=train_cfg, policy=policy, optimizer=optimizer, scheduler=scheduler,
-        preprocessor=preprocessor, postprocessor=postprocessor, batch_size=cfg.batch_size,
+        checkpoint_dir=ckpt,
+        step=step,
+        cfg=train_cfg,
+        policy=policy,
+        optimizer=optimizer,
+        scheduler=scheduler,
+        preprocessor=preprocessor,
+        postprocessor=postprocessor,
+        batch_size=cfg.batch_size,
     )
     update_last_checkpoint(ckpt)
     return ckpt / "pretrained_model"
@@ -398,7 +415,10 @@ def train_fast(cfg: TrainFastConfig) -> TrainFastResult:
     ds, data = load_keyframe_data(cfg.dataset_repo_id, cfg.dataset_root, cfg.test_episodes)
     logger.info(
         "Keyframe dataset %s: %d train / %d test episodes (%s)",
-        cfg.dataset_repo_id, len(data.train_idx), len(data.test_idx), data.split_source,
+        cfg.dataset_repo_id,
+        len(data.train_idx),
+        len(data.test_idx),
+        data.split_source,
     )
 
     policy_cfg = cfg.policy
@@ -433,8 +453,16 @@ def train_fast(cfg: TrainFastConfig) -> TrainFastResult:
 
     history: list[dict[str, float]] = []
     test0 = _mse(policy, test_all) if test_all is not None else float("nan")
-    history.append({"epoch": 0, "step": 0, "train_mse": _mse(policy, train_all), "test_mse": test0,
-                    "lr": optimizer.param_groups[0]["lr"], "time_s": 0.0})
+    history.append(
+        {
+            "epoch": 0,
+            "step": 0,
+            "train_mse": _mse(policy, train_all),
+            "test_mse": test0,
+            "lr": optimizer.param_groups[0]["lr"],
+            "time_s": 0.0,
+        }
+    )
 
     gen = torch.Generator().manual_seed(cfg.seed)
     step = 0
@@ -467,21 +495,41 @@ def train_fast(cfg: TrainFastConfig) -> TrainFastResult:
         last = epoch == n_epochs
         if last or epoch % max(1, cfg.eval_every_epochs) == 0:
             test = _mse(policy, test_all) if test_all is not None else float("nan")
-            history.append({"epoch": epoch, "step": step, "train_mse": float(np.mean(losses)), "test_mse": test,
-                            "lr": optimizer.param_groups[0]["lr"], "time_s": time.perf_counter() - t0})
+            history.append(
+                {
+                    "epoch": epoch,
+                    "step": step,
+                    "train_mse": float(np.mean(losses)),
+                    "test_mse": test,
+                    "lr": optimizer.param_groups[0]["lr"],
+                    "time_s": time.perf_counter() - t0,
+                }
+            )
             if pbar is not None:
                 pbar.set_postfix(train=f"{history[-1]['train_mse']:.4g}", test=f"{test:.4g}")
         if pbar is not None:
             pbar.update(1)
         if cfg.save_every_epochs > 0 and epoch % cfg.save_every_epochs == 0 and not last:
-            _save(out_dir, step, total_steps, cfg, policy, optimizer, scheduler, preprocessor, postprocessor,
-                  opt_cfg, sched_cfg)
+            _save(
+                out_dir,
+                step,
+                total_steps,
+                cfg,
+                policy,
+                optimizer,
+                scheduler,
+                preprocessor,
+                postprocessor,
+                opt_cfg,
+                sched_cfg,
+            )
             policy.train()
     if pbar is not None:
         pbar.close()
     policy.eval()
-    ckpt_dir = _save(out_dir, step, total_steps, cfg, policy, optimizer, scheduler, preprocessor, postprocessor,
-                     opt_cfg, sched_cfg)
+    ckpt_dir = _save(
+        out_dir, step, total_steps, cfg, policy, optimizer, scheduler, preprocessor, postprocessor, opt_cfg, sched_cfg
+    )
 
     final_train = _mse(policy, train_all)
     final_test = _mse(policy, test_all) if test_all is not None else float("nan")
@@ -490,15 +538,34 @@ def train_fast(cfg: TrainFastConfig) -> TrainFastResult:
         err = keyframe_error(policy, postprocessor, test_all, data.action[data.test_idx], names)
     else:
         err = {"n_episodes": 0}
-    err.update({"split": data.split_source, "n_train_episodes": n_train, "n_test_episodes": len(data.test_idx),
-                "final_train_mse": final_train, "final_test_mse": final_test, "steps": step,
-                "checkpoint": str(ckpt_dir)})
+    err.update(
+        {
+            "split": data.split_source,
+            "n_train_episodes": n_train,
+            "n_test_episodes": len(data.test_idx),
+            "final_train_mse": final_train,
+            "final_test_mse": final_test,
+            "steps": step,
+            "checkpoint": str(ckpt_dir),
+        }
+    )
     (out_dir / "test_keyframe_error.json").write_text(json.dumps(err, indent=2))
     _write_curve(history, out_dir)
-    logger.info("pnp_lstm fast training done: train MSE %.4g, test MSE %.4g, test joint MAE %.3f deg -> %s",
-                final_train, final_test, err.get("mean_joint_mae_deg", float("nan")), ckpt_dir)
-    return TrainFastResult(checkpoint_dir=ckpt_dir, steps=step, final_train_mse=final_train,
-                           final_test_mse=final_test, test_keyframe_error=err, history=history)
+    logger.info(
+        "pnp_lstm fast training done: train MSE %.4g, test MSE %.4g, test joint MAE %.3f deg -> %s",
+        final_train,
+        final_test,
+        err.get("mean_joint_mae_deg", float("nan")),
+        ckpt_dir,
+    )
+    return TrainFastResult(
+        checkpoint_dir=ckpt_dir,
+        steps=step,
+        final_train_mse=final_train,
+        final_test_mse=final_test,
+        test_keyframe_error=err,
+        history=history,
+    )
 
 
 def main() -> None:

@@ -65,14 +65,15 @@ import mujoco
 import numpy as np
 
 from lerobot_pnp import robot
-from lerobot_pnp.errors import ConfigError, PnPError
 from lerobot_pnp.env_config import DENSE_FPS
+from lerobot_pnp.errors import ConfigError, PnPError
 
 logger = logging.getLogger(__name__)
 
 APPLICATION_ID = "lerobot_pnp"
 from lerobot.utils.constants import ACTION, OBS_STATE  # noqa: E402
 from lerobot.utils.constants import OBS_ENV_STATE as OBS_ENV  # noqa: E402
+
 PHASE_INDEX, EPISODE_SEED, SUCCESS = "phase.index", "episode.seed", "next.success"
 # Where the env settings of a dataset are looked for (``lerobot-pnp generate`` writes the first one).
 ENV_CONFIG_FILES = ("meta/pnp_generate.json", "meta/env_config.json")
@@ -162,7 +163,6 @@ def _episode_list(value: Any) -> list[int]:
     return value
 
 
-
 # ---------------------------------------------------------------------------------------------- scene
 def _quat_xyzw(q_wxyz: np.ndarray) -> np.ndarray:
     q = np.asarray(q_wxyz, dtype=np.float64)
@@ -219,7 +219,10 @@ class SceneModel:
             return rr.Cylinders3D(lengths=[2 * size[1]], radii=[size[0]], colors=[color], fill_mode=solid)
         if kind == mujoco.mjtGeom.mjGEOM_CAPSULE:
             return rr.Capsules3D(
-                lengths=[2 * size[1]], radii=[size[0]], translations=[[0, 0, -size[1]]], colors=[color],
+                lengths=[2 * size[1]],
+                radii=[size[0]],
+                translations=[[0, 0, -size[1]]],
+                colors=[color],
                 fill_mode=solid,
             )
         if kind == mujoco.mjtGeom.mjGEOM_SPHERE:
@@ -265,8 +268,12 @@ class SceneModel:
         rec.log(
             f"{run}/world/target",
             rr.Cylinders3D(
-                lengths=[max(2 * m.site_size[s][1], 1e-3)], radii=[m.site_size[s][0]], centers=[data.site_xpos[s]],
-                colors=[_rgba_u8(rgba)], fill_mode=rr.components.FillMode.Solid, labels=["place target"],
+                lengths=[max(2 * m.site_size[s][1], 1e-3)],
+                radii=[m.site_size[s][0]],
+                centers=[data.site_xpos[s]],
+                colors=[_rgba_u8(rgba)],
+                fill_mode=rr.components.FillMode.Solid,
+                labels=["place target"],
             ),
             static=True,
         )
@@ -417,7 +424,9 @@ def log_run(rec, run: str, scene: SceneModel, samples: dict[str, np.ndarray], fr
         )
         sample_phase = _phase_per_sample(len(t), frames.sample[known], frames.phase[known])
         _send_scalars(rec, f"{run}/plots/phase_index", tick_idx, sample_phase)
-        _send_scalars(rec, f"{run}/plots/phase_index", _indexes(ft[known], frames.frame_index[known]), frames.phase[known])
+        _send_scalars(
+            rec, f"{run}/plots/phase_index", _indexes(ft[known], frames.frame_index[known]), frames.phase[known]
+        )
 
 
 def _phase_name(p: int) -> str:
@@ -502,7 +511,11 @@ def _dataset_env_kwargs(ds) -> dict:
             keep = ("control_mode", "fps", "speed", "path", "task_config")
             return {k: cfg[k] for k in keep if k in cfg}
     fps = int(ds.fps)
-    return {"control_mode": "keyframe", "fps": robot.KEYFRAME_FPS} if fps <= robot.KEYFRAME_FPS else {"control_mode": "dense", "fps": fps}
+    return (
+        {"control_mode": "keyframe", "fps": robot.KEYFRAME_FPS}
+        if fps <= robot.KEYFRAME_FPS
+        else {"control_mode": "dense", "fps": fps}
+    )
 
 
 def load_episode(ds, episode_index: int) -> EpisodeData:
@@ -512,7 +525,9 @@ def load_episode(ds, episode_index: int) -> EpisodeData:
         raise IncompatibleDatasetError(f"dataset {ds.repo_id!r} lacks features {missing} (has {sorted(features)})")
     for key, dim in ((OBS_STATE, robot.STATE_DIM), (ACTION, robot.ACTION_DIM), (OBS_ENV, robot.OBJECT_DIM)):
         if tuple(features[key]["shape"]) != (dim,):
-            raise IncompatibleDatasetError(f"dataset feature {key!r} has shape {features[key]['shape']}, expected ({dim},)")
+            raise IncompatibleDatasetError(
+                f"dataset feature {key!r} has shape {features[key]['shape']}, expected ({dim},)"
+            )
     ranges = {}
     for row in ds.meta.episodes:
         ranges[int(row["episode_index"])] = (int(row["dataset_from_index"]), int(row["dataset_to_index"]))
@@ -585,7 +600,9 @@ def replay_episode(ep: EpisodeData, scene_env, hz: float) -> tuple[SceneModel, d
             logger.warning(
                 "viz: episode %d re-simulated with seed %d deviates from the dataset by up to %.4g "
                 "(different env settings?); the 3D motion is the re-simulation, the plots at frames are the dataset's",
-                ep.index, ep.seed, err,
+                ep.index,
+                ep.seed,
+                err,
             )
     else:  # no seed: pose the model from the recorded states, one sample per frame
         env.reset(seed=0)
@@ -707,12 +724,19 @@ def log_policy_comparison(
     m = min(n, len(ref))
     ref_ee = np.array([scene.ee_position(data, a, scratch) for a in ref]).reshape(-1, 3)
     log_keyframes(
-        rec, f"{run}/world/expert_keyframes", ref_ee,
+        rec,
+        f"{run}/world/expert_keyframes",
+        ref_ee,
         [f"expert {_phase_name(min(k + 1, robot.N_KEYFRAMES - 1))}" for k in range(len(ref))],
-        [EXPERT_COLOR] * len(ref), radius=0.01,
+        [EXPERT_COLOR] * len(ref),
+        radius=0.01,
     )
     if len(expert["ee_path"]):
-        rec.log(f"{run}/world/expert_ee_path", rr.LineStrips3D([expert["ee_path"]], colors=[EXPERT_COLOR], radii=[0.002]), static=True)
+        rec.log(
+            f"{run}/world/expert_ee_path",
+            rr.LineStrips3D([expert["ee_path"]], colors=[EXPERT_COLOR], radii=[0.002]),
+            static=True,
+        )
     if m == 0:
         return
     idx = _indexes(times[frames.sample[:m]], frames.frame_index[:m])
@@ -772,7 +796,9 @@ def visualize(cfg: VizConfig) -> dict:
     if cfg.repo_id is None and cfg.policy_path is None:
         raise ConfigError("nothing to show: give --repo_id (with --root) for dataset episodes and/or --policy_path")
     if cfg.save is None and not _has_display():
-        raise ConfigError("no display to spawn the Rerun viewer on: pass --save out.rrd and open it with `rerun out.rrd`")
+        raise ConfigError(
+            "no display to spawn the Rerun viewer on: pass --save out.rrd and open it with `rerun out.rrd`"
+        )
 
     # Load and check everything before opening the recording, so bad input fails fast and writes nothing.
     episodes: list[EpisodeData] = []
@@ -879,7 +905,9 @@ def render_picture(
         if scn.ngeom >= scn.maxgeom:
             return None
         g = scn.geoms[scn.ngeom]
-        mujoco.mjv_initGeom(g, kind, np.asarray(size3, float), np.asarray(pos, float), np.eye(3).ravel(), np.asarray(rgba, np.float32))
+        mujoco.mjv_initGeom(
+            g, kind, np.asarray(size3, float), np.asarray(pos, float), np.eye(3).ravel(), np.asarray(rgba, np.float32)
+        )
         g.label = label
         scn.ngeom += 1
         return g
@@ -901,4 +929,10 @@ def render_picture(
     Image.fromarray(img).save(out, optimize=True)
     if out.stat().st_size > 300_000:
         Image.fromarray(img).quantize(colors=256).save(out, optimize=True)
-    return {"path": str(out), "bytes": out.stat().st_size, "seed": seed, "step": step, "mujoco_gl": os.environ["MUJOCO_GL"]}
+    return {
+        "path": str(out),
+        "bytes": out.stat().st_size,
+        "seed": seed,
+        "step": step,
+        "mujoco_gl": os.environ["MUJOCO_GL"],
+    }

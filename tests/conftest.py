@@ -5,9 +5,9 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("MUJOCO_GL", "egl")
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
 
-import pytest  # noqa: E402
+import pytest
 
-import lerobot_pnp  # noqa: E402,F401  (registers the env and policy)
+import lerobot_pnp  # noqa: F401  (registers the env and policy)
 
 
 @pytest.fixture

@@ -61,7 +61,7 @@ def _bad_value_outcome(argv: list[str], capsys) -> tuple[int, str]:
         text = ""
     except SystemExit as exc:  # argparse/draccus-style exit
         rc, text = (exc.code if isinstance(exc.code, int) else 1), str(exc)
-    except Exception as exc:  # noqa: BLE001 - draccus wraps the config's own error
+    except Exception as exc:
         rc, chain = 1, []
         while exc is not None:
             chain.append(str(exc))
@@ -99,7 +99,7 @@ def test_bad_config_value_subprocess_message(tmp_path):
 def test_expert_three_episodes(capsys):
     assert cli.main(["expert", "--n_episodes", "3"]) == 0
     out = capsys.readouterr().out
-    result = json.loads(out[out.index("{"):])
+    result = json.loads(out[out.index("{") :])
     assert result["n_episodes"] == 3
     assert result["success_rate"] == 1.0
 
@@ -132,8 +132,14 @@ def _write_mismatched_checkpoint(out: Path) -> None:
 
 def _eval_cmd(policy_path: Path, out: Path) -> list[str]:
     return [
-        _exe("lerobot-eval"), f"--policy.path={policy_path}", "--env.type=baxter_pnp", "--eval.n_episodes=2",
-        "--eval.batch_size=2", "--eval.use_async_envs=false", "--policy.device=cpu", f"--output_dir={out}",
+        _exe("lerobot-eval"),
+        f"--policy.path={policy_path}",
+        "--env.type=baxter_pnp",
+        "--eval.n_episodes=2",
+        "--eval.batch_size=2",
+        "--eval.use_async_envs=false",
+        "--policy.device=cpu",
+        f"--output_dir={out}",
     ]
 
 
@@ -141,19 +147,44 @@ def _eval_cmd(policy_path: Path, out: Path) -> list[str]:
 def test_end_to_end_real_clis(tmp_path):
     pnp = _exe("lerobot-pnp")
     ds = tmp_path / "ds"
-    proc = _run([pnp, "generate", "--repo_id=local/cli_e2e", f"--root={ds}", "--num_episodes=12", "--workers=1",
-                 "--progress=false"], tmp_path)
+    proc = _run(
+        [
+            pnp,
+            "generate",
+            "--repo_id=local/cli_e2e",
+            f"--root={ds}",
+            "--num_episodes=12",
+            "--workers=1",
+            "--progress=false",
+        ],
+        tmp_path,
+    )
     assert proc.returncode == 0, proc.stderr[-3000:]
     info = json.loads((ds / "meta" / "info.json").read_text())
     assert info["total_episodes"] == 12 and info["splits"] == {"train": "0:10", "test": "10:12"}
 
     train = tmp_path / "train"
-    proc = _run([pnp, "train", "--dataset_repo_id=local/cli_e2e", f"--dataset_root={ds}", "--epochs=3",
-                 f"--output_dir={train}", "--progress=false"], tmp_path)
+    proc = _run(
+        [
+            pnp,
+            "train",
+            "--dataset_repo_id=local/cli_e2e",
+            f"--dataset_root={ds}",
+            "--epochs=3",
+            f"--output_dir={train}",
+            "--progress=false",
+        ],
+        tmp_path,
+    )
     assert proc.returncode == 0, proc.stderr[-3000:]
     ckpt = train / "checkpoints" / "last" / "pretrained_model"
-    for name in ("config.json", "model.safetensors", "train_config.json", "policy_preprocessor.json",
-                 "policy_postprocessor.json"):
+    for name in (
+        "config.json",
+        "model.safetensors",
+        "train_config.json",
+        "policy_preprocessor.json",
+        "policy_postprocessor.json",
+    ):
         assert (ckpt / name).is_file(), name
 
     out = tmp_path / "eval"

@@ -51,8 +51,13 @@ def _cli_env(**extra) -> dict:
 
 
 def _cli(*args, env=None, timeout=120) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "lerobot_pnp.cli", *args], capture_output=True, text=True,
-                          env=env or _cli_env(HF_HUB_OFFLINE="1"), timeout=timeout)
+    return subprocess.run(
+        [sys.executable, "-m", "lerobot_pnp.cli", *args],
+        capture_output=True,
+        text=True,
+        env=env or _cli_env(HF_HUB_OFFLINE="1"),
+        timeout=timeout,
+    )
 
 
 @pytest.fixture(scope="module")
@@ -75,16 +80,25 @@ def test_keyframe_dataset_loads_with_stock_loader(kf):
         " 'done': bool(item['next.done']), 'phase': int(item['phase.index']), 'task': item['task'],"
         " 'names': ds.features['observation.state']['names'], 'splits': ds.meta.info.splits}))\n"
     )
-    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         env=_cli_env(HF_HUB_OFFLINE="1"), timeout=120)
+    res = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env=_cli_env(HF_HUB_OFFLINE="1"), timeout=120
+    )
     assert res.returncode == 0, res.stderr
     assert "libtorchcodec" not in res.stderr  # video_backend="pyav": no torchcodec traceback
     out = json.loads(res.stdout.strip().splitlines()[-1])
     assert out["n"] == 100 and out["eps"] == 10 and out["fps"] == 1
     assert out["done"] and out["phase"] == 9 and out["task"] == robot.TASK
     assert out["names"] == list(robot.STATE_NAMES)
-    for key in ("observation.state", "observation.environment_state", "action", "next.done", "next.success",
-                "phase.index", "phase.subtask", "episode.seed"):
+    for key in (
+        "observation.state",
+        "observation.environment_state",
+        "action",
+        "next.done",
+        "next.success",
+        "phase.index",
+        "phase.subtask",
+        "episode.seed",
+    ):
         assert key in out["keys"]
     assert not any(k.startswith("observation.") and k.split(".")[1] in ("phase", "seed") for k in out["keys"])
     assert out["splits"] == {"train": "0:8", "test": "8:10"}
@@ -107,10 +121,13 @@ def test_keyframe_episodes_reproduce_the_expert_exactly(kf):
             seeds = {table["episode.seed"][i] for i in rows}
             assert len(seeds) == 1
             ep = run_expert_episode(env, seeds.pop())
-            np.testing.assert_array_equal(np.array([table["observation.state"][i] for i in rows], np.float32), ep.states)
+            np.testing.assert_array_equal(
+                np.array([table["observation.state"][i] for i in rows], np.float32), ep.states
+            )
             np.testing.assert_array_equal(np.array([table["action"][i] for i in rows], np.float32), ep.actions)
             np.testing.assert_array_equal(
-                np.array([table["observation.environment_state"][i] for i in rows], np.float32), ep.object_positions)
+                np.array([table["observation.environment_state"][i] for i in rows], np.float32), ep.object_positions
+            )
             np.testing.assert_array_equal([table["phase.index"][i] for i in rows], np.arange(robot.N_KEYFRAMES))
             np.testing.assert_array_equal([table["phase.subtask"][i] for i in rows], np.arange(10) // 5)
             assert [table["next.done"][i] for i in rows] == [False] * 9 + [True]
@@ -206,8 +223,12 @@ def test_kill_9_then_resume(tmp_path):
     root = tmp_path / "crash"
     n = 60
     args = [f"--repo_id={REPO}", f"--root={root}", f"--num_episodes={n}", "--shard_size=5", "--progress=false"]
-    proc = subprocess.Popen([sys.executable, "-m", "lerobot_pnp.cli", "generate", *args, "--workers=2"],
-                            env=_cli_env(HF_HUB_OFFLINE="1"), stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "lerobot_pnp.cli", "generate", *args, "--workers=2"],
+        env=_cli_env(HF_HUB_OFFLINE="1"),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
     shards = root / ".pnp_work" / "shards"
     deadline = time.time() + 90
     workers = []
@@ -254,8 +275,13 @@ def test_push_without_token_or_network_fails_fast_and_touches_nothing(kf, tmp_pa
     t0 = time.time()
     res = _cli("push", f"--repo_id={REPO}", f"--root={root}", env=_cli_env(HF_HOME=str(home)))
     assert res.returncode == 1 and "no Hugging Face token" in res.stderr, res.stderr
-    res = _cli("push", f"--repo_id={REPO}", f"--root={root}", "--connect_timeout_s=3",
-               env=_cli_env(HF_HOME=str(home), HF_TOKEN="hf_not_a_real_token"))
+    res = _cli(
+        "push",
+        f"--repo_id={REPO}",
+        f"--root={root}",
+        "--connect_timeout_s=3",
+        env=_cli_env(HF_HOME=str(home), HF_TOKEN="hf_not_a_real_token"),
+    )
     assert res.returncode == 1 and "cannot push" in res.stderr, res.stderr
     assert time.time() - t0 < 60
     res = _cli("push", f"--repo_id={REPO}", f"--root={root}", env=_cli_env(HF_HUB_OFFLINE="1", HF_TOKEN="hf_x"))
@@ -266,7 +292,6 @@ def test_push_without_token_or_network_fails_fast_and_touches_nothing(kf, tmp_pa
 # ---------------------------------------------------------------------------------------------- dense
 def test_dense_small(tmp_path):
     import gymnasium as gym
-
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
     from lerobot_pnp.expert import run_expert_episode
@@ -288,8 +313,17 @@ def test_dense_with_camera_video(tmp_path):
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
     root = tmp_path / "cam"
-    generate(_cfg(root, repo_id="test/pnp_cam", num_episodes=1, representation="dense", cameras=["front"],
-                  image_height=32, image_width=32))
+    generate(
+        _cfg(
+            root,
+            repo_id="test/pnp_cam",
+            num_episodes=1,
+            representation="dense",
+            cameras=["front"],
+            image_height=32,
+            image_width=32,
+        )
+    )
     ds = LeRobotDataset("test/pnp_cam", root=root, video_backend="pyav")
     assert ds.meta.video_keys == ["observation.images.front"]
     frame = ds[len(ds) - 1]["observation.images.front"]
@@ -301,9 +335,23 @@ def test_lerobot_dataset_viz_runs(kf, tmp_path):
     root, _ = kf
     out = tmp_path / "viz"
     res = subprocess.run(
-        [str(Path(sys.executable).parent / "lerobot-dataset-viz"), "--repo-id", REPO, "--root", str(root), "--episode-index", "0", "--save", "1",
-         "--output-dir", str(out)],
-        capture_output=True, text=True, env=_cli_env(HF_HUB_OFFLINE="1"), timeout=180,
+        [
+            str(Path(sys.executable).parent / "lerobot-dataset-viz"),
+            "--repo-id",
+            REPO,
+            "--root",
+            str(root),
+            "--episode-index",
+            "0",
+            "--save",
+            "1",
+            "--output-dir",
+            str(out),
+        ],
+        capture_output=True,
+        text=True,
+        env=_cli_env(HF_HUB_OFFLINE="1"),
+        timeout=180,
         cwd=tmp_path,
     )
     assert res.returncode == 0, res.stderr[-3000:]
@@ -343,5 +391,6 @@ def test_config_validation():
     assert GenerateConfig().fps == 1 and GenerateConfig().num_episodes == 1400
     from lerobot_pnp.cli import normalize_args
 
-    assert normalize_args(GenerateConfig, ["--repo-id", "a/b", "--resume", "--num-episodes=3", "--overwrite", "false"]) == [
-        "--repo_id", "a/b", "--resume=true", "--num_episodes=3", "--overwrite", "false"]
+    assert normalize_args(
+        GenerateConfig, ["--repo-id", "a/b", "--resume", "--num-episodes=3", "--overwrite", "false"]
+    ) == ["--repo_id", "a/b", "--resume=true", "--num_episodes=3", "--overwrite", "false"]

@@ -28,8 +28,21 @@ def test_lerobot_discovers_the_plugin_by_distribution_name():
 @pytest.mark.slow
 def test_wheel_ships_the_scene(tmp_path):
     subprocess.run(
-        [sys.executable, "-m", "pip", "wheel", str(ROOT), "--no-deps", "--no-build-isolation", "-q", "-w", str(tmp_path)],
-        check=True, capture_output=True, cwd=tmp_path,
+        [
+            sys.executable,
+            "-m",
+            "pip",
+            "wheel",
+            str(ROOT),
+            "--no-deps",
+            "--no-build-isolation",
+            "-q",
+            "-w",
+            str(tmp_path),
+        ],
+        check=True,
+        capture_output=True,
+        cwd=tmp_path,
     )
     (wheel,) = tmp_path.glob("lerobot_policy_pnp_lstm-*.whl")
     names = zipfile.ZipFile(wheel).namelist()

@@ -93,8 +93,13 @@ def make_keyframe_dataset(
 ) -> LeRobotDataset:
     rng = np.random.default_rng(seed)
     ds = LeRobotDataset.create(
-        repo_id, fps=1, features=_features(state_dim, with_action=with_action), root=root, robot_type="baxter",
-        use_videos=False, video_backend="pyav",
+        repo_id,
+        fps=1,
+        features=_features(state_dim, with_action=with_action),
+        root=root,
+        robot_type="baxter",
+        use_videos=False,
+        video_backend="pyav",
     )
     for _ in range(n_episodes):
         states, objs, acts = _synthetic_episode(rng)
@@ -254,8 +259,10 @@ def test_windowed_batches_match_full_episodes(dataset_root):
 
     n_ep = 4
     windows = [ds[i] for i in range(n_ep * T)]  # every frame of the first episodes
-    batch = {k: torch.stack([w[k] for w in windows]) for k in (OBS_STATE, OBS_ENV, ACTION, f"{OBS_STATE}_is_pad",
-                                                               f"{OBS_ENV}_is_pad", f"{ACTION}_is_pad")}
+    batch = {
+        k: torch.stack([w[k] for w in windows])
+        for k in (OBS_STATE, OBS_ENV, ACTION, f"{OBS_STATE}_is_pad", f"{OBS_ENV}_is_pad", f"{ACTION}_is_pad")
+    }
     raw_state = batch[OBS_STATE].clone()
     assert batch[OBS_STATE].shape == (n_ep * T, T, 8) and batch[f"{OBS_STATE}_is_pad"].shape == (n_ep * T, T)
     nb = pre(batch)
@@ -308,8 +315,13 @@ def test_train_fast_reduces_loss_and_writes_outputs(trained):
     assert result.final_test_mse < 0.2 * h0["test_mse"], (h0, result.final_test_mse)
     pm = out / "checkpoints" / "last" / "pretrained_model"
     assert (out / "checkpoints" / "last").is_symlink()
-    for name in ("config.json", "model.safetensors", "train_config.json", "policy_preprocessor.json",
-                 "policy_postprocessor.json"):
+    for name in (
+        "config.json",
+        "model.safetensors",
+        "train_config.json",
+        "policy_preprocessor.json",
+        "policy_postprocessor.json",
+    ):
         assert (pm / name).is_file(), name
     assert list(pm.glob("policy_preprocessor_step_*_normalizer_processor.safetensors"))
     assert json.loads((pm / "config.json").read_text())["type"] == "pnp_lstm"
@@ -356,16 +368,28 @@ def test_save_load_roundtrip_identical_actions(trained, episodes):
 def test_train_fast_refuses_existing_output_dir(trained, dataset_root):
     _, out = trained
     with pytest.raises(FileExistsError):
-        train_fast(TrainFastConfig(dataset_repo_id="test/pnp_synth", dataset_root=str(dataset_root),
-                                   output_dir=str(out), epochs=1, progress=False))
+        train_fast(
+            TrainFastConfig(
+                dataset_repo_id="test/pnp_synth",
+                dataset_root=str(dataset_root),
+                output_dir=str(out),
+                epochs=1,
+                progress=False,
+            )
+        )
 
 
 # ---- inference ----------------------------------------------------------------------------------
 
 
 def test_select_action_matches_teacher_forced_sequence():
-    for kw in ({}, {"shared_network": True}, {"shared_network": True, "carry_hidden_across_subtasks": True},
-               {"recurrent": False}, {"num_layers": 2, "dropout": 0.1}):
+    for kw in (
+        {},
+        {"shared_network": True},
+        {"shared_network": True, "carry_hidden_across_subtasks": True},
+        {"recurrent": False},
+        {"num_layers": 2, "dropout": 0.1},
+    ):
         policy = _fresh_policy(**kw)
         eps = _norm_episodes(5)
         with torch.no_grad():
@@ -517,8 +541,13 @@ def test_split_episodes():
 def test_train_fast_rejects_wrong_datasets(tmp_path, kwargs, match):
     root = tmp_path / "bad"
     make_keyframe_dataset(root, n_episodes=3, **kwargs)
-    cfg = TrainFastConfig(dataset_repo_id="test/pnp_synth", dataset_root=str(root), output_dir=str(tmp_path / "o"),
-                          epochs=1, progress=False)
+    cfg = TrainFastConfig(
+        dataset_repo_id="test/pnp_synth",
+        dataset_root=str(root),
+        output_dir=str(tmp_path / "o"),
+        epochs=1,
+        progress=False,
+    )
     with pytest.raises(ValueError, match=match):
         train_fast(cfg)
 
@@ -551,10 +580,20 @@ def test_lerobot_train_cli(dataset_root, tmp_path):
     out = tmp_path / "train"
     exe = Path(sys.executable).with_name("lerobot-train")
     cmd = [
-        str(exe), "--dataset.repo_id=test/pnp_synth", f"--dataset.root={dataset_root}",
-        "--dataset.video_backend=pyav", "--policy.type=pnp_lstm", "--policy.device=cpu",
-        "--policy.push_to_hub=false", "--policy.hidden_size=16", "--steps=3", "--batch_size=8", "--num_workers=0",
-        "--save_freq=3", "--log_freq=1", f"--output_dir={out}",
+        str(exe),
+        "--dataset.repo_id=test/pnp_synth",
+        f"--dataset.root={dataset_root}",
+        "--dataset.video_backend=pyav",
+        "--policy.type=pnp_lstm",
+        "--policy.device=cpu",
+        "--policy.push_to_hub=false",
+        "--policy.hidden_size=16",
+        "--steps=3",
+        "--batch_size=8",
+        "--num_workers=0",
+        "--save_freq=3",
+        "--log_freq=1",
+        f"--output_dir={out}",
     ]
     env = {**os.environ, "OMP_NUM_THREADS": "1", "HF_HUB_OFFLINE": "1"}
     if not _plugin_installed():  # not pip-installed: let lerobot import the package by path
@@ -587,8 +626,13 @@ def test_train_fast_on_a_missing_local_dataset_is_a_clear_error(tmp_path):
     """A wrong --dataset_root must not fall back to downloading repo_id from the Hub."""
     from lerobot_pnp.errors import DatasetError
 
-    cfg = TrainFastConfig(dataset_repo_id="local/nothing", dataset_root=str(tmp_path / "missing"), epochs=1,
-                          output_dir=str(tmp_path / "out"), progress=False)
+    cfg = TrainFastConfig(
+        dataset_repo_id="local/nothing",
+        dataset_root=str(tmp_path / "missing"),
+        epochs=1,
+        output_dir=str(tmp_path / "out"),
+        progress=False,
+    )
     with pytest.raises(DatasetError, match="no dataset at"):
         train_fast(cfg)
     assert not (tmp_path / "out").exists()

@@ -33,8 +33,17 @@ FEATURES = {
     "episode.seed": {"dtype": "int64", "shape": (1,), "names": None},
 }
 ARM_BODIES = (
-    "left_upper_shoulder", "left_lower_shoulder", "left_upper_elbow", "left_lower_elbow", "left_upper_forearm",
-    "left_lower_forearm", "left_wrist", "left_hand", "left_gripper_base", "l_finger", "r_finger",
+    "left_upper_shoulder",
+    "left_lower_shoulder",
+    "left_upper_elbow",
+    "left_lower_elbow",
+    "left_upper_forearm",
+    "left_lower_forearm",
+    "left_wrist",
+    "left_hand",
+    "left_gripper_base",
+    "l_finger",
+    "r_finger",
 )
 
 
@@ -56,17 +65,19 @@ def dataset(tmp_path_factory):
         n = ep.num_frames
         for k in range(n):
             last = k == n - 1
-            ds.add_frame({
-                "observation.state": ep.states[k],
-                "observation.environment_state": ep.object_positions[k],
-                "action": ep.actions[k],
-                "next.done": np.array([last]),
-                "next.success": np.array([last and ep.success]),
-                "phase.index": np.array([ep.phases[k]], dtype=np.int64),
-                "phase.subtask": np.array([ep.phases[k] // robot.N_PHASES_PER_SUBTASK], dtype=np.int64),
-                "episode.seed": np.array([seed], dtype=np.int64),
-                "task": robot.TASK,
-            })
+            ds.add_frame(
+                {
+                    "observation.state": ep.states[k],
+                    "observation.environment_state": ep.object_positions[k],
+                    "action": ep.actions[k],
+                    "next.done": np.array([last]),
+                    "next.success": np.array([last and ep.success]),
+                    "phase.index": np.array([ep.phases[k]], dtype=np.int64),
+                    "phase.subtask": np.array([ep.phases[k] // robot.N_PHASES_PER_SUBTASK], dtype=np.int64),
+                    "episode.seed": np.array([seed], dtype=np.int64),
+                    "task": robot.TASK,
+                }
+            )
         ds.save_episode()
         episodes.append(ep)
     ds.finalize()
@@ -83,7 +94,9 @@ def _save_policy(path: Path, stats: dict, action_dim: int = 8, with_env: bool = 
     if with_env:
         inputs["observation.environment_state"] = PolicyFeature(FeatureType.ENV, (3,))
     cfg = PnpLstmConfig(
-        hidden_size=8, input_features=inputs, output_features={"action": PolicyFeature(FeatureType.ACTION, (action_dim,))}
+        hidden_size=8,
+        input_features=inputs,
+        output_features={"action": PolicyFeature(FeatureType.ACTION, (action_dim,))},
     )
     if weights:
         PnpLstmPolicy(cfg).save_pretrained(path)
@@ -151,12 +164,26 @@ def test_dataset_episodes_recording(dataset, tmp_path):
     paths, chunks = _read(out)
     for ep_i, ep in enumerate(dataset["episodes"]):
         run = f"/episode_{ep_i}"
-        expected = [f"{run}/world/robot/{b}" for b in ARM_BODIES] + [
-            f"{run}/world/robot/left_hand/hand", f"{run}/world/robot/l_finger_tip/l_pad",
-            f"{run}/world/cube", f"{run}/world/cube/cube", f"{run}/world/target", f"{run}/world/scene/table/table_top",
-            f"{run}/world/ee", f"{run}/world/ee_path", f"{run}/world/keyframes", f"{run}/plots/gripper",
-            f"{run}/plots/phase", f"{run}/plots/phase_index", f"{run}/plots/success",
-        ] + [f"{run}/plots/joints/{j}" for j in robot.JOINT_NAMES] + [f"{run}/plots/object/{a}" for a in "xyz"]
+        expected = (
+            [f"{run}/world/robot/{b}" for b in ARM_BODIES]
+            + [
+                f"{run}/world/robot/left_hand/hand",
+                f"{run}/world/robot/l_finger_tip/l_pad",
+                f"{run}/world/cube",
+                f"{run}/world/cube/cube",
+                f"{run}/world/target",
+                f"{run}/world/scene/table/table_top",
+                f"{run}/world/ee",
+                f"{run}/world/ee_path",
+                f"{run}/world/keyframes",
+                f"{run}/plots/gripper",
+                f"{run}/plots/phase",
+                f"{run}/plots/phase_index",
+                f"{run}/plots/success",
+            ]
+            + [f"{run}/plots/joints/{j}" for j in robot.JOINT_NAMES]
+            + [f"{run}/plots/object/{a}" for a in "xyz"]
+        )
         missing = [p for p in expected if p not in paths]
         assert not missing, missing
 
@@ -204,9 +231,15 @@ def test_policy_rollout_recording(policy_dir, tmp_path):
     paths, chunks = _read(out)
     run = "/rollout_0"
     expected = [
-        f"{run}/world/robot/left_wrist", f"{run}/world/cube", f"{run}/world/keyframes", f"{run}/world/expert_keyframes",
-        f"{run}/world/expert_ee_path", f"{run}/policy/error/ee_pos", f"{run}/policy/error/gripper",
-        f"{run}/policy/pred/left_s0", f"{run}/policy/expert/left_s0",
+        f"{run}/world/robot/left_wrist",
+        f"{run}/world/cube",
+        f"{run}/world/keyframes",
+        f"{run}/world/expert_keyframes",
+        f"{run}/world/expert_ee_path",
+        f"{run}/policy/error/ee_pos",
+        f"{run}/policy/error/gripper",
+        f"{run}/policy/pred/left_s0",
+        f"{run}/policy/expert/left_s0",
     ] + [f"{run}/policy/error/joints/{j}" for j in robot.JOINT_NAMES]
     missing = [p for p in expected if p not in paths]
     assert not missing, missing
@@ -218,7 +251,8 @@ def test_policy_rollout_recording(policy_dir, tmp_path):
     err = _rows(chunks, f"{run}/policy/error/joints/left_s0", "frame_index")
     assert pred["frame_index"] == list(range(10))
     np.testing.assert_allclose(
-        np.ravel(err["Scalars:scalars"]), np.abs(np.ravel(pred["Scalars:scalars"]) - np.ravel(ref["Scalars:scalars"])),
+        np.ravel(err["Scalars:scalars"]),
+        np.abs(np.ravel(pred["Scalars:scalars"]) - np.ravel(ref["Scalars:scalars"])),
         atol=1e-6,
     )
     ee = np.ravel(_rows(chunks, f"{run}/policy/error/ee_pos", "frame_index")["Scalars:scalars"])
@@ -283,14 +317,27 @@ def test_cli_viz_saves_recording(dataset, policy_dir, tmp_path, capsys):
     from lerobot_pnp.cli import main
 
     out = tmp_path / "cli.rrd"
-    rc = main([
-        "viz", "--repo_id", REPO_ID, "--root", str(dataset["root"]), "--episode_index", "1",
-        "--policy.path", str(policy_dir), "--save", str(out),
-    ])
+    rc = main(
+        [
+            "viz",
+            "--repo_id",
+            REPO_ID,
+            "--root",
+            str(dataset["root"]),
+            "--episode_index",
+            "1",
+            "--policy.path",
+            str(policy_dir),
+            "--save",
+            str(out),
+        ]
+    )
     assert rc == 0 and out.is_file()
     printed = capsys.readouterr().out
     assert '"episode_1"' in printed and '"rollout_0"' in printed
-    rc = main(["viz", "--repo_id", REPO_ID, "--root", str(dataset["root"]), "--episode_index", "[5]", "--save", str(out)])
+    rc = main(
+        ["viz", "--repo_id", REPO_ID, "--root", str(dataset["root"]), "--episode_index", "[5]", "--save", str(out)]
+    )
     assert rc == 1
     assert "no episode 5" in capsys.readouterr().err
 
@@ -319,14 +366,32 @@ def test_normalize_cli_args():
 @pytest.mark.slow
 def test_stock_lerobot_dataset_viz(dataset, tmp_path):
     """LeRobot's own `lerobot-dataset-viz` reads our dataset and writes a recording."""
-    exe = shutil.which("lerobot-dataset-viz", path=str(Path(sys.executable).parent)) or shutil.which("lerobot-dataset-viz")
+    exe = shutil.which("lerobot-dataset-viz", path=str(Path(sys.executable).parent)) or shutil.which(
+        "lerobot-dataset-viz"
+    )
     assert exe, "lerobot-dataset-viz not installed"
     out_dir = tmp_path / "stock"
     env = {**os.environ, "HF_HUB_OFFLINE": "1"}
     proc = subprocess.run(
-        [exe, "--repo-id", REPO_ID, "--root", str(dataset["root"]), "--episode-index", "0", "--save", "1",
-         "--output-dir", str(out_dir), "--num-workers", "0"],
-        capture_output=True, text=True, timeout=120, env=env,
+        [
+            exe,
+            "--repo-id",
+            REPO_ID,
+            "--root",
+            str(dataset["root"]),
+            "--episode-index",
+            "0",
+            "--save",
+            "1",
+            "--output-dir",
+            str(out_dir),
+            "--num-workers",
+            "0",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env=env,
     )
     assert proc.returncode == 0, proc.stderr[-3000:]
     files = list(out_dir.glob("*.rrd"))

@@ -25,10 +25,9 @@ from typing import Any
 
 import torch
 import torch.nn.functional as F  # noqa: N812
-from torch import Tensor, nn
-
 from lerobot.policies.pretrained import PreTrainedPolicy
 from lerobot.utils.constants import ACTION, OBS_PREFIX
+from torch import Tensor, nn
 
 from .configuration_pnp_lstm import PnpLstmConfig
 
@@ -50,9 +49,7 @@ class SubtaskLSTM(nn.Module):
         self.dropout = nn.Dropout(dropout)
         self.head = nn.Linear(hidden_size, output_dim)
 
-    def forward(
-        self, x: Tensor, state: tuple[Tensor, Tensor] | None = None
-    ) -> tuple[Tensor, tuple[Tensor, Tensor]]:
+    def forward(self, x: Tensor, state: tuple[Tensor, Tensor] | None = None) -> tuple[Tensor, tuple[Tensor, Tensor]]:
         out, state = self.lstm(x, state)
         return self.head(self.dropout(out)), state
 
@@ -374,7 +371,7 @@ def _check_keyframe_episodes(dataset_meta: Any, episode_length: int) -> None:
     """Fail early (at policy construction in ``lerobot-train``) on a dataset that is not a keyframe dataset."""
     try:
         lengths = list(dataset_meta.episodes["length"])
-    except Exception:  # noqa: BLE001 - metadata without episode table: nothing to check
+    except Exception:
         return
     bad = sorted({int(n) for n in lengths if int(n) != episode_length})
     if bad:

@@ -49,7 +49,7 @@ class CheckObservationStep(ObservationProcessorStep):
             value = observation[key]
             if not isinstance(value, torch.Tensor):
                 value = torch.as_tensor(value)
-            if tuple(value.shape[-len(shape):]) != tuple(shape):
+            if tuple(value.shape[-len(shape) :]) != tuple(shape):
                 raise ValueError(
                     f"pnp_lstm: observation {key!r} has shape {tuple(value.shape)} but the checkpoint was trained "
                     f"on {tuple(shape)} per frame: this checkpoint is for a different env or dataset"
@@ -80,7 +80,12 @@ def make_pnp_lstm_pre_post_processors(
         if ft.type in (FeatureType.STATE, FeatureType.ENV)
     }
     return make_policy_processor_pipelines(
-        input_steps=[CheckObservationStep(expected=expected), s.rename_observations, s.add_batch_dim, s.to_device,
-                     s.normalize],
+        input_steps=[
+            CheckObservationStep(expected=expected),
+            s.rename_observations,
+            s.add_batch_dim,
+            s.to_device,
+            s.normalize,
+        ],
         output_steps=[s.unnormalize, s.to_cpu],
     )
