@@ -168,7 +168,7 @@ def test_reset_options_pin_the_start_state(keyframe_env):
     [
         ({"object_yaw": float("nan")}, "object_yaw"),
         ({"object_pos": [1.3, 0.2, 0.0]}, "out of the arm's reach"),
-        ({"object_pos": [*PAPER_TASK["place_xy"], 0.0]}, "start solved"),
+        ({"object_pos": [*PAPER_TASK["place_low"], 0.0]}, "start solved"),
         ({"arm_qpos": [5.0, 0, 0, 0, 0, 0, 0]}, "joint limits"),
         ({"object_position": [0.5, 0.3, 0.0]}, "unknown reset option"),
     ],
@@ -183,7 +183,9 @@ def test_bad_reset_options_raise(keyframe_env, options, message):
 def test_task_is_settable_from_the_env_config_and_recorded(tmp_path):
     from lerobot_pnp.env_config import read_recorded, write_recorded
 
-    cfg = BaxterPnPEnvConfig(object_low=(0.5, 0.2), object_high=(0.6, 0.3), place_xy=(0.65, -0.1))
+    cfg = BaxterPnPEnvConfig(
+        object_low=(0.5, 0.2), object_high=(0.6, 0.3), place_low=(0.65, -0.1), place_high=(0.65, -0.1)
+    )
     env = make_env(cfg)
     obs, _ = env.reset(seed=1)
     assert 0.5 <= obs["environment_state"][0] <= 0.6 and 0.2 <= obs["environment_state"][1] <= 0.3
@@ -191,10 +193,10 @@ def test_task_is_settable_from_the_env_config_and_recorded(tmp_path):
     write_recorded(cfg, tmp_path)
     again = BaxterPnPEnvConfig(task_source=str(tmp_path))
     assert again.to_dict() == cfg.to_dict()
-    assert read_recorded(tmp_path)["place_xy"] == [0.65, -0.1]
+    assert read_recorded(tmp_path)["place_low"] == [0.65, -0.1]
     # a preset named explicitly wins over the recorded task; explicit fields win over both
-    assert BaxterPnPEnvConfig(task_source=str(tmp_path), preset="paper").place_xy == PAPER_TASK["place_xy"]
-    assert BaxterPnPEnvConfig(task_source=str(tmp_path), nudge_max=0.01).place_xy == (0.65, -0.1)
+    assert BaxterPnPEnvConfig(task_source=str(tmp_path), preset="paper").place_low == PAPER_TASK["place_low"]
+    assert BaxterPnPEnvConfig(task_source=str(tmp_path), nudge_max=0.01).place_low == (0.65, -0.1)
 
 
 def test_camera_observations_render_lazily():
