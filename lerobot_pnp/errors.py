@@ -36,9 +36,10 @@ class ExpertFailure(PnPError):
     ``cause`` is a short, groupable name (task.FAILURE_CAUSES, or unreachable).
     """
 
-    def __init__(self, message: str, cause: str = "unknown"):
+    def __init__(self, message: str, cause: str = "unknown", phase: str | None = None):
         super().__init__(message)
         self.cause = cause
+        self.phase = phase  # the furthest FSM state reached (robot.PHASE_NAMES), when known
 
 
 class DatasetError(PnPError):

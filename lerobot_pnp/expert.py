@@ -206,6 +206,7 @@ def run_expert_episode(env: gym.Env, seed: int, config: ExpertConfig | None = No
                     f"seed {seed}: expert failed within the {base.config.episode_length}-step budget: {cause} "
                     f"(last phase {robot.PHASE_NAMES[phase]}, object at {np.round(cube, 3).tolist()})",
                     cause,
+                    robot.PHASE_NAMES[info.get("furthest_phase", phase)],
                 )
             done = done or terminated  # a dense keyframe's segment is finished even after success
         kf_states.append(np.concatenate(_frame(obs)))

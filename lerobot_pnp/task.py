@@ -153,10 +153,12 @@ class PickPlaceTask:
         obj, _ = physics.object_pose()
         ee, rot = physics.ee_pose()
         near = np.linalg.norm(ee[:2] - obj[:2]) < 0.02
-        if "grasp_miss" in self._armed and near and physics.gripper_opening() > 0.5:
-            if physics.pad_bottom_z() < obj[2] + robot.CUBE_SIZE / 2 and not physics.object_in_grasp():
-                self._shift_object(physics, rng, rot[:, 0], _GRASP_MISS_SHIFT, "grasp_miss")
-                return
+        open_at_object = (
+            near and physics.gripper_opening() > 0.5 and physics.pad_bottom_z() < obj[2] + robot.CUBE_SIZE / 2
+        )
+        if "grasp_miss" in self._armed and open_at_object and not physics.object_in_grasp():
+            self._shift_object(physics, rng, rot[:, 0], _GRASP_MISS_SHIFT, "grasp_miss")
+            return
         if "drop" in self._armed and physics.object_in_grasp() and obj[2] > robot.CUBE_REST_Z + 0.08:
             self._shift_object(physics, rng, rot[:, 0], _DROP_SHIFT, "drop")
             physics.wait(0.8)  # it falls and comes to rest on the table
