@@ -12,7 +12,7 @@ from lerobot_pnp.env_config import GYM_ID, PAPER_TASK, BaxterPnPEnvConfig, make_
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.ik import ArmIK, gripper_down_rotation
 
-# Reference poses of Rethink's left arm (shared/notes/baxter.md): joints -> left_gripper position, z axis.
+# Reference poses of Rethink's left arm (docs/baxter.md): joints -> left_gripper position, z axis.
 REFERENCE_POSES = [
     ([0, -0.55, 0, 0.75, 0, 1.26, 0], (0.64626, 0.84126, 0.06262), (0.0782, 0.0782, -0.9939)),
     ([-0.08, -1.0, -1.19, 1.94, 0.67, 1.03, -0.50], (0.57971, 0.18329, 0.11370), (0.0537, 0.0159, -0.9984)),
