@@ -69,7 +69,8 @@ class PickPlaceTask:
         Random numbers are drawn only for the features a task enables, so the paper's task draws exactly the
         numbers it always drew (its datasets do not change when features are added).
         """
-        options = dict(options or {})
+        # LeRobot's own signals (e.g. "lerobot_new_rollout" from lerobot-eval) are not ours to check.
+        options = {k: v for k, v in (options or {}).items() if not str(k).startswith("lerobot_")}
         unknown = sorted(set(options) - set(RESET_OPTIONS))
         if unknown:
             raise ResetOptionError(f"unknown reset option(s) {unknown}; valid options: {list(RESET_OPTIONS)}")

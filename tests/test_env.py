@@ -229,3 +229,11 @@ def test_lerobot_env_config_builds_vector_envs():
     assert dense.features_map["pixels/front"] == "observation.images.front"
     with pytest.raises(ConfigError, match="control_mode"):
         BaxterPnPEnvConfig(control_mode="bogus")
+
+
+def test_lerobot_rollout_signal_is_accepted(keyframe_env):
+    from lerobot.envs.utils import NEW_ROLLOUT_OPTION
+
+    a, _ = keyframe_env.reset(seed=4, options={NEW_ROLLOUT_OPTION: True})  # what lerobot-eval passes
+    b, _ = keyframe_env.reset(seed=4)
+    np.testing.assert_array_equal(a["environment_state"], b["environment_state"])
