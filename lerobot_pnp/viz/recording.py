@@ -1,0 +1,241 @@
+"""Logging runs to a Rerun recording: the motion, the plots, keyframe markers, and the blueprint.
+
+Timelines: ``time`` (duration, simulated seconds since reset) carries every sample; ``frame_index``
+(sequence) carries the rows logged at a run's frames, whose values are the dataset's own (at frame ``k``,
+``plots/joints/<j>`` equals ``observation.state[k]``). Entity paths are listed in ``lerobot_pnp.viz``.
+
+Keyframe markers are labelled once per *place*: FSM phases reached at nearly the same point (grasp and close;
+approach, retract and the next start above the object; descend and open) share one marker whose label names
+them all, so the labels do not pile up into an unreadable cluster.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from lerobot_pnp import robot
+from lerobot_pnp.viz.sampling import Run, phase_name
+from lerobot_pnp.viz.scene import quat_xyzw
+
+PICK_COLOR, PLACE_COLOR, EXPERT_COLOR, EE_COLOR = (255, 140, 0), (40, 200, 220), (90, 220, 90), (255, 200, 0)
+MERGE_DISTANCE = 0.03  # m: keyframes closer than this share a marker and a label
+# The 3D view's initial eye: from the front right of the robot, above the table, looking at the workspace.
+EYE_POSITION = (1.75, -1.05, 0.85)
+EYE_TARGET = (0.42, 0.16, 0.0)
+
+
+def _scalars(rec, path: str, indexes, values) -> None:
+    import rerun as rr
+
+    rec.send_columns(path, indexes=indexes, columns=rr.Scalars.columns(scalars=np.asarray(values, dtype=np.float64)))
+
+
+def _indexes(times: np.ndarray, frames: np.ndarray | None = None) -> list:
+    import rerun as rr
+
+    idx = [rr.TimeColumn("time", duration=np.asarray(times, dtype=np.float64))]
+    if frames is not None:
+        idx.insert(0, rr.TimeColumn("frame_index", sequence=np.asarray(frames, dtype=np.int64)))
+    return idx
+
+
+def log_run(rec, run: Run) -> None:
+    """One run's continuous samples (``time``), its frames (``frame_index`` + ``time``) and its keyframes."""
+    import rerun as rr
+
+    name, scene, samples, frames = run.name, run.scene, run.samples, run.frames
+    t = samples["t"]
+    ft = t[frames.sample]
+    tick_idx, frame_idx = _indexes(t), _indexes(ft, frames.frame_index)
+    for j, b in enumerate(scene.dynamic):
+        for idx, rows in ((tick_idx, slice(None)), (frame_idx, frames.sample)):
+            rec.send_columns(
+                f"{name}/{scene.entity[b]}",
+                indexes=idx,
+                columns=rr.Transform3D.columns(
+                    translation=samples["xpos"][rows, j], quaternion=quat_xyzw(samples["xquat"][rows, j])
+                ),
+            )
+    for idx, rows in ((tick_idx, slice(None)), (frame_idx, frames.sample)):
+        pts = samples["ee"][rows]
+        rec.send_columns(
+            f"{name}/world/ee", indexes=idx, columns=[*rr.Points3D.columns(positions=pts).partition([1] * len(pts))]
+        )
+    rec.log(f"{name}/world/ee", rr.Points3D.from_fields(radii=[0.01], colors=[EE_COLOR]), static=True)
+    rec.log(f"{name}/world/ee_path", rr.LineStrips3D([samples["ee"]], colors=[EE_COLOR], radii=[0.003]), static=True)
+    # Time series: the continuous samples (simulated, noise-free) ...
+    for j, joint in enumerate(robot.JOINT_NAMES):
+        _scalars(rec, f"{name}/plots/joints/{joint}", tick_idx, samples["q"][:, j])
+    _scalars(rec, f"{name}/plots/gripper", tick_idx, samples["gripper"])
+    for j, axis in enumerate("xyz"):
+        _scalars(rec, f"{name}/plots/object/{axis}", tick_idx, samples["object"][:, j])
+    _scalars(rec, f"{name}/plots/success", tick_idx, samples["success"])
+    # ... and the frames, with the recorded values.
+    for j, joint in enumerate(robot.JOINT_NAMES):
+        _scalars(rec, f"{name}/plots/joints/{joint}", frame_idx, frames.state[:, j])
+    _scalars(rec, f"{name}/plots/gripper", frame_idx, frames.state[:, robot.N_JOINTS])
+    for j, axis in enumerate("xyz"):
+        _scalars(rec, f"{name}/plots/object/{axis}", frame_idx, frames.object[:, j])
+    _scalars(rec, f"{name}/plots/success", frame_idx, frames.success)
+    valid = np.all(np.isfinite(frames.action), axis=1)
+    if valid.any():
+        act_idx = _indexes(ft[valid], frames.frame_index[valid])
+        for j, action in enumerate(robot.ACTION_NAMES):
+            _scalars(rec, f"{name}/plots/action/{action}", act_idx, frames.action[valid, j])
+    known = frames.phase >= 0
+    if known.any():
+        idx = _indexes(ft[known], frames.frame_index[known])
+        texts = [phase_name(p) for p in frames.phase[known]]
+        rec.send_columns(
+            f"{name}/plots/phase", indexes=idx, columns=rr.TextLog.columns(text=texts, level=["INFO"] * len(texts))
+        )
+        _scalars(rec, f"{name}/plots/phase_index", tick_idx, _phase_per_sample(len(t), frames.sample, frames.phase))
+        _scalars(rec, f"{name}/plots/phase_index", idx, frames.phase[known])
+        pos, phases = keyframes_reached(run)
+        log_keyframes(rec, f"{name}/world/keyframes", pos, phases)
+
+
+def _phase_per_sample(n: int, frame_samples: np.ndarray, phases: np.ndarray) -> np.ndarray:
+    out = np.full(n, float(max(phases[0], 0)))
+    for s, p in zip(frame_samples, phases):
+        if p >= 0:
+            out[s:] = p
+    return out
+
+
+def keyframes_reached(run: Run) -> tuple[np.ndarray, list[int]]:
+    """End-effector positions where the run entered each FSM phase (a recovery re-enters some), and the phase."""
+    pos, phases, last = [], [], None
+    for k, p in enumerate(run.frames.phase):
+        if p < 0 or p == last:
+            continue
+        last = int(p)
+        pos.append(run.samples["ee"][run.frames.sample[k]])
+        phases.append(int(p))
+    return np.asarray(pos).reshape(-1, 3), phases
+
+
+def merged_labels(positions: np.ndarray, phases: list[int]) -> tuple[np.ndarray, list[str], list]:
+    """One marker per place: consecutive phases within ``MERGE_DISTANCE`` share it (see module doc)."""
+    groups: list[list[int]] = []
+    for k in range(len(phases)):
+        near = [g for g in groups if np.linalg.norm(positions[k] - positions[g[0]]) < MERGE_DISTANCE]
+        if near:
+            near[0].append(k)
+        else:
+            groups.append([k])
+    pos, labels, colors = [], [], []
+    for group in groups:
+        names = [phase_name(phases[k]).split("/") for k in group]
+        parts: list[str] = []
+        for subtask, short in (n if len(n) == 2 else ("", n[0]) for n in names):
+            if parts and parts[-1].startswith(f"{subtask}:"):
+                parts[-1] += f", {short}"
+            else:
+                parts.append(f"{subtask}: {short}" if subtask else short)
+        pos.append(positions[group[0]])
+        labels.append(" / ".join(parts))
+        colors.append(PICK_COLOR if phases[group[0]] < robot.N_PHASES_PER_SUBTASK else PLACE_COLOR)
+    return np.asarray(pos).reshape(-1, 3), labels, colors
+
+
+def log_keyframes(rec, path: str, positions: np.ndarray, phases: list[int], *, color=None, labelled=True) -> None:
+    import rerun as rr
+
+    if len(positions) == 0:
+        return
+    pos, labels, colors = merged_labels(positions, phases)
+    rec.log(
+        path,
+        rr.Points3D(pos, labels=labels, colors=[color] * len(pos) if color else colors, radii=[0.014]),
+        static=True,
+    )
+    # Rerun shows labels for small batches only by default: say it explicitly either way.
+    rec.log(path, rr.Points3D.from_fields(show_labels=labelled), static=True)
+
+
+def log_policy_comparison(rec, run: Run) -> None:
+    """Predicted keyframes (3D, labelled) and, with an expert reference, the expert's (3D) and the differences."""
+    import rerun as rr
+
+    name, frames, expert = run.name, run.frames, run.expert
+    scratch = mujoco.MjData(run.scene.model)
+    n = int(np.sum(np.all(np.isfinite(frames.action), axis=1)))
+    pred = frames.action[:n]
+    pred_ee = np.array([run.scene.ee_position(run.qpos, a, scratch) for a in pred]).reshape(-1, 3)
+    # Action k commands the phase of the next observation (k + 1).
+    reached = [int(p) for p in frames.phase[1 : n + 1]]
+    log_keyframes(rec, f"{name}/world/keyframes", pred_ee, reached)
+    if expert is None or "actions" not in expert:
+        return
+    ref = expert["actions"]
+    ref_ee = np.array([run.scene.ee_position(run.qpos, a, scratch) for a in ref]).reshape(-1, 3)
+    ref_phases = [min(k + 1, robot.N_KEYFRAMES - 1) for k in range(len(ref))]
+    log_keyframes(rec, f"{name}/world/expert_keyframes", ref_ee, ref_phases, color=EXPERT_COLOR, labelled=False)
+    if len(expert["ee_path"]):
+        path = rr.LineStrips3D([expert["ee_path"]], colors=[EXPERT_COLOR], radii=[0.002])
+        rec.log(f"{name}/world/expert_ee_path", path, static=True)
+    m = min(n, len(ref))
+    if m == 0:
+        return
+    idx = _indexes(run.samples["t"][frames.sample[:m]], frames.frame_index[:m])
+    for j, action in enumerate(robot.ACTION_NAMES):
+        _scalars(rec, f"{name}/policy/pred/{action}", idx, pred[:m, j])
+        _scalars(rec, f"{name}/policy/expert/{action}", idx, ref[:m, j])
+    err = np.abs(pred[:m] - ref[:m])
+    for j, joint in enumerate(robot.JOINT_NAMES):
+        _scalars(rec, f"{name}/policy/error/joints/{joint}", idx, err[:, j])
+    _scalars(rec, f"{name}/policy/error/gripper", idx, err[:, robot.N_JOINTS])
+    ee_err = np.linalg.norm(pred_ee[:m] - ref_ee[:m], axis=1)
+    _scalars(rec, f"{name}/policy/error/ee_pos", idx, ee_err)
+    run.info["mean_joint_error_rad"] = float(err[:, : robot.N_JOINTS].mean())
+    run.info["mean_ee_error_m"] = float(ee_err.mean())
+    run.info["max_ee_error_m"] = float(ee_err.max())
+
+
+def make_blueprint(runs: list[tuple[str, bool]]):
+    """One tab per run: the 3D view framed on the workspace, and plots titled with what they show."""
+    import rerun.blueprint as rrb
+
+    tabs = []
+    for run, is_policy in runs:
+        plots = [
+            rrb.TimeSeriesView(origin=f"{run}/plots/joints", name="joint angles (rad)"),
+            rrb.TimeSeriesView(
+                name="gripper opening (0 closed, 1 open) · FSM phase index · success",
+                contents=[f"{run}/plots/gripper", f"{run}/plots/phase_index", f"{run}/plots/success"],
+            ),
+            rrb.TimeSeriesView(origin=f"{run}/plots/object", name="object position x, y, z (m)"),
+        ]
+        if is_policy:
+            plots += [
+                rrb.TimeSeriesView(
+                    name="policy vs expert: predicted and expert keyframe, left_s0..w2 + gripper",
+                    contents=[f"{run}/policy/pred/**", f"{run}/policy/expert/**"],
+                ),
+                rrb.TimeSeriesView(
+                    origin=f"{run}/policy/error/joints", name="policy vs expert: |joint target error| (rad)"
+                ),
+                rrb.TimeSeriesView(
+                    name="policy vs expert: end-effector distance (m) · |gripper command error|",
+                    contents=[f"{run}/policy/error/ee_pos", f"{run}/policy/error/gripper"],
+                ),
+            ]
+        else:
+            plots.append(rrb.TextLogView(origin=f"{run}/plots/phase", name="FSM phase at each frame"))
+        what = "policy (labelled, orange/cyan) vs expert (green)" if is_policy else "replay"
+        view3d = rrb.Spatial3DView(
+            origin=f"{run}/world",
+            name=f"{run}: {what} · end-effector path (yellow) · keyframes",
+            background=(28, 32, 38),
+            eye_controls=rrb.EyeControls3D(position=EYE_POSITION, look_target=EYE_TARGET, eye_up=(0, 0, 1)),
+        )
+        tabs.append(rrb.Horizontal(view3d, rrb.Vertical(*plots), column_shares=[3, 2], name=run))
+    return rrb.Blueprint(
+        rrb.Tabs(*tabs),
+        rrb.BlueprintPanel(state="collapsed"),
+        rrb.SelectionPanel(state="collapsed"),
+        # Open on the end of the run (the whole path drawn, the object placed); scrub or press play from there.
+        rrb.TimePanel(state="collapsed", play_state="following"),
+    )
