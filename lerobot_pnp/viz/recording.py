@@ -19,6 +19,17 @@ from lerobot_pnp.viz.sampling import Run, phase_name
 from lerobot_pnp.viz.scene import quat_xyzw
 
 PICK_COLOR, PLACE_COLOR, EXPERT_COLOR, EE_COLOR = (255, 140, 0), (40, 200, 220), (90, 220, 90), (255, 200, 0)
+# One colour per joint (and the gripper), the same in every plot, so a joint is found across panels.
+SERIES_COLORS = (
+    (31, 119, 180),
+    (255, 127, 14),
+    (44, 160, 44),
+    (214, 39, 40),
+    (148, 103, 189),
+    (140, 86, 75),
+    (227, 119, 194),
+    (188, 189, 34),
+)
 MERGE_DISTANCE = 0.03  # m: keyframes closer than this share a marker and a label
 # The 3D view's initial eye: from the front right of the robot, above the table, looking at the workspace.
 EYE_POSITION = (1.75, -1.05, 0.85)
@@ -38,6 +49,17 @@ def _indexes(times: np.ndarray, frames: np.ndarray | None = None) -> list:
     if frames is not None:
         idx.insert(0, rr.TimeColumn("frame_index", sequence=np.asarray(frames, dtype=np.int64)))
     return idx
+
+
+def _style(rec, path: str, color, name: str, *, points: bool = False, steps: bool = False) -> None:
+    """Static series style: a line (``steps``: held until the next value) or cross markers."""
+    import rerun as rr
+
+    if points:
+        style = rr.SeriesPoints(colors=[color], names=[name], markers=["cross"], marker_sizes=[5.0])
+    else:
+        style = rr.SeriesLines(colors=[color], names=[name], interpolation_mode="StepAfter" if steps else None)
+    rec.log(path, style, static=True)
 
 
 def log_run(rec, run: Run) -> None:
@@ -66,6 +88,7 @@ def log_run(rec, run: Run) -> None:
     rec.log(f"{name}/world/ee_path", rr.LineStrips3D([samples["ee"]], colors=[EE_COLOR], radii=[0.003]), static=True)
     # Time series: the continuous samples (simulated, noise-free) ...
     for j, joint in enumerate(robot.JOINT_NAMES):
+        _style(rec, f"{name}/plots/joints/{joint}", SERIES_COLORS[j], joint)
         _scalars(rec, f"{name}/plots/joints/{joint}", tick_idx, samples["q"][:, j])
     _scalars(rec, f"{name}/plots/gripper", tick_idx, samples["gripper"])
     for j, axis in enumerate("xyz"):
@@ -90,6 +113,7 @@ def log_run(rec, run: Run) -> None:
         rec.send_columns(
             f"{name}/plots/phase", indexes=idx, columns=rr.TextLog.columns(text=texts, level=["INFO"] * len(texts))
         )
+        _style(rec, f"{name}/plots/phase_index", (200, 200, 200), "phase index", steps=True)
         _scalars(rec, f"{name}/plots/phase_index", tick_idx, _phase_per_sample(len(t), frames.sample, frames.phase))
         _scalars(rec, f"{name}/plots/phase_index", idx, frames.phase[known])
         pos, phases = keyframes_reached(run)
@@ -181,10 +205,13 @@ def log_policy_comparison(rec, run: Run) -> None:
         return
     idx = _indexes(run.samples["t"][frames.sample[:m]], frames.frame_index[:m])
     for j, action in enumerate(robot.ACTION_NAMES):
+        _style(rec, f"{name}/policy/pred/{action}", SERIES_COLORS[j], f"policy {action}", steps=True)
+        _style(rec, f"{name}/policy/expert/{action}", SERIES_COLORS[j], f"expert {action}", points=True)
         _scalars(rec, f"{name}/policy/pred/{action}", idx, pred[:m, j])
         _scalars(rec, f"{name}/policy/expert/{action}", idx, ref[:m, j])
     err = np.abs(pred[:m] - ref[:m])
     for j, joint in enumerate(robot.JOINT_NAMES):
+        _style(rec, f"{name}/policy/error/joints/{joint}", SERIES_COLORS[j], joint)
         _scalars(rec, f"{name}/policy/error/joints/{joint}", idx, err[:, j])
     _scalars(rec, f"{name}/policy/error/gripper", idx, err[:, robot.N_JOINTS])
     ee_err = np.linalg.norm(pred_ee[:m] - ref_ee[:m], axis=1)
@@ -211,14 +238,14 @@ def make_blueprint(runs: list[tuple[str, bool]]):
         if is_policy:
             plots += [
                 rrb.TimeSeriesView(
-                    name="policy vs expert: predicted and expert keyframe, left_s0..w2 + gripper",
+                    name="keyframe targets: policy (steps) vs expert (crosses), 7 joints (rad) + gripper",
                     contents=[f"{run}/policy/pred/**", f"{run}/policy/expert/**"],
                 ),
                 rrb.TimeSeriesView(
-                    origin=f"{run}/policy/error/joints", name="policy vs expert: |joint target error| (rad)"
+                    origin=f"{run}/policy/error/joints", name="policy - expert: joint target error, absolute (rad)"
                 ),
                 rrb.TimeSeriesView(
-                    name="policy vs expert: end-effector distance (m) · |gripper command error|",
+                    name="policy - expert: keyframe end-effector distance (m) · gripper command error",
                     contents=[f"{run}/policy/error/ee_pos", f"{run}/policy/error/gripper"],
                 ),
             ]
