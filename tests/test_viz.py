@@ -163,7 +163,7 @@ def _translations(rows) -> np.ndarray:
 # ---------------------------------------------------------------------------------------------- dataset episodes
 def test_dataset_episodes_recording(dataset, tmp_path):
     from lerobot_pnp.viz import VizConfig, visualize
-    from lerobot_pnp.viz.recording import MERGE_DISTANCE
+    from lerobot_pnp.viz.recording import LABEL_SPACING, MERGE_DISTANCE
 
     out = tmp_path / "episodes.rrd"
     summary = visualize(VizConfig(repo_id=REPO_ID, root=str(dataset["root"]), episode_index=[0, 1], save=str(out)))
@@ -224,31 +224,35 @@ def test_dataset_episodes_recording(dataset, tmp_path):
         tf = _rows(chunks, f"{run}/world/robot/left_wrist", "time")
         assert len(tf["time"]) == len(t) and "Transform3D:translation" in tf
 
-        # Keyframe markers: every phase named exactly once, and no two markers (labels) on top of each other.
+        # Keyframe markers: every phase named exactly once, no two markers on top of each other, and the
+        # drawn labels of nearby markers at different heights (stacked, not written over each other).
         kf = _rows(chunks, f"{run}/world/keyframes", static=True)
         labels, pos = kf["Points3D:labels"][0], np.array(kf["Points3D:positions"][0])
-        named = []
-        for label in labels:
-            for part in label.split(" / "):
-                subtask, phases = part.split(": ")
-                named += [f"{subtask}/{p}" for p in phases.split(", ")]
-        assert sorted(named) == sorted(robot.PHASE_NAMES)
+        named = [name.split(" ")[-1] for label in labels for name in label.split(" · ")]
+        assert sorted(named) == sorted(p.split("/")[1] for p in robot.PHASE_NAMES)
         gaps = np.linalg.norm(pos[:, None] - pos[None], axis=-1) + np.eye(len(pos))
         assert gaps.min() >= MERGE_DISTANCE
         assert len(labels) < robot.N_KEYFRAMES  # coincident phases (grasp, close) share a label
+        shown = _rows(chunks, f"{run}/world/keyframes/labels", static=True)
+        assert shown["Points3D:labels"][0] == labels and shown["Points3D:show_labels"] == [[True]]
+        anchors = np.array(shown["Points3D:positions"][0])
+        for i in range(len(pos)):
+            for j in range(i):
+                if np.linalg.norm(pos[i, :2] - pos[j, :2]) < LABEL_SPACING:
+                    assert abs((anchors[i, 2] - pos[i, 2]) - (anchors[j, 2] - pos[j, 2])) > 0.01
 
 
 def test_merged_labels_group_coincident_keyframes():
-    from lerobot_pnp.viz.recording import merged_labels
+    from lerobot_pnp.viz.recording import PICK_COLOR, PLACE_COLOR, merged_labels
 
     pos = np.array([[0.5, 0.3, 0.2], [0.6, 0.3, 0.0], [0.6, 0.3, -0.1], [0.6, 0.3, -0.1], [0.6, 0.3, 0.0]])
-    out, labels, _ = merged_labels(pos, [0, 1, 2, 3, 4])
-    assert labels == ["pick: start", "pick: approach, retract", "pick: grasp, close"]
+    out, labels, colors = merged_labels(pos, [0, 1, 2, 3, 4])
+    assert labels == ["start", "approach · retract", "grasp · close"] and colors == [PICK_COLOR] * 3
     np.testing.assert_allclose(out, pos[[0, 1, 2]])
-    _, labels, _ = merged_labels(pos[[0, 1]], [4, 5])
-    assert labels == ["pick: retract", "place: start"]
+    _, labels, colors = merged_labels(pos[[0, 1]], [4, 5])
+    assert labels == ["retract", "start"] and colors == [PICK_COLOR, PLACE_COLOR]
     _, labels, _ = merged_labels(pos[[1, 4]], [4, 5])
-    assert labels == ["pick: retract / place: start"]
+    assert labels == ["retract · place start"]
 
 
 def test_replay_uses_the_recorded_task(custom_dataset, tmp_path, caplog):
@@ -352,8 +356,8 @@ def test_policy_rollout_recording(policy_dir, tmp_path):
     expert = run_expert_episode(make_env(BaxterPnPEnvConfig(preset="paper"), render_mode=None), 3)
     np.testing.assert_allclose(ref_v, expert.actions[:10, 0], atol=1e-6)
     kf = _rows(chunks, f"{run}/world/expert_keyframes", static=True)
-    assert "pick: grasp, close" in kf["Points3D:labels"][0]
-    assert kf["Points3D:show_labels"] == [[False]]  # the expert's markers do not add labels to the view
+    assert "grasp · close" in kf["Points3D:labels"][0]  # shown on hover only: the predicted ones are drawn
+    assert f"{run}/world/keyframes/labels" in paths and f"{run}/world/expert_keyframes/labels" not in paths
 
 
 def test_rollout_task_from_task_source(policy_dir, custom_dataset, tmp_path):
