@@ -173,8 +173,7 @@ def run_policy_episode(
     """
     base = env.unwrapped
     if max_steps is None:
-        max_steps = getattr(env, "_max_episode_steps", None) or getattr(base, "_max_episode_steps", None)
-        max_steps = max_steps or base.config.episode_length
+        max_steps = base.config.episode_length
     loaded.reset()
     obs, info = env.reset(seed=seed, options=reset_options)
     phases = [info.get("phase")]

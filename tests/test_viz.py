@@ -209,7 +209,11 @@ def test_dataset_episodes_recording(dataset, tmp_path):
         act = _rows(chunks, f"{run}/plots/action/left_s0", "frame_index")
         np.testing.assert_allclose(np.ravel(act["Scalars:scalars"]), ep.actions[:, 0], atol=1e-6)
         phase = _rows(chunks, f"{run}/plots/phase", "frame_index")
-        assert [t[0] for t in phase["TextLog:text"]] == [robot.PHASE_NAMES[p] for p in ep.phases]
+        entered = [k for k in range(n) if k == 0 or ep.phases[k] != ep.phases[k - 1]]
+        assert phase["frame_index"] == entered
+        assert [t[0] for t in phase["TextLog:text"]] == [robot.PHASE_NAMES[ep.phases[k]] for k in entered]
+        success = np.ravel(_rows(chunks, f"{run}/plots/success", "frame_index")["Scalars:scalars"])
+        assert success[-1] == 1 and success[0] == 0  # the env's check: placed at the end, not at the start
 
         # The 3D replay (simulated, not copied from the dataset) puts the object where the dataset saw it.
         cube = _translations(_rows(chunks, f"{run}/world/cube", "frame_index"))

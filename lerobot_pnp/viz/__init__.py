@@ -20,8 +20,9 @@ Entity paths (stable; ``<run>`` is ``episode_<N>`` for dataset episode N, ``roll
 ``<run>/plots/gripper``                      Scalars: measured gripper opening (0 closed .. 1 open)
 ``<run>/plots/action/<name>``                Scalars at frames: the commanded keyframe (7 joints + gripper)
 ``<run>/plots/object/{x,y,z}``               Scalars: object position (m)
-``<run>/plots/phase``                        TextLog at frames: FSM phase name; ``plots/phase_index`` Scalars
-``<run>/plots/success``                      Scalars 0/1
+``<run>/plots/phase``                        TextLog: FSM phase name, at each frame a phase is entered
+``<run>/plots/phase_index``                  Scalars: FSM phase index (continuous samples and frames)
+``<run>/plots/success``                      Scalars 0/1: the env's success check of the simulated state
 Policy rollouts add (``<run>/world/keyframes`` of a rollout are the *predicted* keyframes):
 ``<run>/world/expert_keyframes``, ``<run>/world/expert_ee_path``   the FSM expert from the same start
 ``<run>/policy/pred/<name>``, ``<run>/policy/expert/<name>``       Scalars at frames: predicted vs expert keyframe

@@ -93,8 +93,11 @@ def log_run(rec, run: Run) -> None:
     for j, joint in enumerate(robot.JOINT_NAMES):
         _style(rec, f"{name}/plots/joints/{joint}", SERIES_COLORS[j], joint)
         _scalars(rec, f"{name}/plots/joints/{joint}", tick_idx, samples["q"][:, j])
+    _style(rec, f"{name}/plots/gripper", SERIES_COLORS[robot.N_JOINTS], "gripper opening")
+    _style(rec, f"{name}/plots/success", (90, 220, 120), "success", steps=True)
     _scalars(rec, f"{name}/plots/gripper", tick_idx, samples["gripper"])
     for j, axis in enumerate("xyz"):
+        _style(rec, f"{name}/plots/object/{axis}", ((230, 80, 80), (80, 200, 80), (80, 140, 255))[j], axis)
         _scalars(rec, f"{name}/plots/object/{axis}", tick_idx, samples["object"][:, j])
     _scalars(rec, f"{name}/plots/success", tick_idx, samples["success"])
     # ... and the frames, with the recorded values.
@@ -103,7 +106,8 @@ def log_run(rec, run: Run) -> None:
     _scalars(rec, f"{name}/plots/gripper", frame_idx, frames.state[:, robot.N_JOINTS])
     for j, axis in enumerate("xyz"):
         _scalars(rec, f"{name}/plots/object/{axis}", frame_idx, frames.object[:, j])
-    _scalars(rec, f"{name}/plots/success", frame_idx, frames.success)
+    # success is the env's check of the simulated state (the dataset's next.success marks only the last frame)
+    _scalars(rec, f"{name}/plots/success", frame_idx, samples["success"][frames.sample])
     valid = np.all(np.isfinite(frames.action), axis=1)
     if valid.any():
         act_idx = _indexes(ft[valid], frames.frame_index[valid])
@@ -112,9 +116,13 @@ def log_run(rec, run: Run) -> None:
     known = frames.phase >= 0
     if known.any():
         idx = _indexes(ft[known], frames.frame_index[known])
-        texts = [phase_name(p) for p in frames.phase[known]]
+        # The phase log: one line each time a phase is entered (dense runs spend many frames in each).
+        entered = known & (np.r_[-2, frames.phase[:-1]] != frames.phase)
+        texts = [phase_name(p) for p in frames.phase[entered]]
         rec.send_columns(
-            f"{name}/plots/phase", indexes=idx, columns=rr.TextLog.columns(text=texts, level=["INFO"] * len(texts))
+            f"{name}/plots/phase",
+            indexes=_indexes(ft[entered], frames.frame_index[entered]),
+            columns=rr.TextLog.columns(text=texts, level=["INFO"] * len(texts)),
         )
         _style(rec, f"{name}/plots/phase_index", (200, 200, 200), "phase index", steps=True)
         _scalars(rec, f"{name}/plots/phase_index", tick_idx, _phase_per_sample(len(t), frames.sample, frames.phase))
@@ -260,11 +268,18 @@ def make_blueprint(runs: list[tuple[str, bool]]):
 
     tabs = []
     for run, is_policy in runs:
+        phase = rrb.Tabs(
+            rrb.TimeSeriesView(
+                origin=f"{run}/plots/phase_index",
+                name=f"FSM phase (0 {robot.PHASE_NAMES[0]} .. {robot.N_KEYFRAMES - 1} {robot.PHASE_NAMES[-1]})",
+            ),
+            rrb.TextLogView(origin=f"{run}/plots/phase", name="FSM phase entered (time, name)"),
+        )
         plots = [
             rrb.TimeSeriesView(origin=f"{run}/plots/joints", name="joint angles (rad)"),
             rrb.TimeSeriesView(
-                name="gripper opening (0 closed, 1 open) · FSM phase index · success",
-                contents=[f"{run}/plots/gripper", f"{run}/plots/phase_index", f"{run}/plots/success"],
+                name="gripper opening (0 closed, 1 open) · success (0/1)",
+                contents=[f"{run}/plots/gripper", f"{run}/plots/success"],
             ),
             rrb.TimeSeriesView(origin=f"{run}/plots/object", name="object position x, y, z (m)"),
         ]
@@ -283,7 +298,7 @@ def make_blueprint(runs: list[tuple[str, bool]]):
                 ),
             ]
         else:
-            plots.append(rrb.TextLogView(origin=f"{run}/plots/phase", name="FSM phase at each frame"))
+            plots.append(phase)
         what = "policy (labelled, orange/cyan) vs expert (green)" if is_policy else "replay"
         view3d = rrb.Spatial3DView(
             origin=f"{run}/world",

@@ -30,8 +30,8 @@ from lerobot_pnp.viz.scene import SceneModel
 logger = logging.getLogger(__name__)
 
 PHASE_INDEX, EPISODE_SEED, SUCCESS = "phase.index", "episode.seed", "next.success"
-# Fields of the recorded env config that are not task fields but shape the motion being replayed.
-MOTION_FIELDS = ("control_mode", "fps", "speed", "straight_paths")
+# Fields of the recorded env config that are not task fields but shape the motion (and its length).
+MOTION_FIELDS = ("control_mode", "fps", "speed", "straight_paths", "episode_length")
 REPLAY_TOLERANCE = 1e-3  # rad / opening: a larger replay error means the episode was made in another env
 
 
