@@ -1,11 +1,12 @@
 """Render the README's picture: the real Rerun viewer (headless) on one dataset episode -> docs/viewer.png.
 
     python scripts/viewer_screenshot.py --root outputs/datasets/baxter_pnp_keyframe --episode 12
+    python scripts/viewer_screenshot.py --root outputs/datasets/baxter_pnp_keyframe --recovery
     python scripts/viewer_screenshot.py            # no dataset given: one expert episode is generated first
 
 The picture is what ``lerobot-pnp viz --screenshot`` writes (the viewer laid out by the recording's
-blueprint), scaled down and palette-quantised so the README stays light. To show a recovery episode, pass a
-dataset and the index of an episode in which the expert recovered (its phases go back, e.g. a re-grasp).
+blueprint), scaled down (and palette-quantised if large) so the README stays light. ``--recovery`` picks the
+first episode in which the expert recovered (its FSM phase goes back, e.g. a re-grasp after a missed grasp).
 """
 
 from __future__ import annotations
@@ -24,6 +25,21 @@ sys.path.insert(0, str(REPO))
 MAX_BYTES = 400_000
 
 
+def first_recovery(repo_id: str, root: str) -> int:
+    """Index of the first episode whose ``phase.index`` decreases somewhere (the expert went back)."""
+    import numpy as np
+
+    from lerobot_pnp.errors import DatasetError
+    from lerobot_pnp.viz.sources import open_dataset
+
+    table = open_dataset(repo_id, root).hf_dataset.with_format("numpy")
+    episodes, phases = np.asarray(table["episode_index"]).ravel(), np.asarray(table["phase.index"]).ravel()
+    back = np.flatnonzero((np.diff(phases) < 0) & (np.diff(episodes) == 0))
+    if len(back) == 0:
+        raise DatasetError(f"no recovery episode in {root}: no episode's phase.index ever decreases")
+    return int(episodes[back[0]])
+
+
 def main() -> int:
     from PIL import Image
 
@@ -34,6 +50,7 @@ def main() -> int:
     parser.add_argument("--root", help="dataset folder (default: generate one expert episode in a temp folder)")
     parser.add_argument("--repo-id", default="local/baxter_pnp_keyframe")
     parser.add_argument("--episode", type=int, default=0)
+    parser.add_argument("--recovery", action="store_true", help="show the first episode whose phase goes back")
     parser.add_argument("--seed", type=int, default=0, help="seed of the generated episode (without --root)")
     parser.add_argument("--out", default=str(REPO / "docs" / "viewer.png"))
     parser.add_argument("--window", default="1600x1000", help="viewer size in logical points")
@@ -52,11 +69,12 @@ def main() -> int:
                         repo_id=args.repo_id, root=root, num_episodes=1, seed=args.seed, workers=1, progress=False
                     )
                 )
+            episode = first_recovery(args.repo_id, root) if args.recovery else args.episode
             shot = Path(tmp) / "shot.png"
             cfg = VizConfig(
                 repo_id=args.repo_id,
                 root=root,
-                episode_index=args.episode,
+                episode_index=episode,
                 screenshot=str(shot),
                 window_size=args.window,
             )
