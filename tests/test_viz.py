@@ -374,6 +374,14 @@ def test_rollout_task_from_task_source(policy_dir, custom_dataset, tmp_path):
     assert run["place_target"] == list(CUSTOM_TASK["place_xy"])
     assert "expert_success" not in run
 
+    from lerobot_pnp.viz.rollouts import rollout_config
+
+    recorded = rollout_config(str(policy_dir), str(custom_dataset["root"]), None)
+    assert recorded.place_xy == CUSTOM_TASK["place_xy"] and recorded.control_mode == "keyframe"
+    dense = rollout_config(str(policy_dir), str(custom_dataset["root"]), "dense")
+    assert dense.control_mode == "dense" and dense.fps == 20 and dense.object_low == CUSTOM_TASK["object_low"]
+    assert rollout_config(str(policy_dir), None, None).place_xy == (0.60, -0.05)  # nothing recorded: the paper's
+
 
 def test_run_policy_episode_is_deterministic(policy_dir):
     """rollout.run_policy_episode follows LeRobot's eval pipeline; the same seed gives the same episode."""
