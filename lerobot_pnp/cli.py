@@ -27,7 +27,11 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
         "lerobot_pnp.train_fast:train_fast",
         "fast in-memory training of the pnp_lstm policy (same checkpoint layout as lerobot-train)",
     ),
-    "viz": ("lerobot_pnp.viz:VizConfig", "lerobot_pnp.viz:visualize", "inspect episodes or policy rollouts in Rerun"),
+    "viz": (
+        "lerobot_pnp.viz:VizConfig",
+        "lerobot_pnp.viz:visualize",
+        "inspect episodes or policy rollouts in Rerun (viewer, --save rec.rrd, or --screenshot shot.png)",
+    ),
     "expert": (
         "lerobot_pnp.expert_eval:ExpertEvalConfig",
         "lerobot_pnp.expert_eval:evaluate_expert",
