@@ -48,6 +48,7 @@ class BaxterPnPEnv(gym.Env):
         self.physics = BaxterPhysics(straight_paths=config.straight_paths)
         self.pnp_task = PickPlaceTask(config)
         self.pnp_task.check_reachable(self.physics)
+        self.physics.set_place_target(self.pnp_task.place_xy)  # before the first reset too (viewers, renders)
         self._step_count = 0
         # The one episode-length rule: the config's ``episode_length`` (LeRobot's eval reads this attribute).
         self._max_episode_steps = config.episode_length

@@ -25,7 +25,13 @@ from lerobot_pnp.errors import ConfigError, DatasetError, PnPError, PolicyError
 REPO_ID = "test/viz_keyframe"
 SEEDS = (0, 1)
 # A task other than the paper's: another object region and place target (issue 8).
-CUSTOM_TASK = {"object_low": (0.5, 0.2), "object_high": (0.6, 0.3), "place_xy": (0.65, -0.1)}
+CUSTOM_TASK = {
+    "object_low": (0.5, 0.2),
+    "object_high": (0.6, 0.3),
+    "place_low": (0.65, -0.1),
+    "place_high": (0.65, -0.1),
+}
+PLACE = CUSTOM_TASK["place_low"]
 ARM_BODIES = (
     "left_upper_shoulder",
     "left_lower_shoulder",
@@ -267,16 +273,16 @@ def test_replay_uses_the_recorded_task(custom_dataset, tmp_path, caplog):
     out = tmp_path / "custom.rrd"
     summary = visualize(VizConfig(repo_id=REPO_ID, root=str(root), save=str(out)))
     run = summary["runs"][0]
-    assert run["place_target"] == list(CUSTOM_TASK["place_xy"])
+    assert run["place_target"] == list(PLACE)
     assert run["replay_max_state_error"] < 1e-5
     _, chunks = _read(out)
     target = np.ravel(_rows(chunks, "/episode_0/world/target", static=True)["Cylinders3D:centers"][0])
-    np.testing.assert_allclose(target[:2], CUSTOM_TASK["place_xy"], atol=1e-6)
+    np.testing.assert_allclose(target[:2], PLACE, atol=1e-6)
     ep = custom_dataset["episodes"][0]
     cube = _translations(_rows(chunks, "/episode_0/world/cube", "frame_index"))
     np.testing.assert_allclose(cube, ep.object_positions, atol=1e-4)
     assert np.all(cube[0, :2] >= CUSTOM_TASK["object_low"]) and np.all(cube[0, :2] <= CUSTOM_TASK["object_high"])
-    np.testing.assert_allclose(cube[-1, :2], CUSTOM_TASK["place_xy"], atol=0.02)  # placed on the custom target
+    np.testing.assert_allclose(cube[-1, :2], PLACE, atol=0.02)  # placed on the custom target
 
     # The same data without its recorded task (an older dataset) falls back to the paper's task, with a
     # warning, and the replay no longer reproduces it: the recorded task is what made the replay right.
@@ -286,7 +292,7 @@ def test_replay_uses_the_recorded_task(custom_dataset, tmp_path, caplog):
     with caplog.at_level(logging.WARNING, logger="lerobot_pnp.viz.sources"):
         summary = visualize(VizConfig(repo_id=REPO_ID, root=str(old), save=str(tmp_path / "old.rrd")))
     assert "records no task" in caplog.text
-    assert summary["runs"][0]["place_target"] != list(CUSTOM_TASK["place_xy"])
+    assert summary["runs"][0]["place_target"] != list(PLACE)
     assert summary["runs"][0]["replay_max_state_error"] > 1e-2
 
 
@@ -371,16 +377,16 @@ def test_rollout_task_from_task_source(policy_dir, custom_dataset, tmp_path):
     cfg = VizConfig(policy_path=str(policy_dir), task_source=str(custom_dataset["root"]), compare_expert=False)
     cfg.save = str(tmp_path / "r.rrd")
     run = visualize(cfg)["runs"][0]
-    assert run["place_target"] == list(CUSTOM_TASK["place_xy"])
+    assert run["place_target"] == list(PLACE)
     assert "expert_success" not in run
 
     from lerobot_pnp.viz.rollouts import rollout_config
 
     recorded = rollout_config(str(policy_dir), str(custom_dataset["root"]), None)
-    assert recorded.place_xy == CUSTOM_TASK["place_xy"] and recorded.control_mode == "keyframe"
+    assert recorded.place_low == PLACE and recorded.control_mode == "keyframe"
     dense = rollout_config(str(policy_dir), str(custom_dataset["root"]), "dense")
     assert dense.control_mode == "dense" and dense.fps == 20 and dense.object_low == CUSTOM_TASK["object_low"]
-    assert rollout_config(str(policy_dir), None, None).place_xy == (0.60, -0.05)  # nothing recorded: the paper's
+    assert rollout_config(str(policy_dir), None, None).place_low == (0.60, -0.05)  # nothing recorded: the paper's
 
 
 def test_run_policy_episode_is_deterministic(policy_dir):
