@@ -331,6 +331,12 @@ def test_processor_names_the_episode_and_frame_of_a_nan_in_a_dataset_batch():
         pre(batch)
     assert str(err.value).startswith("action contains NaN or inf in episode 7, frame 6")
     assert len(str(err.value)) < 200  # names the place, does not dump the batch
+    # A NaN in frame 0 is also in the padded copies before it: the frame named is the real one.
+    batch[ACTION][1] = 0.0
+    batch[ACTION][2, :T, 0] = float("nan")
+    batch[f"{ACTION}_is_pad"] = torch.arange(2 * T - 1).expand(3, -1) < T - 1
+    with pytest.raises(DatasetError, match="action contains NaN or inf in episode 9, frame 0"):
+        pre(batch)
 
 
 # ---- checkpoints --------------------------------------------------------------------------------

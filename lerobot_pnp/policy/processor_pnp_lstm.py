@@ -84,6 +84,9 @@ class CheckObservationStep(ObservationProcessorStep):
 
     def _non_finite(self, key: str, value: torch.Tensor, feature_ndim: int, extra: dict) -> Exception:
         bad = (~torch.isfinite(value)).flatten(start_dim=value.ndim - feature_ndim).any(dim=-1)
+        pad = extra.get(f"{key}_is_pad")
+        if isinstance(pad, torch.Tensor) and pad.shape == bad.shape and bool((bad & ~pad.bool()).any()):
+            bad = bad & ~pad.bool()  # padded positions are copies of the episode's first/last frame
         where = tuple(int(i) for i in bad.nonzero()[0]) if bad.ndim else ()
         row = where[0] if where else 0
         episodes = extra.get("episode_index")
