@@ -75,8 +75,9 @@ class CheckObservationStep(ObservationProcessorStep):
         if not isinstance(value, torch.Tensor):
             value = torch.as_tensor(value)
         if tuple(value.shape[-len(shape) :]) != tuple(shape):
+            what = "observation " if key.startswith(OBS_PREFIX) else ""
             raise PolicyError(
-                f"pnp_lstm: {key!r} has shape {tuple(value.shape)} but the checkpoint was trained on "
+                f"pnp_lstm: {what}{key!r} has shape {tuple(value.shape)} but the checkpoint was trained on "
                 f"{tuple(shape)} per frame: this checkpoint is for a different env or dataset"
             )
         if value.is_floating_point() and not bool(torch.isfinite(value).all()):
