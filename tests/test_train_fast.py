@@ -272,19 +272,35 @@ def _assert_one_line_error(proc: subprocess.CompletedProcess, match: str, codes=
     assert match in lines[0], lines[0]
 
 
+def test_train_cli_rejects_bad_flags_before_any_work(dataset_root, tmp_path, capsys):
+    """The siblings of the flags tried through the real executable below, through the same CLI entry point."""
+    from lerobot_pnp.cli import main
+
+    ds = ["--dataset_repo_id", REPO_ID, "--dataset_root", str(dataset_root), "--output_dir", str(tmp_path / "o")]
+    for flags, match in (
+        (["--lr", "-0.1"], "lr must be a positive number, got -0.1"),
+        (["--lr", "nan"], "lr must be a positive number"),
+        (["--batch_size", "0"], "batch_size must be an integer >= 1"),
+        (["--steps", "-5"], "steps must be an integer >= 1"),
+        (["--test_episodes", "abc"], "test_episodes must be a range 'start:stop'"),
+        (["--test_episodes", "20:10"], "test_episodes '20:10' is empty"),
+        (["--policy.optimizer_lr", "-1"], "optimizer_lr must be > 0"),
+        (["--policy.steps_per_subtask", "4"], "a keyframe episode has 10 frames"),
+    ):
+        assert main(["train", *ds, *flags]) == 2, flags
+        err = capsys.readouterr().err.strip()
+        assert "\n" not in err and match in err, (flags, err)
+    assert not (tmp_path / "o").exists()
+
+
 @pytest.mark.slow
 def test_train_cli_bad_input(dataset_root, tmp_path):
     ds = ["--dataset_repo_id", REPO_ID, "--dataset_root", str(dataset_root), "--progress", "false"]
     out = tmp_path / "out"
-    # Flags checked when the config is built: exit 2 before any work.
-    for flags, match in (
-        (["--epochs", "0"], "epochs must be an integer >= 1, got 0"),
-        (["--lr", "-0.1"], "lr must be a positive number, got -0.1"),
-        (["--batch_size", "0"], "batch_size must be an integer >= 1"),
-        (["--test_episodes", "abc"], "test_episodes must be a range 'start:stop'"),
-        (["--policy.optimizer_lr", "-1"], "optimizer_lr must be > 0"),
-    ):
-        _assert_one_line_error(_train_cli(*ds, "--output_dir", str(out), *flags, cwd=tmp_path), match)
+    _assert_one_line_error(
+        _train_cli(*ds, "--output_dir", str(out), "--epochs", "0", cwd=tmp_path),
+        "epochs must be an integer >= 1, got 0",
+    )
     out.mkdir()
     (out / "keep.txt").write_text("mine")
     _assert_one_line_error(_train_cli(*ds, "--output_dir", str(out), cwd=tmp_path), "already exists and is not empty")
