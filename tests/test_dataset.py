@@ -233,8 +233,8 @@ def _alive(pid: int) -> bool:
 @pytest.mark.slow
 def test_kill_9_then_resume(tmp_path):
     root = tmp_path / "crash"
-    n = 60
-    args = [f"--repo_id={REPO}", f"--root={root}", f"--num_episodes={n}", "--tasks=12", "--progress=false"]
+    n = 30
+    args = [f"--repo_id={REPO}", f"--root={root}", f"--num_episodes={n}", "--tasks=10", "--progress=false"]
     proc = subprocess.Popen(
         [sys.executable, "-m", "lerobot_pnp.cli", "generate", *args, "--workers=2"],
         env=_cli_env(HF_HUB_OFFLINE="1"),
@@ -273,7 +273,7 @@ def test_kill_9_then_resume(tmp_path):
     assert _snapshot(root) == before
 
     summary = generate(_cfg(root, num_episodes=n, resume=True))
-    assert summary["status"] == "resumed" and 10 <= summary["episodes_reused"] < n
+    assert summary["status"] == "resumed" and 6 <= summary["episodes_reused"] < n
     assert (root / "notes.txt").read_text() == "keep me"
     info = verify_dataset(root)  # exactly n distinct seeds, stats recomputed from the data
     assert info["total_episodes"] == n and info["total_frames"] == n * robot.N_KEYFRAMES

@@ -16,6 +16,7 @@ import signal
 import subprocess
 import sys
 import threading
+import warnings
 from pathlib import Path
 
 from lerobot_pnp.errors import DatasetError
@@ -126,11 +127,18 @@ _FORK_GUARD = _ForkGuard()
 def run_local(step, tasks: int, workers: int, logging_dir: Path) -> None:
     """Run every incomplete rank of ``step`` on this machine (``workers`` at a time; 1 = in this process)."""
     import multiprocess.util
-    from datatrove.executor import LocalPipelineExecutor
 
     if _FORK_GUARD.pid is None:
         multiprocess.util.register_after_fork(_FORK_GUARD, _ForkGuard.after_fork)
     _FORK_GUARD.pid = os.getpid()
+    with warnings.catch_warnings():
+        # datatrove forks its Manager server while our progress thread runs; the server only serves a queue
+        warnings.filterwarnings("ignore", r"This process .* is multi-threaded", DeprecationWarning)
+        _run_executor(step, tasks, workers, logging_dir)
+
+
+def _run_executor(step, tasks: int, workers: int, logging_dir: Path) -> None:
+    from datatrove.executor import LocalPipelineExecutor
 
     executor = LocalPipelineExecutor(
         pipeline=[step],

@@ -27,6 +27,7 @@ from lerobot_pnp.dataset.workdir import disk_error
 from lerobot_pnp.errors import DatasetError, PnPError
 
 SHARD_FILE = "pnp_shard.json"  # inside a finished shard: its slots, seeds and expert failures
+_ENVS: dict = {}
 
 
 def shard_range(num_episodes: int, tasks: int, rank: int) -> tuple[int, int]:
@@ -106,7 +107,10 @@ class GenerateShard(PipelineStep):
         progress = Path(self.work) / "progress" / f"{rank:05d}"
         progress.parent.mkdir(parents=True, exist_ok=True)
         env_cfg = BaxterPnPEnvConfig.from_dict(self.env)
-        env = make_recording_env(env_cfg)
+        key = json.dumps(self.env, sort_keys=True)
+        if key not in _ENVS:  # one env per worker process: a worker runs many ranks, reset(seed) rebuilds state
+            _ENVS[key] = make_recording_env(env_cfg)
+        env = _ENVS[key]
         ds = LeRobotDataset.create(
             repo_id=f"{self.repo_id}_shard{rank:05d}",
             fps=env_cfg.fps,
@@ -134,7 +138,6 @@ class GenerateShard(PipelineStep):
             progress.write_text(f"{len(seeds)} {len(failures)}")
         t0 = time.perf_counter()
         ds.finalize()
-        env.close()
         record = {"rank": rank, "start": start, "stop": stop, "seeds": seeds, "failures": failures}
         record.update(sim_s=round(sim_s, 3), write_s=round(write_s + time.perf_counter() - t0, 3))
         (tmp / SHARD_FILE).write_text(json.dumps(record, indent=1))

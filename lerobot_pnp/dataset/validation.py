@@ -117,15 +117,15 @@ def _check_data(root: Path, info: dict, lengths: np.ndarray) -> None:
     n = table.num_rows
     if n != info["total_frames"]:
         raise DatasetError(f"{root}: data files hold {n} frames, info.json says {info['total_frames']}")
-    if int(lengths.sum()) != n:
-        raise DatasetError(f"{root}: episode metadata lengths sum to {int(lengths.sum())} frames, data hold {n}")
     ep = table.column("episode_index").to_numpy()
     counts = np.bincount(ep, minlength=len(lengths)) if n else np.zeros(len(lengths), int)
-    if len(counts) != len(lengths) or not np.array_equal(counts, lengths):
-        bad = int(np.flatnonzero(counts[: len(lengths)] != lengths)[0]) if len(counts) == len(lengths) else -1
+    if len(counts) > len(lengths):
+        raise DatasetError(f"{root}: data rows of episode {len(lengths)} have no episode metadata")
+    if not np.array_equal(counts, lengths):
+        bad = int(np.flatnonzero(counts != lengths)[0])
         raise DatasetError(
-            f"{root}: episode {bad} has {counts[bad] if bad >= 0 else '?'} data rows but its metadata says "
-            f"{lengths[bad] if bad >= 0 else '?'} (rows removed or duplicated)"
+            f"{root}: episode {bad} has {counts[bad]} data rows but its metadata says {lengths[bad]} "
+            "(rows removed or duplicated)"
         )
     if not np.array_equal(table.column("index").to_numpy(), np.arange(n)):
         raise DatasetError(f"{root}: the frame index column is not 0..{n - 1} (rows removed, duplicated or reordered)")
@@ -135,25 +135,37 @@ def _check_data(root: Path, info: dict, lengths: np.ndarray) -> None:
             continue
         if key not in table.column_names:
             raise DatasetError(f"{root}: info.json feature {key!r} has no column in the data files")
-        col = table.column(key)
         shape = tuple(ft.get("shape") or (1,))
-        if shape == (1,) and col.type.num_fields == 0 and not str(col.type).startswith(("list", "fixed_size_list")):
-            x = col.to_numpy().reshape(n, 1)
-        else:
-            rows = col.to_numpy(zero_copy_only=False)
-            widths = {len(r) for r in rows}
-            if widths and widths != {int(np.prod(shape))}:
-                raise DatasetError(
-                    f"{root}: info.json says {key} has shape {list(shape)} but the data hold rows of "
-                    f"length {sorted(widths)}"
-                )
-            x = np.stack(rows) if n else np.zeros((0, int(np.prod(shape))))
+        width = int(np.prod(shape))
+        try:
+            x = _as_matrix(table.column(key), n)
+        except ValueError:
+            x = None
+        if x is None or x.shape[1] != width:
+            got = sorted({len(r) for r in table.column(key).to_pylist()}) if x is None else [x.shape[1]]
+            raise DatasetError(
+                f"{root}: info.json says {key} has shape {list(shape)} but the data hold rows of length {got}"
+            )
         if x.dtype.kind == "f":
             bad = ~np.isfinite(x).all(axis=1)
             if bad.any():
                 i = int(np.flatnonzero(bad)[0])
                 where = f"episode {int(ep[i])}, frame {int(frame[i]) if frame is not None else i}"
                 raise DatasetError(f"{root}: {key} holds non-finite values ({int(bad.sum())} frames; first: {where})")
+
+
+def _as_matrix(column, n: int) -> np.ndarray:
+    """A scalar or fixed-width list column as an (n, width) array without per-row Python objects."""
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    col = column.combine_chunks()
+    if not (pa.types.is_list(col.type) or pa.types.is_fixed_size_list(col.type) or pa.types.is_large_list(col.type)):
+        return col.to_numpy(zero_copy_only=False).reshape(n, 1)
+    lengths = pc.unique(pc.list_value_length(col)).to_pylist()
+    if len(lengths) > 1:
+        raise ValueError("ragged")
+    return col.flatten().to_numpy(zero_copy_only=False).reshape(n, lengths[0] if lengths else 0)
 
 
 def open_local_dataset(repo_id: str, root: str | Path | None):
@@ -192,8 +204,7 @@ def verify_dataset(root: str | Path, expected_seeds: list[int] | None = None, rt
     for key, ft in info["features"].items():
         if ft["dtype"] not in ("float32", "float64", "int64", "bool") or key not in stats or key in _INDEX_COLUMNS:
             continue
-        col = table.column(key).to_numpy() if ft["shape"] == [1] else np.stack(table.column(key).to_numpy(False))
-        x = np.asarray(col, dtype=np.float64).reshape(len(table), -1)
+        x = np.asarray(_as_matrix(table.column(key), len(table)), dtype=np.float64)
         s = stats[key]
         expect = {"min": x.min(0), "max": x.max(0), "mean": x.mean(0), "std": x.std(0)}
         for stat, value in expect.items():
