@@ -1,11 +1,15 @@
-"""Dataset generation throughput and where the time goes.
+"""Dataset generation throughput, side by side with a reference tree, and where the time goes.
 
-    .venv/bin/python benchmarks/bench_dataset.py [--episodes 1400] [--dense-episodes 50] [--workers 0]
-                                                 [--profile-episodes 100] [--out DIR]
+    .venv/bin/python benchmarks/bench_dataset.py [--episodes 1400] [--workers 2] [--old-tree /tmp/old]
+                                                 [--dense-episodes 0] [--profile-episodes 100] [--out DIR]
 
-1. The paper's dataset (1400 keyframe episodes) end to end with ``generate`` (workers in parallel, merge,
-   verification): wall time and episodes/s. Target: under 60 s on a 2-core machine.
-2. Dense episodes (20 fps, state only) the same way.
+1. The paper's dataset (1400 keyframe episodes) end to end through the real CLI (``lerobot-pnp generate``:
+   datatrove tasks, merge, verification), wall time measured from outside. With ``--old-tree`` (a checkout
+   of an older commit, e.g. ``git worktree add /tmp/old 96a8930``: the hand-written process pool) the same
+   command runs from that tree right after, with the same seed, and the two content hashes must be equal.
+   Target: new wall time <= old wall time (on the same, equally loaded, machine); the load average before
+   each run is printed because the machine may be shared.
+2. Dense episodes (20 fps, state only) the same way (new tree only).
 3. A single-process breakdown of one shard: the share of wall time in MuJoCo physics (mj_step), IK
    (ArmIK.solve/refine/forward, incl. the straight-line path correction), the rest of the expert/env Python,
    and LeRobot's writer (add_frame + save_episode + finalize).
@@ -17,6 +21,7 @@ import argparse
 import json
 import os
 import shutil
+import subprocess
 import sys
 import tempfile
 import time
@@ -25,8 +30,8 @@ from pathlib import Path
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
 
-import lerobot_pnp  # noqa: F401
-from lerobot_pnp import dataset as D
+HERE = Path(__file__).resolve().parents[1]
+PNP = str(Path(sys.executable).parent / "lerobot-pnp")
 
 
 class _Timer:
@@ -49,39 +54,54 @@ class _Timer:
         return wrapped
 
 
-def breakdown(representation: str, episodes: int, out: Path) -> dict:
+def cli_run(tree: Path, root: Path, episodes: int, workers: int, dense: bool = False) -> dict:
+    """``lerobot-pnp generate`` from ``tree`` (PYTHONPATH), timed from outside; returns its summary + hash."""
+    args = [PNP, "generate", "--repo_id=bench/kf", f"--root={root}", f"--num_episodes={episodes}", "--seed=0"]
+    args += ["--progress=false"] + ([f"--workers={workers}"] if workers else [])
+    if dense:
+        new_api = (tree / "lerobot_pnp" / "dataset" / "__init__.py").exists()
+        args += ["--env.control_mode=dense", "--env.fps=20"] if new_api else ["--representation=dense", "--fps=20"]
+    env = {**os.environ, "PYTHONPATH": str(tree), "OMP_NUM_THREADS": "1"}
+    load = os.getloadavg()[0]
+    t0 = time.perf_counter()
+    res = subprocess.run(args, capture_output=True, text=True, env=env)
+    wall = time.perf_counter() - t0
+    if res.returncode != 0:
+        raise SystemExit(f"{tree}: generate failed:\n{res.stderr[-3000:]}")
+    summary = json.loads(res.stdout)
+    code = f"from lerobot_pnp.dataset import data_hash; print(data_hash({str(root)!r}))"
+    digest = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env).stdout.strip()
+    keep = ("episodes", "shards", "workers", "generate_wall_s", "merge_wall_s", "simulate_cpu_s", "write_cpu_s")
+    return {"tree": str(tree), "load_before": round(load, 2), "wall_s": round(wall, 2),
+            "episodes_per_s": round(episodes / wall, 2), **{k: summary.get(k) for k in keep}, "hash": digest}  # fmt: skip
+
+
+def breakdown(control_mode: str, episodes: int, out: Path) -> dict:
     """Run one shard in this process with timers around physics and IK."""
     import mujoco
 
+    from lerobot_pnp.dataset.shards import GenerateShard, _quiet_and_single_threaded, read_shard_record
+    from lerobot_pnp.env_config import BaxterPnPEnvConfig
     from lerobot_pnp.ik import ArmIK
 
+    _quiet_and_single_threaded()
     physics, ik = _Timer(), _Timer()
     saved = (mujoco.mj_step, ArmIK.solve, ArmIK.refine, ArmIK.forward)
     mujoco.mj_step = physics.wrap(mujoco.mj_step)
     ArmIK.solve, ArmIK.refine, ArmIK.forward = (ik.wrap(ArmIK.solve), ik.wrap(ArmIK.refine), ik.wrap(ArmIK.forward))
-    cfg = D.GenerateConfig(repo_id="bench/breakdown", representation=representation, num_episodes=episodes)
-    D._single_thread()
-    D._get_env(cfg.env_kwargs())  # env construction is not counted
-    job = {
-        "index": 0,
-        "start": 0,
-        "stop": episodes,
-        "seed": 0,
-        "num_episodes": episodes,
-        "max_retries": 10,
-        "repo_id": cfg.repo_id,
-        "env_kwargs": cfg.env_kwargs(),
-        "dir": str(out / f"breakdown_{representation}"),
-    }
+    work = out / f"breakdown_{control_mode}"
+    env = BaxterPnPEnvConfig(control_mode=control_mode).to_dict()
+    step = GenerateShard(str(work), "bench/breakdown", env, seed=0, num_episodes=episodes, max_retries=10)
     try:
         t0 = time.perf_counter()
-        rec = D.build_shard(job)
+        step.write(0, 1)
         wall = time.perf_counter() - t0
     finally:
         mujoco.mj_step, ArmIK.solve, ArmIK.refine, ArmIK.forward = saved
+    rec = read_shard_record(work, 0)
     other_sim = rec["sim_s"] - physics.total - ik.total
     return {
-        "representation": representation,
+        "control_mode": control_mode,
         "episodes": episodes,
         "wall_s": round(wall, 2),
         "ms_per_episode": round(1000 * wall / episodes, 1),
@@ -93,66 +113,36 @@ def breakdown(representation: str, episodes: int, out: Path) -> dict:
     }
 
 
-def end_to_end(representation: str, episodes: int, workers: int, out: Path) -> dict:
-    root = out / f"e2e_{representation}"
-    cfg = D.GenerateConfig(
-        repo_id=f"bench/{representation}",
-        root=str(root),
-        representation=representation,
-        num_episodes=episodes,
-        workers=workers,
-        overwrite=root.exists(),
-    )
-    t0 = time.perf_counter()
-    summary = D.generate(cfg)
-    wall = time.perf_counter() - t0
-    keep = (
-        "episodes",
-        "frames",
-        "shards",
-        "workers",
-        "generate_wall_s",
-        "merge_wall_s",
-        "simulate_cpu_s",
-        "write_cpu_s",
-        "expert_failures",
-    )
-    return {
-        "representation": representation,
-        "wall_s": round(wall, 2),
-        "episodes_per_s": round(episodes / wall, 2),
-        **{k: summary[k] for k in keep},
-    }
-
-
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--episodes", type=int, default=1400)
-    p.add_argument("--dense-episodes", type=int, default=50)
-    p.add_argument("--profile-episodes", type=int, default=100)
     p.add_argument("--workers", type=int, default=0, help="0 = one per CPU core")
+    p.add_argument("--old-tree", type=Path, default=None, help="reference checkout run side by side")
+    p.add_argument("--dense-episodes", type=int, default=0)
+    p.add_argument("--profile-episodes", type=int, default=0)
     p.add_argument("--out", type=Path, default=None)
     args = p.parse_args(argv)
     out = args.out or Path(tempfile.mkdtemp(prefix="bench_dataset_"))
     out.mkdir(parents=True, exist_ok=True)
     print(f"cpu cores: {os.cpu_count()}  load average: {os.getloadavg()[0]:.2f}  output: {out}", flush=True)
-    results = {}
-    results["keyframe_e2e"] = end_to_end("keyframe", args.episodes, args.workers, out)
-    print(json.dumps(results["keyframe_e2e"]), flush=True)
+    results = {"new": cli_run(HERE, out / "new", args.episodes, args.workers)}
+    print(json.dumps(results["new"]), flush=True)
+    if args.old_tree:
+        results["old"] = cli_run(args.old_tree, out / "old", args.episodes, args.workers)
+        print(json.dumps(results["old"]), flush=True)
+        new, old = results["new"], results["old"]
+        print(
+            f"\n{args.episodes} keyframe episodes: new {new['wall_s']} s vs old {old['wall_s']} s "
+            f"(new/old = {new['wall_s'] / old['wall_s']:.2f}; load before: {new['load_before']} / "
+            f"{old['load_before']}); same content hash: {new['hash'] == old['hash']}",
+            flush=True,
+        )
     if args.dense_episodes:
-        results["dense_e2e"] = end_to_end("dense", args.dense_episodes, args.workers, out)
-        print(json.dumps(results["dense_e2e"]), flush=True)
-    results["keyframe_breakdown"] = breakdown("keyframe", args.profile_episodes, out)
-    print(json.dumps(results["keyframe_breakdown"]), flush=True)
-    if args.dense_episodes:
-        results["dense_breakdown"] = breakdown("dense", max(5, args.dense_episodes // 5), out)
-        print(json.dumps(results["dense_breakdown"]), flush=True)
-    kf = results["keyframe_e2e"]
-    print(
-        f"\n{args.episodes} keyframe episodes in {kf['wall_s']} s ({kf['episodes_per_s']} episodes/s) "
-        f"with {kf['workers']} workers"
-        + (f"; target (1400 in < 60 s): {'met' if kf['wall_s'] < 60 else 'NOT met'}" if args.episodes == 1400 else "")
-    )
+        results["dense"] = cli_run(HERE, out / "dense", args.dense_episodes, args.workers, dense=True)
+        print(json.dumps(results["dense"]), flush=True)
+    if args.profile_episodes:
+        results["keyframe_breakdown"] = breakdown("keyframe", args.profile_episodes, out)
+        print(json.dumps(results["keyframe_breakdown"]), flush=True)
     if args.out is None:
         shutil.rmtree(out)
     return 0

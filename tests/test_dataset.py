@@ -35,6 +35,9 @@ def _cfg(root, **kw) -> GenerateConfig:
     return GenerateConfig(**base)
 
 
+PNP = str(Path(sys.executable).parent / "lerobot-pnp")  # the installed console script (PYTHONPATH: this tree)
+
+
 def _snapshot(root: Path) -> dict:
     """Every file's content hash and mtime, to prove a folder was not touched."""
     out = {}
@@ -62,9 +65,9 @@ def _cli(*args, env=None, timeout=120) -> subprocess.CompletedProcess:
 
 @pytest.fixture(scope="module")
 def kf(tmp_path_factory):
-    """10 keyframe episodes in 3 shards (4+4+2) merged with LeRobot's aggregate_datasets."""
+    """10 keyframe episodes in 3 shards (3+3+4) merged with LeRobot's aggregate_datasets."""
     root = tmp_path_factory.mktemp("ds") / "kf"
-    summary = generate(_cfg(root, shard_size=4))
+    summary = generate(_cfg(root, tasks=3))
     return root, summary
 
 
@@ -145,15 +148,24 @@ def test_split_is_80_20_disjoint_and_stats_verified(kf):
     info = verify_dataset(root)  # stats.json recomputed from the data, distinct seeds
     assert info["total_episodes"] == 10
     record = json.loads((root / "meta" / "pnp_generate.json").read_text())
-    assert record["config"]["num_episodes"] == 10 and record["config"]["seed"] == 0
+    assert record["generation"]["num_episodes"] == 10 and record["generation"]["seed"] == 0
+    assert "env" not in record and "control_mode" not in json.dumps(record)  # the env config lives in one file
+    env = json.loads((root / "meta" / "baxter_pnp_env.json").read_text())
+    assert env["type"] == "baxter_pnp" and env["control_mode"] == "keyframe" and env["place_xy"] == [0.6, -0.05]
     assert not (root / ".pnp_work").exists()
+
+
+def test_same_hash_whatever_the_tasks_and_workers(kf, tmp_path):
+    root, _ = kf  # 3 tasks, in this process
+    one = generate(_cfg(tmp_path / "t1", tasks=1))
+    assert one["shards"] == 1 and data_hash(tmp_path / "t1") == data_hash(root)
 
 
 @pytest.mark.slow
 def test_deterministic_across_worker_counts(kf, tmp_path):
     root, _ = kf
-    summary = generate(_cfg(tmp_path / "w2", workers=2))  # 2 shards of 5, two spawned workers
-    assert summary["workers"] == 2 and summary["shards"] == 2
+    summary = generate(_cfg(tmp_path / "w2", workers=2, tasks=4))  # datatrove's pool: two spawned workers
+    assert summary["workers"] == 2 and summary["shards"] == 4
     assert data_hash(tmp_path / "w2") == data_hash(root)
 
 
@@ -162,7 +174,7 @@ def test_existing_root_is_an_error_and_untouched(kf):
     root, _ = kf
     before = _snapshot(root)
     with pytest.raises(DatasetError, match="already exists.*--resume.*--overwrite"):
-        generate(_cfg(root, shard_size=4))
+        generate(_cfg(root, tasks=3))
     res = _cli("generate", f"--repo_id={REPO}", f"--root={root}", "--num_episodes=10", "--progress=false")
     assert res.returncode == 1 and "already exists" in res.stderr
     # --resume on a finished dataset: verified, reported, untouched; different settings are refused
@@ -221,8 +233,8 @@ def _alive(pid: int) -> bool:
 @pytest.mark.slow
 def test_kill_9_then_resume(tmp_path):
     root = tmp_path / "crash"
-    n = 60
-    args = [f"--repo_id={REPO}", f"--root={root}", f"--num_episodes={n}", "--shard_size=5", "--progress=false"]
+    n = 30
+    args = [f"--repo_id={REPO}", f"--root={root}", f"--num_episodes={n}", "--tasks=10", "--progress=false"]
     proc = subprocess.Popen(
         [sys.executable, "-m", "lerobot_pnp.cli", "generate", *args, "--workers=2"],
         env=_cli_env(HF_HUB_OFFLINE="1"),
@@ -240,10 +252,12 @@ def test_kill_9_then_resume(tmp_path):
         assert proc.poll() is None, proc.communicate()
         time.sleep(0.02)
     workers = [c for c in _children(proc.pid) if c not in workers] + workers
-    assert workers  # the pool's worker processes (spawned), which outlive a SIGKILL of their parent
+    assert workers  # datatrove's pool workers (spawned) and its manager process
+    (root / "notes.txt").write_text("keep me")  # an unrelated file in the root survives the resume
     os.kill(proc.pid, signal.SIGKILL)
     proc.communicate()
-    # The orphaned pool workers notice and stop without finishing their shard.
+    # The orphaned workers die with their parent (PR_SET_PDEATHSIG) without finishing their shard, so they
+    # cannot race the resume below on the same shard paths.
     for w in workers:
         for _ in range(200):
             if not _alive(w):
@@ -258,11 +272,12 @@ def test_kill_9_then_resume(tmp_path):
     assert res.returncode == 1 and "interrupted generation" in res.stderr
     assert _snapshot(root) == before
 
-    summary = generate(_cfg(root, num_episodes=n, shard_size=5, resume=True))
-    assert summary["status"] == "resumed" and 10 <= summary["episodes_reused"] < n
+    summary = generate(_cfg(root, num_episodes=n, resume=True))
+    assert summary["status"] == "resumed" and 6 <= summary["episodes_reused"] < n
+    assert (root / "notes.txt").read_text() == "keep me"
     info = verify_dataset(root)  # exactly n distinct seeds, stats recomputed from the data
     assert info["total_episodes"] == n and info["total_frames"] == n * robot.N_KEYFRAMES
-    clean = generate(_cfg(tmp_path / "clean", num_episodes=n, shard_size=n))
+    clean = generate(_cfg(tmp_path / "clean", num_episodes=n, tasks=1))
     assert clean["episodes"] == n
     assert data_hash(root) == data_hash(tmp_path / "clean")  # none lost, none duplicated, same content
 
@@ -297,7 +312,7 @@ def test_dense_small(tmp_path):
     from lerobot_pnp.expert import run_expert_episode
 
     root = tmp_path / "dense"
-    summary = generate(_cfg(root, repo_id="test/pnp_dense", num_episodes=2, representation="dense", fps=20))
+    summary = generate(_cfg(root, repo_id="test/pnp_dense", num_episodes=2, env={"control_mode": "dense", "fps": 20}))
     ds = LeRobotDataset("test/pnp_dense", root=root, video_backend="pyav")
     assert ds.fps == 20 and ds.num_episodes == 2
     env = gym.make("lerobot_pnp/BaxterPnP-v0", control_mode="dense")
@@ -318,10 +333,7 @@ def test_dense_with_camera_video(tmp_path):
             root,
             repo_id="test/pnp_cam",
             num_episodes=1,
-            representation="dense",
-            cameras=["front"],
-            image_height=32,
-            image_width=32,
+            env={"control_mode": "dense", "cameras": ["front"], "image_height": 32, "image_width": 32},
         )
     )
     ds = LeRobotDataset("test/pnp_cam", root=root, video_backend="pyav")
@@ -383,12 +395,16 @@ def test_expert_failures_are_retried_with_disjoint_seeds_and_reported(tmp_path, 
 
 def test_config_validation():
     with pytest.raises(ConfigError):
-        GenerateConfig(representation="video")
+        GenerateConfig(env={"control_mode": "video"})
     with pytest.raises(ConfigError):
-        GenerateConfig(cameras=["nope"])
+        GenerateConfig(env={"cameras": ["nope"]})
     with pytest.raises(ConfigError):
         GenerateConfig(resume=True, overwrite=True)
-    assert GenerateConfig().fps == 1 and GenerateConfig().num_episodes == 1400
+    with pytest.raises(ConfigError, match="executor"):
+        GenerateConfig(executor="ray")
+    with pytest.raises(ConfigError, match="tasks"):
+        GenerateConfig(num_episodes=3, tasks=4)
+    assert GenerateConfig().env.fps == 1 and GenerateConfig().num_episodes == 1400
     from lerobot_pnp.cli import normalize_args
 
     assert normalize_args(

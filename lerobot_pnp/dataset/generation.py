@@ -1,0 +1,294 @@
+"""``lerobot-pnp generate``: expert demonstrations as one LeRobotDataset v3.0, at any scale.
+
+The task (control mode, fps, cameras, object region, ...) is the env config ``--env.*``; this config holds
+only how much to generate and how to run it. The run is a datatrove pipeline (``shards.py``): rank ``k`` of
+``--tasks`` writes a shard of consecutive episode slots, ``LocalPipelineExecutor`` runs the ranks on this
+machine (``--workers`` at a time, default one per core) or ``SlurmPipelineExecutor`` on a cluster
+(``--executor slurm``); then ``merge.py`` aggregates, verifies, splits and commits. Interrupted runs
+(kill -9, a failed task, a full disk) finish with ``--resume``: completed ranks are skipped (datatrove's
+completion records, double-checked by shard validation), the others are redone from scratch.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+from lerobot_pnp.dataset.executors import (
+    ProgressBar,
+    active_slurm_jobs,
+    console_to_file,
+    default_workers,
+    run_local,
+    submit_slurm,
+)
+from lerobot_pnp.dataset.merge import GENERATION_FILE, MergeShards, merge_and_commit
+from lerobot_pnp.dataset.shards import GenerateShard, shard_dir, shard_is_valid
+from lerobot_pnp.dataset.validation import WORK_DIR, read_json, validate_dataset, write_json_atomic
+from lerobot_pnp.dataset.workdir import RootLock, disk_error, remove_generation, root_state
+from lerobot_pnp.env_config import BaxterPnPEnvConfig
+from lerobot_pnp.errors import ConfigError, DatasetError
+
+EXECUTORS = ("local", "slurm")
+MAX_EPISODES = 10_000_000  # above this, --allow_huge must say it is meant (memory and disk grow with N)
+# Episodes per shard when --tasks is 0 (auto); SLURM tasks are 10x larger (a task start costs seconds).
+SHARD_SIZE = {"keyframe": 100, "dense": 20, "cameras": 5}
+# What a resumed run must share with the run on disk.
+_CONTENT_FIELDS = ("repo_id", "seed", "num_episodes", "max_retries", "train_fraction", "env")
+
+
+@dataclass
+class SlurmOptions:
+    """``--slurm.*``: resources of each SLURM array task (one shard) and of the merge job."""
+
+    partition: str = "cpu"
+    cpus_per_task: int = 1
+    mem_per_cpu_gb: float = 2
+    time: str = "04:00:00"  # per task, HH:MM:SS
+    qos: str | None = None
+    job_name: str = "pnp_generate"
+
+    def __post_init__(self):
+        if self.cpus_per_task < 1 or self.mem_per_cpu_gb <= 0:
+            raise ConfigError("slurm.cpus_per_task must be >= 1 and slurm.mem_per_cpu_gb > 0")
+
+
+@dataclass
+class GenerateConfig:
+    """``lerobot-pnp generate``: expert demonstrations as a LeRobotDataset v3.0."""
+
+    repo_id: str = "local/baxter_pnp_keyframe"
+    root: str | None = None  # output folder; default outputs/datasets/<repo_id>
+    num_episodes: int = 1400
+    seed: int = 0  # episode slot i uses seed + i (retries: seed + i + num_episodes * r)
+    env: BaxterPnPEnvConfig = field(default_factory=BaxterPnPEnvConfig)  # the task: --env.control_mode dense ...
+    executor: str = "local"  # local (this machine) | slurm (sbatch array + merge job)
+    tasks: int = 0  # shards = datatrove tasks; 0 = auto (about 100 keyframe episodes each, locally)
+    workers: int = 0  # local: tasks run at once (0 = one per core); slurm: max array tasks at once (0 = no cap)
+    slurm: SlurmOptions = field(default_factory=SlurmOptions)
+    logging_dir: str | None = None  # datatrove logs; default ROOT/.pnp_work/logs (local), ROOT.logs (slurm)
+    train_fraction: float = 0.8  # first episodes -> "train", the rest -> "test" (meta/info.json "splits")
+    max_retries: int = 10  # reseeds per slot when the expert fails
+    resume: bool = False  # finish an interrupted run in root (completed shards are kept)
+    overwrite: bool = False  # delete the dataset (or interrupted run) in root first; other files are kept
+    allow_huge: bool = False  # allow num_episodes above 10 million
+    progress: bool = True  # one tqdm bar (datatrove's logs go to the logging folder)
+
+    def __post_init__(self):
+        if isinstance(self.env, dict):
+            self.env = BaxterPnPEnvConfig.from_dict(self.env)
+        if isinstance(self.slurm, dict):
+            self.slurm = SlurmOptions(**self.slurm)
+        if not (isinstance(self.num_episodes, int) and self.num_episodes >= 1):
+            raise ConfigError(f"num_episodes must be an integer >= 1, got {self.num_episodes!r}")
+        if self.num_episodes > MAX_EPISODES and not self.allow_huge:
+            raise ConfigError(
+                f"num_episodes={self.num_episodes:,} is above {MAX_EPISODES:,}; pass --allow_huge if you mean it "
+                "(disk grows with N; split the job across a SLURM cluster with --executor slurm)"
+            )
+        if not (isinstance(self.seed, int) and self.seed >= 0 and self.seed + self.num_episodes * 12 < 2**63):
+            raise ConfigError(f"seed must be an integer in [0, 2**63) with room for the episode seeds, got {self.seed}")
+        if self.executor not in EXECUTORS:
+            raise ConfigError(f"executor must be one of {EXECUTORS}, got {self.executor!r}")
+        if self.tasks < 0 or self.workers < 0 or self.max_retries < 0:
+            raise ConfigError("tasks, workers and max_retries must be >= 0")
+        if self.tasks > self.num_episodes:
+            raise ConfigError(f"tasks ({self.tasks}) must be <= num_episodes ({self.num_episodes})")
+        if not 0 < self.train_fraction <= 1:
+            raise ConfigError(f"train_fraction must be in (0, 1], got {self.train_fraction}")
+        if self.resume and self.overwrite:
+            raise ConfigError("pass either --resume or --overwrite, not both")
+        if "/" not in self.repo_id:
+            raise ConfigError(f"repo_id must look like 'user/name', got {self.repo_id!r}")
+
+    @property
+    def output_root(self) -> Path:
+        return Path(self.root) if self.root else Path("outputs/datasets") / self.repo_id
+
+    def auto_tasks(self, workers: int) -> int:
+        kind = "cameras" if self.env.cameras else self.env.control_mode
+        size = SHARD_SIZE[kind] * (10 if self.executor == "slurm" else 1)
+        tasks = math.ceil(self.num_episodes / size)
+        if self.executor == "local":
+            tasks = max(tasks, min(self.num_episodes, workers))  # every worker gets a shard
+        return tasks
+
+    def run_record(self, tasks: int) -> dict:
+        """The settings of a run (``.pnp_work/run.json``): what a resume must match, and the shard layout."""
+        d = asdict(self)
+        return {**{k: d[k] for k in _CONTENT_FIELDS if k != "env"}, "env": self.env.to_dict(), "tasks": tasks}
+
+
+def generate(cfg: GenerateConfig) -> dict:
+    """Generate ``cfg.num_episodes`` successful expert episodes into ``cfg.output_root``; return a summary."""
+    t_start = time.perf_counter()
+    root = cfg.output_root.resolve()
+    if root.is_file():
+        raise DatasetError(f"{root} is a file, not a dataset folder")
+    try:
+        with RootLock(root):  # taken before anything is deleted; the root directory itself is never removed
+            return _generate_locked(cfg, root, t_start)
+    except OSError as err:
+        raise disk_error(root, err) from None
+    except KeyboardInterrupt:
+        raise DatasetError(
+            f"interrupted; the finished shards in {root} are kept: rerun the same command with --resume"
+        ) from None
+
+
+def _generate_locked(cfg: GenerateConfig, root: Path, t_start: float) -> dict:
+    work = root / WORK_DIR
+    state = root_state(root)
+    jobs = _slurm_jobs(work)
+    if state == "interrupted" and active_slurm_jobs(jobs) and (cfg.overwrite or cfg.resume):
+        raise DatasetError(
+            f"SLURM jobs {jobs} of the generation in {root} are still queued or running; wait for them "
+            f"(squeue -j {','.join(jobs)}) or cancel them (scancel) first"
+        )
+    if cfg.overwrite and state == "foreign":
+        raise DatasetError(
+            f"refusing to --overwrite {root}: it does not look like a LeRobot dataset (no meta/info.json); "
+            "delete it yourself or pick another --root"
+        )
+    if cfg.overwrite:
+        remove_generation(root)
+        state = "empty"
+    if state == "foreign":
+        raise DatasetError(f"{root} holds files that are not a dataset; pick another --root")
+    if state != "empty" and not cfg.resume:
+        what = {"interrupted": "an interrupted generation", "complete": "a dataset"}[state]
+        raise DatasetError(
+            f"{root} already exists ({what}); pass --resume to finish/keep it or --overwrite to replace it"
+        )
+    if state == "complete":  # --resume on a finished dataset: verify it matches and report
+        info = validate_dataset(root)
+        record = read_json(root / GENERATION_FILE, "generation record")
+        _check_same_run(record.get("generation", {}), cfg, read_json(root / "meta/baxter_pnp_env.json", "env"))
+        return {"root": str(root), "status": "already complete", "episodes": info["total_episodes"],
+                "frames": info["total_frames"], "splits": info.get("splits")}  # fmt: skip
+
+    # The run's settings: recorded on a fresh start, checked on a resume (the shard layout comes from disk).
+    workers = cfg.workers or default_workers()
+    run_path = work / "run.json"
+    if state == "interrupted" and run_path.is_file():
+        run = read_json(run_path, "generation settings")
+        _check_same_run(run, cfg, run["env"])
+        if cfg.tasks and cfg.tasks != run["tasks"]:
+            raise ConfigError(f"--resume with --tasks {cfg.tasks} but the run on disk has {run['tasks']} shards")
+    else:
+        if work.exists():  # killed before the settings were written: nothing in it is usable
+            shutil.rmtree(work)
+        run = cfg.run_record(cfg.tasks or cfg.auto_tasks(workers))
+        write_json_atomic(run_path, run)
+    tasks = run["tasks"]
+    logs = Path(cfg.logging_dir).resolve() if cfg.logging_dir else None
+    if cfg.executor == "slurm":
+        return _submit(cfg, root, run, logs or root.with_name(root.name + ".logs"))
+    logs = logs or work / "logs"
+
+    # Completed ranks whose shard does not validate (or stale records) are redone.
+    reused = _drop_invalid_completions(work, logs, cfg.num_episodes, tasks)
+    shard_step = GenerateShard(
+        work=str(work), repo_id=cfg.repo_id, env=run["env"], seed=cfg.seed, num_episodes=cfg.num_episodes,
+        max_retries=cfg.max_retries, parent_pid=_pid(),
+    )  # fmt: skip
+    progress_dir = work / "progress"
+    if progress_dir.exists():
+        shutil.rmtree(progress_dir)
+    t_sim = time.perf_counter()
+    with console_to_file(logs / "console.log") as terminal:
+        with ProgressBar(progress_dir, cfg.num_episodes, terminal, cfg.progress, initial=reused):
+            try:
+                run_local(shard_step, tasks, workers, logs)
+            except DatasetError as err:
+                raise DatasetError(f"{err} (task logs: {logs}/logs)") from None
+        sim_wall = time.perf_counter() - t_sim
+        t_merge = time.perf_counter()
+        summary = merge_and_commit(root)
+    merge_wall = time.perf_counter() - t_merge
+    summary.update(
+        status="resumed" if reused else "generated",
+        episodes_reused=reused,
+        workers=max(1, min(workers, tasks)),
+        executor="local",
+        wall_s=round(time.perf_counter() - t_start, 2),
+        generate_wall_s=round(sim_wall, 2),
+        merge_wall_s=round(merge_wall, 2),
+        episodes_per_s=round((cfg.num_episodes - reused) / sim_wall, 2) if cfg.num_episodes > reused else None,
+    )
+    return summary
+
+
+def _pid() -> int:
+    import os
+
+    return os.getpid()
+
+
+def _check_same_run(recorded: dict, cfg: GenerateConfig, recorded_env: dict) -> None:
+    mine = cfg.run_record(0)
+    recorded = {**recorded, "env": {k: v for k, v in recorded_env.items() if k != "type"}}
+    diff = {k: (recorded.get(k), mine[k]) for k in _CONTENT_FIELDS if _norm(recorded.get(k)) != _norm(mine[k])}
+    if diff:
+        if "env" in diff:
+            a, b = diff.pop("env")
+            diff.update({f"env.{k}": (a.get(k), b[k]) for k in b if _norm(a.get(k)) != _norm(b[k])})
+        details = ", ".join(f"{k}: on disk {a!r} vs requested {b!r}" for k, (a, b) in diff.items())
+        raise ConfigError(
+            f"--resume with different settings than the run on disk ({details}); use the same settings or --overwrite"
+        )
+
+
+def _norm(v):
+    return json.loads(json.dumps(v, default=list))
+
+
+def _drop_invalid_completions(work: Path, logs: Path, num_episodes: int, tasks: int) -> int:
+    """Keep a completed rank only if its shard validates; return the number of episodes kept."""
+    done = logs / "completions"
+    kept = 0
+    for rank in range(tasks):
+        mark = done / f"{rank:05d}"
+        if not mark.exists():
+            continue
+        if shard_is_valid(work, rank, num_episodes, tasks):
+            kept += len(json.loads((shard_dir(work, rank) / "pnp_shard.json").read_text())["seeds"])
+        else:
+            mark.unlink()
+    return kept
+
+
+def _slurm_jobs(work: Path) -> list[str]:
+    try:
+        return json.loads((work / "slurm.json").read_text())["job_ids"]
+    except (OSError, ValueError, KeyError):
+        return []
+
+
+def _submit(cfg: GenerateConfig, root: Path, run: dict, logs: Path) -> dict:
+    """``--executor slurm``: submit the shard array and the merge job, record their ids, return at once."""
+    work = root / WORK_DIR
+    tasks = run["tasks"]
+    reused = _drop_invalid_completions(work, logs / "shards", cfg.num_episodes, tasks)
+    shard_step = GenerateShard(
+        work=str(work), repo_id=cfg.repo_id, env=run["env"], seed=cfg.seed, num_episodes=cfg.num_episodes,
+        max_retries=cfg.max_retries,
+    )  # fmt: skip
+    with console_to_file(logs / "console.log"):
+        job_ids = submit_slurm(shard_step, MergeShards(str(root)), tasks, cfg.slurm, logs, cfg.workers)
+    write_json_atomic(work / "slurm.json", {"job_ids": job_ids, "logging_dir": str(logs)})
+    return {
+        "root": str(root),
+        "status": "submitted",
+        "executor": "slurm",
+        "job_ids": job_ids,
+        "shards": tasks,
+        "episodes_reused": reused,
+        "logging_dir": str(logs),
+        "next": f"watch: squeue -j {','.join(job_ids)}; done when {root}/{WORK_DIR} is gone "
+        "(a failed task: rerun the same command with --resume)",
+    }

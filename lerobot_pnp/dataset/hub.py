@@ -1,0 +1,61 @@
+"""``lerobot-pnp push``: upload a generated dataset to the Hugging Face Hub with LeRobot's ``push_to_hub``."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from lerobot_pnp.dataset.validation import open_local_dataset
+from lerobot_pnp.errors import DatasetError
+
+
+@dataclass
+class PushConfig:
+    """``lerobot-pnp push``: upload a generated dataset to the Hugging Face Hub (tagged v3.0)."""
+
+    repo_id: str = "local/baxter_pnp_keyframe"
+    root: str | None = None  # default outputs/datasets/<repo_id>
+    private: bool = False
+    branch: str | None = None
+    push_videos: bool = True
+    connect_timeout_s: float = 5.0  # fail fast when the Hub cannot be reached
+
+    @property
+    def output_root(self) -> Path:
+        return Path(self.root) if self.root else Path("outputs/datasets") / self.repo_id
+
+
+def push(cfg: PushConfig) -> dict:
+    """Upload ``cfg.output_root`` to the Hub with LeRobot's ``push_to_hub`` (tags ``v3.0``).
+
+    Fails fast, before anything is read for upload, when there is no token or the Hub cannot be reached.
+    Never modifies the local folder.
+    """
+    import socket
+    from urllib.parse import urlparse
+
+    root = cfg.output_root.resolve()
+    ds = open_local_dataset(cfg.repo_id, root)  # validates the folder first
+    from huggingface_hub import constants, get_token
+
+    if constants.HF_HUB_OFFLINE:
+        raise DatasetError("cannot push: HF_HUB_OFFLINE is set (unset it to upload)")
+    if not get_token():
+        raise DatasetError("cannot push: no Hugging Face token found; run `hf auth login` or set HF_TOKEN")
+    url = urlparse(constants.ENDPOINT)
+    host, port = url.hostname, url.port or (443 if url.scheme == "https" else 80)
+    try:
+        with socket.create_connection((host, port), timeout=cfg.connect_timeout_s):
+            pass
+    except OSError as err:
+        raise DatasetError(f"cannot push: the Hub at {constants.ENDPOINT} is unreachable ({err})") from None
+    try:
+        ds.push_to_hub(branch=cfg.branch, private=cfg.private, push_videos=cfg.push_videos)
+    except Exception as err:
+        raise DatasetError(f"push to {cfg.repo_id} failed: {err}") from err
+    return {
+        "repo_id": cfg.repo_id,
+        "root": str(root),
+        "url": f"{constants.ENDPOINT}/datasets/{cfg.repo_id}",
+        "tag": "v3.0",
+    }

@@ -1,0 +1,134 @@
+"""The last step of a generation: merge the shards with LeRobot's ``aggregate_datasets``, verify, split, commit.
+
+Runs in the `generate` process after a local run, or as the one-task SLURM job that depends on the shard
+array (``slurm_aggregate_shards.py`` in LeRobot's examples). The merge is built in ``.pnp_work/merged``,
+verified (episode count, seeds in slot order, stats recomputed from the data), given the train/test split
+(``meta/info.json`` "splits"), the env config (``meta/baxter_pnp_env.json``) and the generation record
+(``meta/pnp_generate.json``), then moved into the root; the work folder is removed last.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+from pathlib import Path
+
+from datatrove.pipeline.base import PipelineStep
+
+from lerobot_pnp import robot
+from lerobot_pnp.dataset.shards import SHARD_FILE, read_shard_record, shard_dir
+from lerobot_pnp.dataset.validation import WORK_DIR, read_json, verify_dataset, write_json_atomic
+from lerobot_pnp.dataset.workdir import TRASH_DIR, RootLock, remove_partial_commit
+from lerobot_pnp.errors import DatasetError
+
+GENERATION_FILE = "meta/pnp_generate.json"  # how the data was made (the env config is in baxter_pnp_env.json)
+
+
+def split_of(num_episodes: int, train_fraction: float) -> dict[str, str]:
+    """First episodes -> "train", the rest -> "test" (a test split is never empty when one was asked for)."""
+    n = num_episodes
+    n_train = min(n, max(1, round(train_fraction * n)))
+    if train_fraction < 1 and n >= 2:
+        n_train = min(n_train, n - 1)
+    splits = {"train": f"0:{n_train}"}
+    if n_train < n:
+        splits["test"] = f"{n_train}:{n}"
+    return splits
+
+
+def merge_and_commit(root: Path) -> dict:
+    """Merge the shards of the run in ``root/.pnp_work`` into ``root``; return a summary."""
+    from lerobot.datasets.aggregate import aggregate_datasets
+    from lerobot.datasets.io_utils import load_info, write_info
+
+    from lerobot_pnp import __version__
+    from lerobot_pnp.env_config import BaxterPnPEnvConfig, write_recorded
+
+    work = root / WORK_DIR
+    run = read_json(work / "run.json", "generation settings")
+    n, tasks = run["num_episodes"], run["tasks"]
+    records = []
+    for rank in range(tasks):
+        try:
+            records.append(read_shard_record(work, rank))
+        except (OSError, ValueError):
+            raise DatasetError(f"shard {rank} of {root} is missing or incomplete; rerun with --resume") from None
+    seeds = [s for r in records for s in r["seeds"]]
+    if len(seeds) != n or len(set(seeds)) != n:
+        raise DatasetError(
+            f"shards hold {len(seeds)} episodes ({len(set(seeds))} distinct seeds), expected {n} distinct; "
+            "rerun with --overwrite"
+        )
+    merged = work / "merged"
+    if merged.exists():
+        shutil.rmtree(merged)
+    remove_partial_commit(root)
+    roots = [shard_dir(work, rank) for rank in range(tasks)]
+    if tasks == 1:
+        shutil.copytree(roots[0], merged, ignore=shutil.ignore_patterns(SHARD_FILE))
+    else:
+        aggregate_datasets(
+            repo_ids=[f"{run['repo_id']}_shard{rank:05d}" for rank in range(tasks)],
+            aggr_repo_id=run["repo_id"],
+            roots=roots,
+            aggr_root=merged,
+            concatenate_data=False,  # one data file per shard: a linear-time merge (no rewrites)
+        )
+    info = load_info(merged)
+    info.splits = split_of(n, run["train_fraction"])
+    write_info(info, merged)
+    check = verify_dataset(merged, expected_seeds=seeds)
+    write_recorded(BaxterPnPEnvConfig.from_dict(run["env"]), merged)
+    failures = [f for r in records for f in r["failures"]]
+    write_json_atomic(
+        merged / GENERATION_FILE,
+        {
+            "generation": {k: run[k] for k in ("repo_id", "seed", "num_episodes", "max_retries", "train_fraction")},
+            "seed_rule": "slot i, retry r -> seed + i + num_episodes * r",
+            "task": robot.TASK,
+            "shards": tasks,
+            "failures": failures,
+            "lerobot_pnp_version": __version__,
+        },
+    )
+    # Commit: move the merged dataset into root, then drop the work folder (atomically renamed first).
+    for entry in merged.iterdir():
+        os.replace(entry, root / entry.name)
+    os.replace(work, root / TRASH_DIR)
+    shutil.rmtree(root / TRASH_DIR)
+    causes: dict[str, int] = {}
+    for f in failures:
+        causes[f["cause"]] = causes.get(f["cause"], 0) + 1
+    return {
+        "root": str(root),
+        "repo_id": run["repo_id"],
+        "control_mode": run["env"]["control_mode"],
+        "fps": info.fps,
+        "episodes": check["total_episodes"],
+        "frames": check["total_frames"],
+        "splits": info.splits,
+        "shards": tasks,
+        "expert_failures": len(failures),
+        "failure_causes": causes,
+        "simulate_cpu_s": round(sum(r.get("sim_s", 0) for r in records), 2),
+        "write_cpu_s": round(sum(r.get("write_s", 0) for r in records), 2),
+    }
+
+
+class MergeShards(PipelineStep):
+    """Datatrove step (one task) for SLURM: merge and commit once every shard rank has completed."""
+
+    name = "merge shards -> one LeRobotDataset"
+    type = "lerobot_pnp"
+
+    def __init__(self, root: str):
+        super().__init__()
+        self.root = root
+
+    def run(self, data=None, rank: int = 0, world_size: int = 1):
+        root = Path(self.root)
+        if not (root / WORK_DIR).exists() and (root / "meta" / "info.json").is_file():
+            return None  # already merged (a requeued merge job)
+        with RootLock(root):
+            merge_and_commit(root)
+        return None

@@ -1,0 +1,40 @@
+"""The one feature spec of a pnp dataset (LeRobot ``features`` dict), derived from the env config.
+
+Per frame: ``observation.state`` (7 joints + gripper), ``observation.environment_state`` (object xyz),
+``action``, ``next.done``, ``next.success``, ``phase.index`` (FSM phase 0..9), ``phase.subtask`` (0 pick,
+1 place), ``episode.seed`` (the expert seed that re-simulates the episode exactly) and the task string.
+``phase.*`` and ``episode.*`` are deliberately not ``observation.*`` so LeRobot never feeds them to a policy.
+Camera images, when the env renders them, are videos ``observation.images.<camera>``.
+"""
+
+from __future__ import annotations
+
+from lerobot_pnp import robot
+
+ROBOT_TYPE = "baxter"
+
+
+def dataset_features(env=None) -> dict:
+    """LeRobot feature spec for datasets recorded from ``env`` (a ``BaxterPnPEnvConfig``; None = no cameras)."""
+    scalar = {"shape": (1,), "names": None}
+    features = {
+        "observation.state": {"dtype": "float32", "shape": (robot.STATE_DIM,), "names": list(robot.STATE_NAMES)},
+        "observation.environment_state": {
+            "dtype": "float32",
+            "shape": (robot.OBJECT_DIM,),
+            "names": list(robot.OBJECT_NAMES),
+        },
+        "action": {"dtype": "float32", "shape": (robot.ACTION_DIM,), "names": list(robot.ACTION_NAMES)},
+        "next.done": {"dtype": "bool", **scalar},
+        "next.success": {"dtype": "bool", **scalar},
+        "phase.index": {"dtype": "int64", **scalar},
+        "phase.subtask": {"dtype": "int64", **scalar},
+        "episode.seed": {"dtype": "int64", **scalar},
+    }
+    for cam in env.cameras if env is not None else ():
+        features[f"observation.images.{cam}"] = {
+            "dtype": "video",
+            "shape": (env.image_height, env.image_width, 3),
+            "names": ["height", "width", "channels"],
+        }
+    return features

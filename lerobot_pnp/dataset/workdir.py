@@ -1,0 +1,107 @@
+"""The output root of a generation: its layout, its lock, and what may be deleted in it.
+
+While a run is in progress the root holds a work folder (and whatever unrelated files the user keeps there)::
+
+    ROOT/.pnp_work/run.json                 the generation settings and the resolved env config of the run
+    ROOT/.pnp_work/logs/                    datatrove's logging folder: completions/, logs/task_*.log, stats/
+    ROOT/.pnp_work/shards/shard-00003/      rank 3's shard: a finalized LeRobotDataset (written as .tmp, renamed)
+    ROOT/.pnp_work/progress/00003           episodes rank 3 has written so far (for the progress bar)
+    ROOT/.pnp_work/merged/                  the aggregate being built
+
+A root without ``.pnp_work`` holds a complete dataset. Only the entries a dataset consists of
+(``DATASET_ENTRIES``) and the work folder are ever deleted: ``--overwrite`` and ``--resume`` keep the user's
+own files. The lock is an ``flock`` on the root directory itself, taken before anything is deleted, and the
+root directory is never removed, so ``--overwrite`` cannot pull a folder from under a running generation.
+"""
+
+from __future__ import annotations
+
+import errno
+import fcntl
+import os
+import shutil
+from pathlib import Path
+
+from lerobot_pnp.dataset.validation import WORK_DIR
+from lerobot_pnp.errors import DatasetError
+
+TRASH_DIR = ".pnp_work.trash"
+DATASET_ENTRIES = ("meta", "data", "videos")  # what LeRobot writes into a dataset root
+
+
+def disk_error(root: Path, err: OSError) -> DatasetError:
+    """One line for an operational write failure (full disk, read-only or missing permissions)."""
+    what = {
+        errno.ENOSPC: "the disk is full",
+        errno.EDQUOT: "the disk quota is exceeded",
+        errno.EFBIG: "a file size limit was reached",
+        errno.EROFS: "the file system is read-only",
+        errno.EACCES: "permission denied",
+        errno.EPERM: "operation not permitted",
+    }.get(err.errno, err.strerror or str(err))
+    return DatasetError(
+        f"cannot write the dataset in {root}: {what} ({err.filename or root}); the finished shards are kept: "
+        "free space or fix permissions, then rerun the same command with --resume"
+    )
+
+
+class RootLock:
+    """An exclusive, non-blocking ``flock`` on the root directory (released when the process dies)."""
+
+    def __init__(self, root: Path):
+        self.root = root
+        try:
+            root.mkdir(parents=True, exist_ok=True)
+        except OSError as err:
+            raise disk_error(root, err) from None
+        if not root.is_dir():
+            raise DatasetError(f"{root} is a file, not a dataset folder")
+        self.fd = os.open(root, os.O_RDONLY | os.O_DIRECTORY)
+        try:
+            fcntl.flock(self.fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(self.fd)
+            raise DatasetError(
+                f"another `lerobot-pnp generate` is writing {root}; wait for it to finish (or stop it) "
+                "before --resume or --overwrite"
+            ) from None
+
+    def close(self) -> None:
+        if self.fd is not None:
+            os.close(self.fd)  # closing the last descriptor releases the flock
+            self.fd = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+def root_state(root: Path) -> str:
+    """empty | interrupted (a work folder) | complete (a dataset) | foreign (other files only)."""
+    entries = {p.name for p in root.iterdir()} - {TRASH_DIR}
+    if WORK_DIR in entries:
+        return "interrupted"
+    if (root / "meta" / "info.json").is_file():
+        return "complete"
+    return "foreign" if entries else "empty"
+
+
+def remove_generation(root: Path) -> None:
+    """Delete what a generation wrote into ``root`` (dataset entries and work folder); keep other files."""
+    for name in (WORK_DIR, TRASH_DIR, *DATASET_ENTRIES):
+        path = root / name
+        if path.is_dir() and not path.is_symlink():
+            shutil.rmtree(path)
+        elif path.exists() or path.is_symlink():
+            path.unlink()
+
+
+def remove_partial_commit(root: Path) -> None:
+    """Before a resumed merge: drop dataset entries a killed commit had started moving into ``root``."""
+    for name in DATASET_ENTRIES:
+        if (root / name).is_dir():
+            shutil.rmtree(root / name)
+    if (root / TRASH_DIR).exists():
+        shutil.rmtree(root / TRASH_DIR)

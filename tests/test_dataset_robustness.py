@@ -1,0 +1,206 @@
+"""Nothing lost, nothing silent (issue 9, dataset side), through the real `lerobot-pnp` console script.
+
+Each case asserts the data kept (or the dataset completed) and a one-line error with no traceback.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import resource
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from lerobot_pnp.dataset import GenerateConfig, data_hash, generate, validate_dataset, verify_dataset
+from lerobot_pnp.errors import DatasetError
+
+PNP = str(Path(sys.executable).parent / "lerobot-pnp")
+REPO = "test/pnp_rt"
+
+
+def _env() -> dict:
+    env = {k: v for k, v in os.environ.items() if not k.startswith("HF_")}
+    env.update(OMP_NUM_THREADS="1", PYTHONUNBUFFERED="1", HF_HUB_OFFLINE="1")
+    env["PYTHONPATH"] = str(Path(__file__).resolve().parents[1]) + os.pathsep + env.get("PYTHONPATH", "")
+    return env
+
+
+def _args(root: Path, n: int, *extra: str) -> list[str]:
+    return [PNP, "generate", f"--repo_id={REPO}", f"--root={root}", f"--num_episodes={n}", "--progress=false", *extra]
+
+
+def _run(args: list[str], preexec_fn=None, timeout: float = 240) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        args, capture_output=True, text=True, env=_env(), timeout=timeout, preexec_fn=preexec_fn, cwd="/"
+    )
+
+
+def _one_line_error(res: subprocess.CompletedProcess, *needles: str) -> str:
+    """Failed, with exactly one line on stderr naming the problem, and no traceback."""
+    lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
+    assert res.returncode != 0, res.stdout
+    assert "Traceback" not in res.stderr and len(lines) == 1, res.stderr[-3000:]
+    for needle in needles:
+        assert needle in lines[0], lines[0]
+    return lines[0]
+
+
+def _wait_for(predicate, proc: subprocess.Popen, timeout: float = 120) -> None:
+    deadline = time.time() + timeout
+    while not predicate():
+        assert proc.poll() is None, proc.communicate()
+        assert time.time() < deadline, "timed out"
+        time.sleep(0.05)
+
+
+def _first_shard_done(root: Path):
+    return lambda: (root / ".pnp_work" / "shards" / "shard-00000").is_dir()
+
+
+@pytest.fixture(scope="module")
+def small(tmp_path_factory):
+    root = tmp_path_factory.mktemp("rt") / "small"
+    generate(GenerateConfig(repo_id=REPO, root=str(root), num_episodes=3, tasks=1, workers=1, progress=False))
+    return root
+
+
+# ---------------------------------------------------------------------------------------------- 1: overwrite
+def test_overwrite_and_resume_refuse_a_running_generation(tmp_path):
+    root = tmp_path / "running"
+    proc = subprocess.Popen(_args(root, 24, "--tasks=6", "--workers=1"), env=_env(), stderr=subprocess.PIPE, text=True)
+    try:
+        _wait_for(_first_shard_done(root), proc)
+        for flag in ("--overwrite", "--resume"):
+            res = _run(_args(root, 24, flag))
+            _one_line_error(res, "another `lerobot-pnp generate` is writing")
+        assert proc.wait(timeout=240) == 0, proc.stderr.read()
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert verify_dataset(root)["total_episodes"] == 24  # the running generation finished, nothing lost
+
+
+# ---------------------------------------------------------------------------------------------- 2, 3: kill + resume
+def test_resume_after_kill_keeps_unrelated_files_and_finishes(tmp_path):
+    root = tmp_path / "killed"
+    root.mkdir()
+    proc = subprocess.Popen(_args(root, 12, "--tasks=4", "--workers=1"), env=_env(), stderr=subprocess.PIPE)
+    _wait_for(_first_shard_done(root), proc)
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.communicate()
+    (root / "notes.txt").write_text("keep me")
+    (root / "meta").mkdir(exist_ok=True)  # a partial commit of a killed merge is redone, not kept
+    res = _run(_args(root, 12, "--resume"))
+    assert res.returncode == 0, res.stderr[-3000:]
+    assert json.loads(res.stdout)["episodes_reused"] >= 3
+    assert (root / "notes.txt").read_text() == "keep me"
+    assert verify_dataset(root)["total_episodes"] == 12
+    # --overwrite replaces the dataset, not the user's files
+    res = _run(_args(root, 2, "--overwrite", "--tasks=1"))
+    assert res.returncode == 0, res.stderr[-3000:]
+    assert (root / "notes.txt").read_text() == "keep me" and validate_dataset(root)["total_episodes"] == 2
+
+
+# ---------------------------------------------------------------------------------------------- 4: validation
+def _rewrite_data(root: Path, edit) -> None:
+    import pyarrow.parquet as pq
+
+    path = sorted((root / "data").rglob("*.parquet"))[0]
+    table = pq.read_table(path)
+    pq.write_table(edit(table), path)
+
+
+def test_validation_rejects_nan_shapes_and_removed_rows(small, tmp_path):
+    import pyarrow as pa
+
+    # NaN: named by episode and frame, through the CLI (--resume validates the dataset on disk)
+    nan = tmp_path / "nan"
+    shutil.copytree(small, nan)
+
+    def poison(table):
+        state = table.column("observation.state").to_pylist()
+        state[13][2] = float("nan")  # episode 1, frame 3
+        i = table.column_names.index("observation.state")
+        return table.set_column(i, "observation.state", pa.array(state, type=table.schema.field(i).type))
+
+    _rewrite_data(nan, poison)
+    res = _run(_args(nan, 3, "--resume"))
+    _one_line_error(res, "observation.state holds non-finite values", "episode 1, frame 3")
+
+    # info.json feature shape that disagrees with the data
+    shape = tmp_path / "shape"
+    shutil.copytree(small, shape)
+    info = json.loads((shape / "meta" / "info.json").read_text())
+    info["features"]["action"]["shape"] = [9]
+    (shape / "meta" / "info.json").write_text(json.dumps(info))
+    with pytest.raises(DatasetError, match=r"info.json says action has shape \[9\]"):
+        validate_dataset(shape)
+
+    # an episode's rows removed behind a consistent total_frames
+    rows = tmp_path / "rows"
+    shutil.copytree(small, rows)
+    keep = np.ones(30, bool)
+    keep[15] = False  # episode 1, frame 5
+    _rewrite_data(rows, lambda t: t.filter(pa.array(keep)))
+    info = json.loads((rows / "meta" / "info.json").read_text())
+    info["total_frames"] -= 1
+    (rows / "meta" / "info.json").write_text(json.dumps(info))
+    res = _run(_args(rows, 3, "--resume"))
+    _one_line_error(res, "episode", "data rows but its metadata says")
+    assert data_hash(small)  # the original is untouched and readable
+    validate_dataset(small)
+
+
+# ---------------------------------------------------------------------------------------------- 6, 10: bad input
+@pytest.mark.parametrize(
+    ("flags", "needle"),
+    [
+        (["--num_episodes=20000000"], "--allow_huge"),
+        (["--env.fps=0"], "env.fps"),
+        (["--env.fps=20"], "keyframe control"),
+        (["--seed=99999999999999999999"], "seed"),
+        (["--executor=ray"], "executor"),
+        (["--tasks=5", "--num_episodes=2"], "tasks"),
+        (["--env.control_mode=video"], "env.control_mode"),
+        (["--env.object_low=[0.5]"], "env.object_low"),
+    ],
+)
+def test_bad_flags_are_one_line(tmp_path, flags, needle):
+    root = tmp_path / "bad"
+    res = _run([PNP, "generate", f"--root={root}", *flags], timeout=120)
+    _one_line_error(res, needle)
+    assert res.returncode == 2 and not root.exists()  # rejected before anything was written
+
+
+def test_disk_full_is_one_line_and_resume_finishes(tmp_path):
+    root = tmp_path / "full"
+
+    def small_files():  # a file-size limit stands in for a full disk (Python ignores SIGXFSZ: writes get EFBIG)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (40 * 1024, 40 * 1024))
+
+    res = _run(_args(root, 6, "--tasks=2", "--workers=1"), preexec_fn=small_files)
+    line = _one_line_error(res, "cannot write the dataset", "--resume")
+    assert str(root) in line
+    res = _run(_args(root, 6, "--resume"))
+    assert res.returncode == 0, res.stderr[-3000:]
+    assert verify_dataset(root)["total_episodes"] == 6
+
+
+def test_read_only_root_is_one_line(tmp_path):
+    mnt = tmp_path / "ro"
+    mnt.mkdir()
+    ok = subprocess.run(["mount", "-t", "tmpfs", "-o", "ro,size=1m", "tmpfs", str(mnt)], capture_output=True)
+    if ok.returncode != 0:
+        pytest.skip(f"cannot mount a read-only tmpfs here: {ok.stderr.decode().strip()}")
+    try:
+        res = _run(_args(mnt / "ds", 2))
+        _one_line_error(res, "read-only", "--resume")
+    finally:
+        subprocess.run(["umount", str(mnt)], check=False)
