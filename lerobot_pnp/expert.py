@@ -102,6 +102,30 @@ class FSMExpert:
         self._yaw = 0.0
         self._next_phase: int | None = None
 
+    # The FSM state to plan from, for each inferred task progress (task.PickPlaceTask.progress): e.g. "held and
+    # lifted" (4) continues with the place approach (5), "placed but the gripper still around it" (8) retracts.
+    _PHASE_FROM_PROGRESS = (0, 1, 2, 3, 5, 5, 6, 7, 8, 9)
+
+    def sync_to_state(self) -> None:
+        """Forget the episode's history and plan from the current physical state (DAgger labelling).
+
+        The FSM state comes from the task's inferred progress; the last command is the servos' current
+        setpoints with the gripper command matching its measured state (open above half-open).
+        """
+        progress = self.task.progress(self.physics)
+        self.phase = self._PHASE_FROM_PROGRESS[progress]
+        grip = robot.GRIPPER_OPEN if self.physics.gripper_opening() > 0.5 else robot.GRIPPER_CLOSED
+        self._cmd = np.append(self.physics.arm_command(), grip)
+        _, cube_yaw = self.physics.object_pose()
+        self._yaw = grasp_yaw(cube_yaw) if progress <= 5 else 0.0
+        self._next_phase = None
+
+    def label(self) -> tuple[np.ndarray, int]:
+        """The expert's next keyframe and its phase label from the current state (no side effects on the sim)."""
+        self.sync_to_state()
+        keyframe = self.next_keyframe()
+        return keyframe, self.last_phase
+
     def place_xy(self) -> np.ndarray:
         return self.task.place_xy
 

@@ -151,7 +151,7 @@ def test_split_is_80_20_disjoint_and_stats_verified(kf):
     assert record["generation"]["num_episodes"] == 10 and record["generation"]["seed"] == 0
     assert "env" not in record and "control_mode" not in json.dumps(record)  # the env config lives in one file
     env = json.loads((root / "meta" / "baxter_pnp_env.json").read_text())
-    assert env["type"] == "baxter_pnp" and env["control_mode"] == "keyframe" and env["place_xy"] == [0.6, -0.05]
+    assert env["type"] == "baxter_pnp" and env["control_mode"] == "keyframe" and env["place_low"] == [0.6, -0.05]
     assert not (root / ".pnp_work").exists()
 
 

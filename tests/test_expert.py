@@ -173,3 +173,23 @@ def test_env_info_reports_phase_and_failure_cause():
     hold = np.append(obs["agent_pos"][:7], 0.0).astype(np.float32)
     *_, truncated, info = env.step(hold)
     assert truncated and info["failure_cause"] == "not_transported"
+
+
+def test_expert_labels_any_state_and_following_its_labels_succeeds():
+    """DAgger's teacher: from a state reached by someone else, the labelled keyframes still finish the task."""
+    from lerobot_pnp.env_config import make_env
+
+    env = make_env(render_mode=None, keyframe_budget=30)
+    for seed in range(4):
+        obs, _ = env.reset(seed=seed)
+        rng = np.random.default_rng(seed)
+        # a clumsy start: a random joint perturbation of the start pose, then follow the labels only
+        env.step(np.append(obs["agent_pos"][:7] + rng.normal(0, 0.05, 7), 1.0).astype(np.float32))
+        teacher = FSMExpert(env)
+        for _ in range(25):
+            keyframe, phase = teacher.label()
+            assert 0 <= phase < robot.N_KEYFRAMES
+            _, _, terminated, truncated, _ = env.step(keyframe)
+            if terminated or truncated:
+                break
+        assert terminated, f"seed {seed}: following the labels did not finish the task"

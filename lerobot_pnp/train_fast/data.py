@@ -70,7 +70,7 @@ def validate_keyframe_dataset(meta: Any, episode_length: int = robot.N_KEYFRAMES
         what = f"fps {meta.fps}" + (f", episodes of {bad[:5]} frames" if bad else "")
         raise DatasetError(
             f"dataset '{meta.repo_id}' is not a keyframe dataset ({what}): the pnp_lstm trainer needs one frame per "
-            f"FSM state ({episode_length} per episode, fps {robot.KEYFRAME_FPS}); a dense dataset (--representation "
+            f"FSM state ({episode_length} per episode, fps {robot.KEYFRAME_FPS}); a dense dataset (--env.control_mode "
             "dense) cannot train it"
         )
 
