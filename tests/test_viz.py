@@ -56,7 +56,7 @@ def _write_dataset(root: Path, config: BaxterPnPEnvConfig, seeds, record_task: b
     from lerobot_pnp.expert import run_expert_episode
 
     ds = LeRobotDataset.create(
-        REPO_ID, fps=1, features=dataset_features("keyframe"), root=root, robot_type="baxter", use_videos=False
+        REPO_ID, fps=1, features=dataset_features(), root=root, robot_type="baxter", use_videos=False
     )
     env = make_env(config, render_mode=None)
     episodes = []
