@@ -48,7 +48,7 @@ class SlurmOptions:
 
     partition: str = "cpu"
     cpus_per_task: int = 1
-    mem_per_cpu_gb: float = 2
+    mem_per_cpu_gb: int = 2  # GB per CPU (an integer: sbatch rejects "1.5G")
     time: str = "04:00:00"  # per task, HH:MM:SS
     qos: str | None = None
     job_name: str = "pnp_generate"
