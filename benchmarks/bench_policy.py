@@ -10,14 +10,15 @@ a. Time to target (fast path): ``train_fast`` on the keyframe dataset with a che
    load included) to the checkpoint file of the first checkpoint whose success >= ``--target`` %; the
    evaluation time is not included (it is printed separately). In full mode that checkpoint is re-checked
    with the real ``lerobot-eval`` (``demo.run_eval``) on ``--confirm_episodes`` episodes.
-b. The same number of optimiser steps through stock ``lerobot-train`` (subprocess, batch 64, num_workers 0)
-   and through the fast path: wall time of each, the ratio, and lerobot-train's start-up time (process start
-   to its "Start offline training" log line) and loop time, stamped from its output as it arrives.
-c. ``select_action`` latency of pnp_lstm at batch 1 and 50 next to LeRobot's ACT (default config, built on
+b. Time to target (stock path): ``lerobot-train --config_path configs/train_pnp_lstm.json`` as a user runs
+   it (only the dataset root and output folder overridden); its own in-training env eval decides, the
+   checkpoint that reached the target is confirmed with ``lerobot-eval``. Printed next to a.
+c. ``select_action`` latency (mean and median) of pnp_lstm at batch 1 and 50 next to LeRobot's ACT (default config, built on
    the same features: observation.state 8, observation.environment_state 3, action 8). pnp_lstm: mean per
    call over whole 10-step episodes (reset every 10 calls, so every call runs the LSTM). ACT: per model call
    (first select_action after reset, which computes the 100-step chunk) and per step amortised over a full
    chunk (100 select_action calls / 100). One torch thread for both, as everything here.
+   ``--sections c --checkpoint DIR`` times an existing checkpoint alone (e.g. one written before a change).
 d. Memory and feedback: the default recurrent policy vs the memoryless variant (``recurrent=False``, trained
    the same way) under nominal / nudge 3 cm / noise (object 5 mm, joints 0.01 rad) / all together;
    ``--robust_episodes`` episodes each, in-process rollouts (``--robust_backend lerobot-eval`` runs the real
@@ -196,29 +197,27 @@ def bench_time_to_target(args, dataset, work: Path) -> dict:
 
 # ---------------------------------------------------------------------------------------------- b
 _LOG_RE = re.compile(r"updt_s:([0-9.]+).*data_s:([0-9.]+)")
+_CKPT_RE = re.compile(r"Checkpoint policy after step (\d+)")
+_EVAL_RE = re.compile(r"Eval policy at step (\d+)")
+_SUCCESS_RE = re.compile(r"Suite overall aggregated: .*'pc_success': ([0-9.]+)")
 
 
-def bench_vs_lerobot_train(args, dataset, work: Path) -> dict:
-    n = args.steps
-    log(f"\n=== b. {n} optimiser steps: stock lerobot-train vs fast path ===")
+def bench_stock_time_to_target(args, dataset, work: Path) -> dict:
+    """Stock ``lerobot-train --config_path configs/train_pnp_lstm.json``, as a user runs it.
+
+    Only the dataset root and the output folder are overridden. Time to target = process start to the
+    checkpoint of the first step whose in-training env eval reaches the target (eval time excluded, as in a);
+    that checkpoint is then confirmed with the real ``lerobot-eval`` on ``--confirm_episodes`` episodes.
+    """
+    log(f"\n=== b. stock lerobot-train --config_path {args.train_config}: time to {args.target:.0f}% ===")
     out_dir = work / "lerobot_train"
     if out_dir.exists():
         shutil.rmtree(out_dir)
     cmd = [
         str(Path(sys.executable).with_name("lerobot-train")),
-        f"--dataset.repo_id={dataset[0]}",
+        f"--config_path={args.train_config}",
         f"--dataset.root={dataset[1]}",
-        "--dataset.video_backend=pyav",
-        "--policy.type=pnp_lstm",
-        "--policy.device=cpu",
-        "--policy.push_to_hub=false",
-        f"--steps={n}",
-        "--batch_size=64",
-        "--num_workers=0",
-        f"--save_freq={n}",
-        f"--log_freq={max(1, n // 5)}",
-        "--env_eval_freq=0",
-        f"--seed={args.seed}",
+        f"--dataset.repo_id={dataset[0]}",
         f"--output_dir={out_dir}",
     ]
     log(" ".join(cmd))
@@ -228,6 +227,9 @@ def bench_vs_lerobot_train(args, dataset, work: Path) -> dict:
     )
     t_start_loop = t_end_loop = None
     updt = data = None
+    ckpt_time: dict[int, float] = {}
+    evals: list[dict] = []
+    eval_step = None
     tail: list[str] = []
     assert proc.stdout is not None
     for line in proc.stdout:
@@ -237,43 +239,46 @@ def bench_vs_lerobot_train(args, dataset, work: Path) -> dict:
             t_start_loop = now
         if "End of training" in line:
             t_end_loop = now
-        m = _LOG_RE.search(line)
-        if m:
+        if m := _LOG_RE.search(line):
             updt, data = float(m.group(1)), float(m.group(2))
+        if m := _CKPT_RE.search(line):
+            ckpt_time[int(m.group(1))] = now
+        if m := _EVAL_RE.search(line):
+            eval_step = int(m.group(1))
+        if (m := _SUCCESS_RE.search(line)) and eval_step is not None:
+            evals.append({"step": eval_step, "pc_success": float(m.group(1)), "logged_at_s": now})
+            log(f"  in-training eval at step {eval_step}: {float(m.group(1)):.1f}% (t = {now:.0f} s)")
     rc = proc.wait()
-    lt_total = time.perf_counter() - t0
+    total = time.perf_counter() - t0
     if rc != 0:
         raise RuntimeError(f"lerobot-train failed ({rc}):\n{''.join(tail)}")
-    lt = {
-        "wall_s": lt_total,
+    train_cfg = json.loads(Path(args.train_config).read_text())
+    reached = next((e for e in evals if e["pc_success"] >= args.target), None)
+    res = {
+        "command": " ".join(cmd),
+        "steps": train_cfg["steps"],
+        "batch_size": train_cfg["batch_size"],
+        "num_workers": train_cfg["num_workers"],
+        "wall_s": total,
         "startup_s": t_start_loop,
-        "loop_s": (t_end_loop or lt_total) - (t_start_loop or 0),
-        "steps_per_s_loop": n / ((t_end_loop or lt_total) - (t_start_loop or 0)),
+        "loop_s": (t_end_loop or total) - (t_start_loop or 0),
         "last_log_updt_s": updt,
         "last_log_data_s": data,
+        "in_training_evals": evals,
+        "time_to_target_s": ckpt_time.get(reached["step"]) if reached else None,
+        "step_at_target": reached["step"] if reached else None,
     }
+    if reached and args.confirm_episodes > 0:
+        ckpt = out_dir / "checkpoints" / f"{reached['step']:06d}" / "pretrained_model"
+        conf = lerobot_eval_success(ckpt, work / "confirm_stock", args.confirm_episodes)
+        res["confirm_lerobot_eval"] = conf
+        log(f"    lerobot-eval check: {conf['pc_success']:.1f}% over {conf['n_episodes']} episodes")
     log(
-        f"  lerobot-train: {lt_total:.1f} s total, start-up {t_start_loop or float('nan'):.1f} s, "
-        f"loop {lt['loop_s']:.1f} s ({lt['steps_per_s_loop']:.1f} steps/s; last log updt_s {updt} data_s {data})"
+        f"  lerobot-train: {total:.1f} s total (start-up {t_start_loop or float('nan'):.1f} s, loop "
+        f"{res['loop_s']:.1f} s, last log updt_s {updt} data_s {data}); time to target: "
+        + (f"{res['time_to_target_s']:.1f} s (step {reached['step']})" if reached else "NOT reached")
     )
-
-    result, _, fast_total = train(dataset, work / "fast_steps", steps=n, seed=args.seed)
-    fast_loop = result.history[-1]["time_s"]
-    fast = {"wall_s": fast_total, "loop_s": fast_loop, "steps_per_s_loop": n / fast_loop, "steps": result.steps}
-    log(f"  fast path: {fast_total:.1f} s total (loop {fast_loop:.2f} s, {fast['steps_per_s_loop']:.0f} steps/s)")
-    ratio = lt_total / fast_total
-    loop_ratio = lt["loop_s"] / fast_loop
-    log(f"  ratio lerobot-train / fast: {ratio:.1f}x wall, {loop_ratio:.1f}x training loop")
-    return {
-        "steps": n,
-        "batch_size": 64,
-        "lerobot_train": lt,
-        "fast": fast,
-        "ratio_wall": ratio,
-        "ratio_loop": loop_ratio,
-        "note": "lerobot-train: batch = 64 windows of 10 frames sampled from all episodes (per-frame windows); "
-        "fast: batch = 64 whole 10-frame episodes of the train split, tensors preloaded",
-    }
+    return res
 
 
 # ---------------------------------------------------------------------------------------------- c
@@ -311,7 +316,7 @@ def bench_latency(args, ckpt: Path) -> dict:
         times = []
         for _ in range(reps):
             pol.reset()
-            times += _time_calls(lambda: pol.select_action(batch), 10)
+            times += _time_calls(lambda batch=batch: pol.select_action(batch), 10)
         res["pnp_lstm"][f"b{bsz}"] = _ms(times)
         # The whole step as lerobot-eval runs it: pre-processor + select_action + post-processor.
         raw = {
@@ -320,7 +325,7 @@ def bench_latency(args, ckpt: Path) -> dict:
             "task": ["pick"] * bsz,
         }
 
-        def full_step():
+        def full_step(raw=raw):
             loaded.postprocessor(pol.select_action(loaded.preprocessor(dict(raw))))
 
         times = []
@@ -346,7 +351,7 @@ def bench_latency(args, ckpt: Path) -> dict:
         calls = []
         for _ in range(max(3, reps // 4)):
             act.reset()
-            calls += _time_calls(lambda: act.select_action(batch), 1)
+            calls += _time_calls(lambda batch=batch: act.select_action(batch), 1)
         res["act"][f"b{bsz}_per_model_call"] = _ms(calls)
         chunk = []
         for _ in range(max(1, reps // 20)):
@@ -393,6 +398,10 @@ def bench_memory_feedback(args, dataset, work: Path, recurrent_ckpt: Path) -> di
 
 
 # ---------------------------------------------------------------------------------------------- main
+def args_target(res: dict) -> float:
+    return float(res["args"]["target"])
+
+
 def print_summary(res: dict) -> None:
     log("\n" + "=" * 78 + "\nSUMMARY (2-core CPU, 1 torch thread)\n" + "=" * 78)
     a = res.get("a")
@@ -413,22 +422,28 @@ def print_summary(res: dict) -> None:
             )
     b = res.get("b")
     if b:
-        lt, fa = b["lerobot_train"], b["fast"]
-        log(f"b. {b['steps']} steps, batch 64      |  wall s | start-up s | loop s | steps/s (loop)")
+        tt = b["time_to_target_s"]
+        conf = b.get("confirm_lerobot_eval")
         log(
-            f"   lerobot-train              | {lt['wall_s']:7.1f} | {lt['startup_s'] or float('nan'):10.1f} | "
-            f"{lt['loop_s']:6.1f} | {lt['steps_per_s_loop']:8.1f}"
+            f"b. stock lerobot-train to >= {args_target(res):.0f}% success: "
+            + (f"{tt:.1f} s (step {b['step_at_target']})" if tt is not None else "NOT reached")
+            + (f"; lerobot-eval check {conf['pc_success']:.1f}% ({conf['n_episodes']} ep)" if conf else "")
         )
         log(
-            f"   fast path                  | {fa['wall_s']:7.1f} |          - | {fa['loop_s']:6.2f} | "
-            f"{fa['steps_per_s_loop']:8.1f}"
+            f"   {b['steps']} steps x batch {b['batch_size']}, {b['num_workers']} loader workers: wall {b['wall_s']:.1f} s "
+            f"(start-up {b['startup_s'] or float('nan'):.1f} s, loop {b['loop_s']:.1f} s); in-training evals "
+            + ", ".join(f"step {e['step']}: {e['pc_success']:.1f}%" for e in b["in_training_evals"])
         )
-        log(f"   ratio: {b['ratio_wall']:.1f}x wall, {b['ratio_loop']:.1f}x loop")
+        if a and a["time_to_target_s"] and tt:
+            log(
+                f"   time to target, stock / fast path: {tt:.1f} s / {a['time_to_target_s']:.1f} s = {tt / a['time_to_target_s']:.1f}x"
+            )
     c = res.get("c")
     if c:
         p, q = c["pnp_lstm"], c["act"]
         log("c. select_action, mean ms     |   batch 1 |  batch 50")
         log(f"   pnp_lstm per call          | {p['b1']['mean_ms']:9.3f} | {p['b50']['mean_ms']:9.3f}")
+        log(f"   pnp_lstm per call (median) | {p['b1']['median_ms']:9.3f} | {p['b50']['median_ms']:9.3f}")
         log(
             f"   pnp_lstm + processors      | {p['b1_with_processors']['mean_ms']:9.3f} | "
             f"{p['b50_with_processors']['mean_ms']:9.3f}"
@@ -455,7 +470,9 @@ def main(argv: list[str] | None = None) -> dict:
     p.add_argument("--dataset_root", default="outputs/demo/dataset")
     p.add_argument("--repo_id", default="local/baxter_pnp_keyframe")
     p.add_argument("--quick", action="store_true", help="small everything (a few minutes)")
-    p.add_argument("--sections", default="abcd", help="which of a, b, c, d to run (c and d need a)")
+    p.add_argument(
+        "--sections", default="abcd", help="which of a, b, c, d to run (d needs a; c needs a or --checkpoint)"
+    )
     p.add_argument("--epochs", type=int, default=None, help="fast-path epochs (default 300; quick 60)")
     p.add_argument("--ckpt_every", type=int, default=None, help="checkpoint every N epochs (default 5; quick 10)")
     p.add_argument("--curve_episodes", type=int, default=None, help="rollouts per checkpoint (100; quick 30)")
@@ -465,7 +482,8 @@ def main(argv: list[str] | None = None) -> dict:
         default=None,
         help="lerobot-eval episodes to confirm the target checkpoint (200; quick 0 = skip)",
     )
-    p.add_argument("--steps", type=int, default=None, help="optimiser steps for b (300; quick 50)")
+    p.add_argument("--train_config", default="configs/train_pnp_lstm.json", help="lerobot-train config for b")
+    p.add_argument("--checkpoint", default=None, help="c without a: time this checkpoint")
     p.add_argument("--latency_reps", type=int, default=None, help="10-step episodes timed in c (200; quick 40)")
     p.add_argument("--robust_episodes", type=int, default=None, help="episodes per cell in d (200; quick 30)")
     p.add_argument("--robust_backend", choices=("rollout", "lerobot-eval"), default="rollout")
@@ -480,7 +498,6 @@ def main(argv: list[str] | None = None) -> dict:
         "ckpt_every": (5, 10),
         "curve_episodes": (100, 30),
         "confirm_episodes": (200, 0),
-        "steps": (300, 50),
         "latency_reps": (200, 40),
         "robust_episodes": (200, 30),
     }
@@ -488,7 +505,7 @@ def main(argv: list[str] | None = None) -> dict:
         if getattr(args, k) is None:
             setattr(args, k, small if quick else full)
     root = Path(args.dataset_root)
-    if not (root / "meta" / "info.json").is_file():
+    if args.sections != "c" and not (root / "meta" / "info.json").is_file():
         p.error(f"no finished dataset at {root}: run `lerobot-pnp generate --root {root}` (or the demo) first")
     dataset = (args.repo_id, str(root))
     work = Path(args.workdir)
@@ -498,8 +515,10 @@ def main(argv: list[str] | None = None) -> dict:
     if "a" in args.sections:
         res["a"] = bench_time_to_target(args, dataset, work)
     final_ckpt = Path(res["a"]["final_checkpoint"]) if "a" in res else None
+    if args.checkpoint:
+        final_ckpt = Path(args.checkpoint)
     if "b" in args.sections:
-        res["b"] = bench_vs_lerobot_train(args, dataset, work)
+        res["b"] = bench_stock_time_to_target(args, dataset, work)
     if "c" in args.sections and final_ckpt:
         res["c"] = bench_latency(args, final_ckpt)
     if "d" in args.sections and final_ckpt:

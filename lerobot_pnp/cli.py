@@ -6,10 +6,13 @@ flags override) and a library function taking it. The function returns a summary
 
 from __future__ import annotations
 
+import errno
 import importlib
 import json
+import signal
 import sys
 import typing
+from pathlib import Path
 
 # name -> ("module:ConfigClass", "module:function", help)
 COMMANDS: dict[str, tuple[str, str, str]] = {
@@ -24,7 +27,11 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
         "lerobot_pnp.train_fast:train_fast",
         "fast in-memory training of the pnp_lstm policy (same checkpoint layout as lerobot-train)",
     ),
-    "viz": ("lerobot_pnp.viz:VizConfig", "lerobot_pnp.viz:visualize", "inspect episodes or policy rollouts in Rerun"),
+    "viz": (
+        "lerobot_pnp.viz:VizConfig",
+        "lerobot_pnp.viz:visualize",
+        "inspect episodes or policy rollouts in Rerun (viewer, --save rec.rrd, or --screenshot shot.png)",
+    ),
     "expert": (
         "lerobot_pnp.expert_eval:ExpertEvalConfig",
         "lerobot_pnp.expert_eval:evaluate_expert",
@@ -87,8 +94,46 @@ def _usage() -> str:
     return "\n".join(lines)
 
 
+def _split_config_path(args: list[str]) -> tuple[str | None, list[str]]:
+    """Take ``--config_path FILE`` / ``--config_path=FILE`` out of ``args``."""
+    from lerobot_pnp.errors import ConfigError
+
+    for i, arg in enumerate(args):
+        if arg == "--config_path" or arg.startswith("--config_path="):
+            if "=" in arg:
+                value, rest = arg.split("=", 1)[1], args[:i] + args[i + 1 :]
+            elif i + 1 < len(args) and not args[i + 1].startswith("--"):
+                value, rest = args[i + 1], args[:i] + args[i + 2 :]
+            else:
+                value, rest = "", args
+            if not value:
+                raise ConfigError("--config_path needs a file (a JSON or YAML config, e.g. configs/demo.json)")
+            if not Path(value).is_file():
+                raise ConfigError(f"--config_path {value!r}: no such file")
+            return value, rest
+    return None, args
+
+
+def _os_error_line(err: OSError, name: str) -> str:
+    """One line for an operating-system failure (disk full, read-only, permission), with what to do next."""
+    what = {errno.ENOSPC: "disk full", errno.EROFS: "read-only file system", errno.EACCES: "permission denied"}
+    reason = what.get(err.errno, err.strerror or type(err).__name__)
+    where = f" at {err.filename}" if err.filename else ""
+    hint = (
+        " (free space or fix the folder, then rerun with --resume: finished work is kept)" if name == "generate" else ""
+    )
+    return f"lerobot-pnp {name}: {reason}{where}{hint}"
+
+
+def _sigterm_as_interrupt(signum, frame):
+    raise KeyboardInterrupt
+
+
 def main(argv: list[str] | None = None) -> int:
+    """Parse, run, print. Any ``PnPError`` (the package's error tree) or operational failure is one line, exit 2."""
     import draccus
+
+    from lerobot_pnp.errors import PnPError
 
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or argv[0] in ("-h", "--help"):
@@ -98,34 +143,39 @@ def main(argv: list[str] | None = None) -> int:
     if name not in COMMANDS:
         print(f"lerobot-pnp: unknown command {name!r}\n\n{_usage()}", file=sys.stderr)
         return 2
+    signal.signal(signal.SIGTERM, _sigterm_as_interrupt)
     config_ref, func_ref, _ = COMMANDS[name]
-    config_cls, func = _load(config_ref), _load(func_ref)
-    config_path = None
-    for i, arg in enumerate(args):
-        if arg.startswith("--config_path"):
-            config_path = arg.split("=", 1)[1] if "=" in arg else args[i + 1]
-            args = args[:i] + args[i + (1 if "=" in arg else 2) :]
-            break
-    args = normalize_args(config_cls, args)
-    from lerobot_pnp.errors import PnPError
-
     try:
-        cfg = draccus.parse(config_class=config_cls, config_path=config_path, args=args)
-    except (PnPError, draccus.utils.ParsingError, ValueError, TypeError, FileNotFoundError) as err:
-        # a config dataclass rejected a value (its message names the field), or the config file is unreadable
-        cause = err.__cause__ if isinstance(err.__cause__, PnPError) else err
-        print(f"lerobot-pnp {name}: invalid configuration: {cause}", file=sys.stderr)
-        return 2
-    try:
+        config_cls, func = _load(config_ref), _load(func_ref)
+        config_path, args = _split_config_path(args)
+        args = normalize_args(config_cls, args)
+        try:
+            cfg = draccus.parse(config_class=config_cls, config_path=config_path, args=args)
+        except (draccus.utils.ParsingError, ValueError, TypeError, OverflowError) as err:
+            # a config dataclass rejected a value (its message names the field), or a value has the wrong type
+            cause = err.__cause__ if isinstance(err.__cause__, PnPError) else err
+            print(f"lerobot-pnp {name}: invalid configuration: {_one_line(cause)}", file=sys.stderr)
+            return 2
         result = func(cfg)
     except PnPError as err:
-        print(f"lerobot-pnp {name}: error: {err}", file=sys.stderr)
-        return 1
+        print(f"lerobot-pnp {name}: error: {_one_line(err)}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        hint = " (rerun with --resume to continue)" if name == "generate" else ""
+        print(f"\nlerobot-pnp {name}: interrupted{hint}", file=sys.stderr)
+        return 2
+    except OSError as err:
+        print(_os_error_line(err, name), file=sys.stderr)
+        return 2
     if hasattr(result, "summary"):
         result = result.summary()
     if result is not None:
         print(json.dumps(result, indent=2, default=str))
     return 0
+
+
+def _one_line(err: BaseException) -> str:
+    return " ".join(str(err).split()) or type(err).__name__
 
 
 if __name__ == "__main__":

@@ -48,7 +48,7 @@ class BaxterPnPEnv(gym.Env):
         self.physics = BaxterPhysics(straight_paths=config.straight_paths)
         self.pnp_task = PickPlaceTask(config)
         self.pnp_task.check_reachable(self.physics)
-        self.physics.set_place_target(config.place_xy)
+        self.physics.set_place_target(self.pnp_task.place_xy)  # before the first reset too (viewers, renders)
         self._step_count = 0
         # The one episode-length rule: the config's ``episode_length`` (LeRobot's eval reads this attribute).
         self._max_episode_steps = config.episode_length
@@ -65,7 +65,8 @@ class BaxterPnPEnv(gym.Env):
                 np.append(robot.JOINT_UPPER + 0.5, 1.5).astype(np.float32),
                 dtype=np.float32,
             ),
-            "environment_state": spaces.Box(-3.0, 3.0, (robot.OBJECT_DIM,), np.float32),
+            # object xyz [+ (sin 4 yaw, cos 4 yaw)] [+ goal xy], see config.environment_state_names
+            "environment_state": spaces.Box(-3.0, 3.0, (len(config.environment_state_names),), np.float32),
         }
         if config.cameras:
             h, w = config.image_height, config.image_width
@@ -86,7 +87,7 @@ class BaxterPnPEnv(gym.Env):
         super().reset(seed=seed)
         self.pnp_task.initialize_episode(self.physics, self.np_random, options)
         self._step_count = 0
-        return self._observation(), self._info()
+        return self._observation(), self._info(truncated=False)
 
     def step(self, action):
         action = np.asarray(action, dtype=np.float64).reshape(-1)
@@ -105,9 +106,9 @@ class BaxterPnPEnv(gym.Env):
         self._step_count += 1
         self.pnp_task.after_step(self.physics, self._step_count, self.np_random)
         self.physics.check_finite()
-        info = self._info()
-        success = bool(info["is_success"])
+        success = self.pnp_task.is_success(self.physics)
         truncated = not success and self._step_count >= self._max_episode_steps
+        info = self._info(truncated, success)
         return self._observation(), float(success), success, truncated, info
 
     def render(self):
@@ -126,8 +127,11 @@ class BaxterPnPEnv(gym.Env):
             obs["pixels"] = {c: self.physics.render(c, h, w) for c in self.config.cameras}
         return obs
 
-    def _info(self) -> dict:
-        return {"is_success": self.pnp_task.is_success(self.physics)}
+    def _info(self, truncated: bool, success: bool | None = None) -> dict:
+        """``is_success`` (LeRobot reads it), the inferred FSM ``phase``, the ``furthest_phase`` reached, the
+        perturbations applied so far and, when the episode ends unsolved, the ``failure_cause``."""
+        success = self.pnp_task.is_success(self.physics) if success is None else success
+        return {"is_success": success, **self.pnp_task.step_info(self.physics, success, truncated)}
 
     def is_success(self) -> bool:
         return self.pnp_task.is_success(self.physics)

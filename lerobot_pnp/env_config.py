@@ -43,8 +43,7 @@ GYM_ID = f"{GYM_NAMESPACE}/{GYM_TASK}"
 CONTROL_MODES = ("keyframe", "dense")
 KEYFRAME_FPS = robot.KEYFRAME_FPS
 DENSE_FPS = 20
-KEYFRAME_EPISODE_LENGTH = robot.N_KEYFRAMES  # the paper's 10 FSM states
-DENSE_EPISODE_SECONDS = 30  # dense episodes: 30 s of control (the expert needs about 12 s)
+DENSE_SECONDS_PER_KEYFRAME = 3  # dense episodes: 3 s of control per keyframe of the budget (30 s for the paper's 10)
 RECORDED_FILE = "meta/baxter_pnp_env.json"
 
 # The task fields and their values in each preset (fields not listed keep the "paper" value).
@@ -52,19 +51,52 @@ PAPER_TASK: dict[str, Any] = {
     "object_low": (0.45, 0.10),  # object xy box (m, base frame); fully reachable gripper-down
     "object_high": (0.75, 0.50),
     "yaw_range": (0.0, 0.0),  # object yaw (rad); the paper varies position only
-    "place_xy": (0.60, -0.05),  # the place target, outside the object box (no episode starts solved)
+    "place_low": (0.60, -0.05),  # the place target is drawn from this xy box (a point in the paper),
+    "place_high": (0.60, -0.05),  # outside the object box so no episode starts solved
     "start_low": (0.45, 0.0, 0.05),  # the gripper (pointing down) starts at a random point of this box
     "start_high": (0.75, 0.45, 0.25),
     "hover_height": 0.15,  # the paper's h: approach / retract height above the object
     "success_xy_tol": 0.02,  # object within this distance (xy) of the target counts as placed
-    "nudge_max": 0.0,  # perturbation: object pushed by up to this (m, xy) after `nudge_at_step` steps
+    "mass_range": (0.5, 0.5),  # object mass (kg), drawn per episode
+    "friction_range": (1.0, 1.0),  # object sliding friction coefficient, drawn per episode
+    "observe_yaw": False,  # environment_state gains (sin 4 yaw, cos 4 yaw): the cube's 90-degree symmetry
+    "observe_goal": False,  # environment_state gains the place target xy (the goal)
+    "keyframe_budget": 10,  # keyframe steps per episode (dense: 3 s of control per keyframe)
+    # Perturbations (each named, seeded, usable alone; see task.PickPlaceTask.after_step).
+    "nudge_max": 0.0,  # object pushed by up to this (m, xy) after `nudge_at_step` steps, before the grasp
     "nudge_at_step": 1,
+    "grasp_miss_prob": 0.0,  # per episode: the object slides 3-5 cm while the open gripper is at it (grasp misses)
+    "drop_prob": 0.0,  # per episode: the object is knocked out of the gripper in transport (falls to the table)
+    "displace_prob": 0.0,  # per episode: the object is moved 4-8 cm after it was released on the target
     "obs_noise_object": 0.0,  # Gaussian observation noise (std) on the object position (m)
     "obs_noise_joints": 0.0,  # ... and on the joint angles (rad)
+    "obs_bias_object": 0.0,  # a constant per-episode offset of this length (m, xy) on the observed object
+    "obs_latency": 0,  # observations are this many steps old
 }
-PRESETS: dict[str, dict[str, Any]] = {"paper": PAPER_TASK}
+# `full`: everything on (a benchmark that a lookup table cannot pass; the expert recovers from all of it).
+FULL_TASK: dict[str, Any] = {
+    **PAPER_TASK,
+    "yaw_range": (-3.141592653589793, 3.141592653589793),
+    "place_low": (0.50, -0.20),
+    "place_high": (0.70, -0.05),
+    "mass_range": (0.3, 0.8),
+    "friction_range": (0.7, 1.2),
+    "observe_yaw": True,
+    "observe_goal": True,
+    "keyframe_budget": 40,
+    "nudge_max": 0.03,
+    "grasp_miss_prob": 0.25,
+    "drop_prob": 0.25,
+    "displace_prob": 0.25,
+    "obs_noise_object": 0.003,
+    "obs_noise_joints": 0.005,
+    "obs_bias_object": 0.003,
+    "obs_latency": 0,
+}
+PRESETS: dict[str, dict[str, Any]] = {"paper": PAPER_TASK, "full": FULL_TASK}
 TASK_FIELDS = tuple(PAPER_TASK)
-_PAIRS = (("object_low", "object_high"), ("start_low", "start_high"))
+_PAIRS = (("object_low", "object_high"), ("place_low", "place_high"), ("start_low", "start_high"))
+_RANGES = ("yaw_range", "mass_range", "friction_range")
 
 
 @EnvConfig.register_subclass(ENV_TYPE)
@@ -79,7 +111,7 @@ class BaxterPnPEnvConfig(EnvConfig):
     # A dataset folder or checkpoint whose recorded task to use (default: from the command line, see above).
     task_source: str | None = None
     control_mode: str = "keyframe"  # keyframe (one step = move to a joint keyframe) | dense (one control period)
-    episode_length: int | None = None  # env steps before truncation; default 10 (keyframe) / 30 s (dense)
+    episode_length: int | None = None  # env steps before truncation; default keyframe_budget (dense: 3 s per keyframe)
     cameras: list[str] = field(default_factory=list)  # rendered camera observations: front, overhead, wrist
     image_height: int = 240
     image_width: int = 320
@@ -89,15 +121,26 @@ class BaxterPnPEnvConfig(EnvConfig):
     object_low: tuple[float, float] | None = None
     object_high: tuple[float, float] | None = None
     yaw_range: tuple[float, float] | None = None
-    place_xy: tuple[float, float] | None = None
+    place_low: tuple[float, float] | None = None
+    place_high: tuple[float, float] | None = None
     start_low: tuple[float, float, float] | None = None
     start_high: tuple[float, float, float] | None = None
     hover_height: float | None = None
     success_xy_tol: float | None = None
+    mass_range: tuple[float, float] | None = None
+    friction_range: tuple[float, float] | None = None
+    observe_yaw: bool | None = None
+    observe_goal: bool | None = None
+    keyframe_budget: int | None = None
     nudge_max: float | None = None
     nudge_at_step: int | None = None
+    grasp_miss_prob: float | None = None
+    drop_prob: float | None = None
+    displace_prob: float | None = None
     obs_noise_object: float | None = None
     obs_noise_joints: float | None = None
+    obs_bias_object: float | None = None
+    obs_latency: int | None = None
     features: dict[str, PolicyFeature] = field(default_factory=dict)
     features_map: dict[str, str] = field(default_factory=dict)
 
@@ -108,12 +151,14 @@ class BaxterPnPEnvConfig(EnvConfig):
             self.fps = KEYFRAME_FPS if self.control_mode == "keyframe" else DENSE_FPS
         if self.episode_length is None:
             self.episode_length = (
-                KEYFRAME_EPISODE_LENGTH if self.control_mode == "keyframe" else DENSE_EPISODE_SECONDS * self.fps
+                self.keyframe_budget
+                if self.control_mode == "keyframe"
+                else DENSE_SECONDS_PER_KEYFRAME * self.keyframe_budget * self.fps
             )
         self.features = {
             ACTION: PolicyFeature(type=FeatureType.ACTION, shape=(robot.ACTION_DIM,)),
             "agent_pos": PolicyFeature(type=FeatureType.STATE, shape=(robot.STATE_DIM,)),
-            "environment_state": PolicyFeature(type=FeatureType.ENV, shape=(robot.OBJECT_DIM,)),
+            "environment_state": PolicyFeature(type=FeatureType.ENV, shape=(len(self.environment_state_names),)),
         }
         self.features_map = {ACTION: ACTION, "agent_pos": OBS_STATE, "environment_state": OBS_ENV_STATE}
         for cam in self.cameras:
@@ -163,7 +208,8 @@ class BaxterPnPEnvConfig(EnvConfig):
             raise ConfigError(
                 f"env.speed (fraction of Baxter's joint velocity limits) must be in (0, 1], got {self.speed}"
             )
-        sizes = {"object_low": 2, "object_high": 2, "yaw_range": 2, "place_xy": 2, "start_low": 3, "start_high": 3}
+        sizes = {name: 2 for name in ("object_low", "object_high", "place_low", "place_high", *_RANGES)}
+        sizes |= {"start_low": 3, "start_high": 3}
         for name, size in sizes.items():
             value = getattr(self, name)
             try:
@@ -173,7 +219,7 @@ class BaxterPnPEnvConfig(EnvConfig):
             if len(value) != size or not all(math.isfinite(v) for v in value):
                 raise ConfigError(f"env.{name} must be {size} finite numbers, got {list(value)}")
             setattr(self, name, value)
-        for low, high in (*_PAIRS, ("yaw_range", None)):
+        for low, high in (*_PAIRS, *((r, None) for r in _RANGES)):
             lo, hi = (
                 (getattr(self, low)[:1], getattr(self, low)[1:])
                 if high is None
@@ -186,17 +232,42 @@ class BaxterPnPEnvConfig(EnvConfig):
         for name in ("hover_height", "success_xy_tol"):
             if not (isinstance(getattr(self, name), int | float) and 0 < getattr(self, name) < 1):
                 raise ConfigError(f"env.{name} must be in (0, 1) m, got {getattr(self, name)!r}")
-        for name in ("nudge_max", "obs_noise_object", "obs_noise_joints"):
+        for name in ("nudge_max", "obs_noise_object", "obs_noise_joints", "obs_bias_object"):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and 0 <= value < 1):
-                raise ConfigError(f"env.{name} must be in [0, 1), got {value!r}")
-        if not (isinstance(self.nudge_at_step, int) and self.nudge_at_step >= 0):
-            raise ConfigError(f"env.nudge_at_step must be an integer >= 0, got {self.nudge_at_step!r}")
+                raise ConfigError(f"env.{name} must be in [0, 1) (metres or radians), got {value!r}")
+        for name in ("grasp_miss_prob", "drop_prob", "displace_prob"):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and 0 <= value <= 1):
+                raise ConfigError(f"env.{name} is a probability per episode and must be in [0, 1], got {value!r}")
+        for name, low in (("nudge_at_step", 0), ("obs_latency", 0), ("keyframe_budget", robot.N_KEYFRAMES)):
+            value = getattr(self, name)
+            if not (isinstance(value, int) and not isinstance(value, bool) and low <= value <= 10_000):
+                raise ConfigError(f"env.{name} must be an integer in [{low}, 10000], got {value!r}")
+        for name in ("observe_yaw", "observe_goal"):
+            if not isinstance(getattr(self, name), bool):
+                raise ConfigError(f"env.{name} must be true or false, got {getattr(self, name)!r}")
+        if not (self.mass_range[0] >= 0.05 and self.mass_range[1] <= 2.0):
+            raise ConfigError(
+                f"env.mass_range must lie in [0.05, 2.0] kg (the gripper's payload), got {list(self.mass_range)}"
+            )
+        if not (self.friction_range[0] >= 0.3 and self.friction_range[1] <= 2.0):
+            raise ConfigError(f"env.friction_range must lie in [0.3, 2.0], got {list(self.friction_range)}")
         if self.start_low[2] < robot.TABLE_TOP_Z + 0.05:
             raise ConfigError(
                 f"env.start_low z={self.start_low[2]} puts the gripper within 5 cm of the table "
                 f"(table top at z={robot.TABLE_TOP_Z})"
             )
+
+    @property
+    def environment_state_names(self) -> list[str]:
+        """Names of the ``environment_state`` dimensions (``observation.environment_state`` in datasets)."""
+        names = list(robot.OBJECT_NAMES)
+        if self.observe_yaw:
+            names += list(robot.OBJECT_YAW_NAMES)
+        if self.observe_goal:
+            names += list(robot.GOAL_NAMES)
+        return names
 
     # ------------------------------------------------------------------ LeRobot EnvConfig API
     @property

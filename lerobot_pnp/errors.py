@@ -33,12 +33,13 @@ class UnreachableError(PnPError):
 class ExpertFailure(PnPError):
     """The scripted expert executed its plan but the task did not succeed (e.g. the grasp slipped).
 
-    ``cause`` is a short, groupable name: grasp_missed, dropped, not_placed, truncated.
+    ``cause`` is a short, groupable name (task.FAILURE_CAUSES, or unreachable).
     """
 
-    def __init__(self, message: str, cause: str = "unknown"):
+    def __init__(self, message: str, cause: str = "unknown", phase: str | None = None):
         super().__init__(message)
         self.cause = cause
+        self.phase = phase  # the furthest FSM state reached (robot.PHASE_NAMES), when known
 
 
 class DatasetError(PnPError):

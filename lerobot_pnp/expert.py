@@ -46,11 +46,11 @@ class ExpertEpisode:
 
     seed: int
     states: np.ndarray  # (T, 8) observed joints + gripper opening
-    object_positions: np.ndarray  # (T, 3) observed cube xyz
+    object_positions: np.ndarray  # (T, E) observed environment state (object xyz [+ yaw, goal])
     actions: np.ndarray  # (T, 8) commanded joint targets + gripper command
-    phases: np.ndarray  # (T,) FSM state index 0..9 (the keyframe being left)
-    keyframes: np.ndarray  # (10, 8) the FSM's commanded keyframes (state 0 = the start state)
-    keyframe_states: np.ndarray  # (10, 11) observed state + object xyz at each FSM state (the paper's sample)
+    phases: np.ndarray  # (T,) FSM state index 0..9 (the state being left; recoveries reuse the indices)
+    keyframes: np.ndarray  # (K+1, 8) the commanded keyframes (row 0 = the start state); K = 9 undisturbed
+    keyframe_states: np.ndarray  # (K+1, D) observed state + environment state at each keyframe (the paper's sample)
     success: bool
     info: dict = field(default_factory=dict)
 
@@ -72,28 +72,94 @@ def grasp_yaw(cube_yaw: float) -> float:
 
 
 class FSMExpert:
-    """Plans the next keyframe (7 joints + gripper command) from the env's current state."""
+    """Plans the next keyframe (7 joints + gripper command) from the current physical state.
+
+    It walks the paper's FSM (``phase`` = the FSM state being left, 0..9) and, before each keyframe, checks
+    that the world is where the FSM expects it; when it is not, it jumps to the phase that recovers:
+
+    * the grasp closed on nothing (a missed grasp) -> lift with the gripper open (labelled pick/retract), then
+      approach the object again (pick/start);
+    * the object left the gripper in transport (a drop) -> approach it where it now rests (pick/start);
+    * the object is off the target after the place/retract (it was moved after release) -> approach it again.
+
+    In an undisturbed episode the checks all pass and the keyframes are exactly the paper's 10 states.
+    The expert is privileged: it reads the true object pose and the episode's target from the env.
+    """
 
     def __init__(self, env: gym.Env, config: ExpertConfig | None = None):
-        self.physics = env.unwrapped.physics
-        self.task = env.unwrapped.config  # the env config: hover height, place target
+        base = env.unwrapped
+        self.physics = base.physics
+        self.task = base.pnp_task
         self.config = config or ExpertConfig()
-        self.hover = self.task.hover_height
+        self.hover = base.config.hover_height
         self.reset()
 
     def reset(self) -> None:
         self.phase = 0
+        self.last_phase = 0
+        self.recoveries: list[str] = []
         self._cmd = np.append(self.physics.arm_qpos(), robot.GRIPPER_OPEN)
         self._yaw = 0.0
+        self._next_phase: int | None = None
+
+    # The FSM state to plan from, for each inferred task progress (task.PickPlaceTask.progress): e.g. "held and
+    # lifted" (4) continues with the place approach (5), "placed but the gripper still around it" (8) retracts.
+    _PHASE_FROM_PROGRESS = (0, 1, 2, 3, 5, 5, 6, 7, 8, 9)
+
+    def sync_to_state(self) -> None:
+        """Forget the episode's history and plan from the current physical state (DAgger labelling).
+
+        The FSM state comes from the task's inferred progress; the last command is the servos' current
+        setpoints with the gripper command matching its measured state (open above half-open).
+        """
+        progress = self.task.progress(self.physics)
+        self.phase = self._PHASE_FROM_PROGRESS[progress]
+        grip = robot.GRIPPER_OPEN if self.physics.gripper_opening() > 0.5 else robot.GRIPPER_CLOSED
+        self._cmd = np.append(self.physics.arm_command(), grip)
+        _, cube_yaw = self.physics.object_pose()
+        self._yaw = grasp_yaw(cube_yaw) if progress <= 5 else 0.0
+        self._next_phase = None
+
+    def label(self) -> tuple[np.ndarray, int]:
+        """The expert's next keyframe and its phase label from the current state (no side effects on the sim)."""
+        self.sync_to_state()
+        keyframe = self.next_keyframe()
+        return keyframe, self.last_phase
+
+    def place_xy(self) -> np.ndarray:
+        return self.task.place_xy
+
+    @property
+    def command(self) -> np.ndarray:
+        """The last commanded keyframe (the start state before the first call)."""
+        return self._cmd.astype(np.float32)
+
+    def _check(self, p: int) -> tuple[int, float | None]:
+        """The phase to plan from the observed state, and a gripper override for recovery lifts."""
+        held = self.physics.object_in_grasp()
+        if p == 3 and not held:  # the close found nothing: a missed grasp
+            self.recoveries.append("grasp_missed")
+            self._next_phase = 0
+            return 3, robot.GRIPPER_OPEN
+        if 4 <= p <= 7 and not held and not self.task.object_placed(self.physics):  # dropped in transport
+            self.recoveries.append("dropped")
+            return 0, None
+        if p == 9 and not self.task.is_success(self.physics):  # moved off the target after release
+            self.recoveries.append("displaced")
+            return 0, None
+        return p, None
 
     def next_keyframe(self) -> np.ndarray:
-        """Keyframe to go to from FSM state ``self.phase`` (the command that reaches state phase+1)."""
+        """Keyframe to go to from FSM state ``self.phase`` (the command that reaches state phase+1).
+
+        ``last_phase`` is the label of the returned keyframe (the FSM state it leaves).
+        """
         physics, cfg, ik = self.physics, self.config, self.physics.ik
+        p, grip_override = self._check(self.phase)
         q_prev, grip = self._cmd[:7], self._cmd[7]
         cube, cube_yaw = physics.object_pose()
         ee, _ = physics.ee_pose()
-        place = np.array([*self.task.place_xy, robot.CUBE_REST_Z])
-        p = self.phase
+        place = np.array([*self.place_xy(), robot.CUBE_REST_Z])
         if p == 0:  # -> pick/approach: above the object
             self._yaw = grasp_yaw(cube_yaw)
             q, grip = ik.solve(cube + [0, 0, self.hover], self._yaw, q_prev), robot.GRIPPER_OPEN
@@ -119,8 +185,12 @@ class FSMExpert:
             q = ik.solve(np.array([ee[0], ee[1], robot.CUBE_REST_Z + self.hover]), self._yaw, q_prev)
         else:  # after the last state: hold
             q = q_prev
+        if grip_override is not None:
+            grip = grip_override
         self._cmd = np.append(q, grip)
-        self.phase += 1
+        self.last_phase = p
+        self.phase = self._next_phase if self._next_phase is not None else min(p + 1, robot.N_KEYFRAMES - 1)
+        self._next_phase = None
         return self._cmd.astype(np.float32)
 
 
@@ -129,10 +199,10 @@ def _frame(obs: dict) -> tuple[np.ndarray, np.ndarray]:
 
 
 def run_expert_episode(env: gym.Env, seed: int, config: ExpertConfig | None = None) -> ExpertEpisode:
-    """Reset ``env`` with ``seed``, run the FSM through it and return the demonstration.
+    """Reset ``env`` with ``seed``, run the feedback FSM until success or the env's step budget.
 
-    Raises UnreachableError when a keyframe has no IK solution and ExpertFailure when the plan ran but the
-    task did not succeed (the cause is in the message); nothing half-valid is returned.
+    Raises UnreachableError when a keyframe has no IK solution and ExpertFailure when the budget ran out
+    (``cause`` from the env's ``info["failure_cause"]``); nothing half-valid is returned.
     """
     cfg = config or ExpertConfig()
     base = env.unwrapped
@@ -141,46 +211,32 @@ def run_expert_episode(env: gym.Env, seed: int, config: ExpertConfig | None = No
     expert = FSMExpert(env, cfg)
     dense = base.config.control_mode == "dense"
     states, objects, actions, phases = [], [], [], []
-    keyframes = [expert._cmd.astype(np.float32)]
+    keyframes = [expert.command]
     kf_states = [np.concatenate(_frame(obs))]
-    checks = {}
     done = False
-    for phase in range(robot.N_KEYFRAMES - 1):
+    while not done:
         target = expert.next_keyframe()
+        phase = expert.last_phase
         keyframes.append(target)
-        if dense:
-            segment = _dense_segment(base.config, physics, keyframes[-2], target, cfg)
-        else:
-            segment = [target]
+        segment = _dense_segment(base.config, physics, keyframes[-2], target, cfg) if dense else [target]
         for action in segment:
             state, obj = _frame(obs)
             states.append(state), objects.append(obj), actions.append(action), phases.append(phase)
             obs, _, terminated, truncated, info = env.step(action)
             if truncated:
+                cause = info.get("failure_cause") or "truncated"
+                cube, _ = physics.object_pose()
                 raise ExpertFailure(
-                    f"seed {seed}: episode truncated by the time limit in phase {robot.PHASE_NAMES[phase]}", "truncated"
+                    f"seed {seed}: expert failed within the {base.config.episode_length}-step budget: {cause} "
+                    f"(last phase {robot.PHASE_NAMES[phase]}, object at {np.round(cube, 3).tolist()})",
+                    cause,
+                    robot.PHASE_NAMES[info.get("furthest_phase", phase)],
                 )
-            done = terminated
+            done = done or terminated  # a dense keyframe's segment is finished even after success
         kf_states.append(np.concatenate(_frame(obs)))
-        if phase == 2:
-            checks["grasped"] = physics.object_in_grasp()
-        if phase == 6:
-            checks["held_at_target"] = physics.object_in_grasp()
-        if done and phase < robot.N_KEYFRAMES - 2:
-            break
     # The final observed state, with a hold action, ends the episode.
     state, obj = _frame(obs)
     states.append(state), objects.append(obj), actions.append(keyframes[-1]), phases.append(robot.N_KEYFRAMES - 1)
-    success = bool(info["is_success"])
-    if not success:
-        cube, _ = physics.object_pose()
-        if not checks.get("grasped", False):
-            cause = "grasp_missed"
-        elif not checks.get("held_at_target", False):
-            cause = "dropped"
-        else:
-            cause = "not_placed"
-        raise ExpertFailure(f"seed {seed}: expert failed: {cause} (cube at {np.round(cube, 3).tolist()})", cause)
     return ExpertEpisode(
         seed=seed,
         states=np.stack(states),
@@ -189,8 +245,8 @@ def run_expert_episode(env: gym.Env, seed: int, config: ExpertConfig | None = No
         phases=np.asarray(phases, dtype=np.int64),
         keyframes=np.stack(keyframes),
         keyframe_states=np.stack(kf_states).astype(np.float32),
-        success=success,
-        info=checks,
+        success=True,
+        info={"recoveries": list(expert.recoveries), "perturbations": base.pnp_task.perturbations_fired},
     )
 
 

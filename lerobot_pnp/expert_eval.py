@@ -33,15 +33,18 @@ def evaluate_expert(cfg: ExpertEvalConfig) -> dict:
     """Success rate and failures by cause of the expert on ``cfg.env``."""
     env = make_env(cfg.env, render_mode=None)
     causes: collections.Counter = collections.Counter()
+    phases: collections.Counter = collections.Counter()
+    recoveries: collections.Counter = collections.Counter()
     failed_seeds: dict[str, list[int]] = collections.defaultdict(list)
     start = time.perf_counter()
     seeds = range(cfg.seed, cfg.seed + cfg.n_episodes)
     for seed in tqdm(seeds, desc="expert episodes", unit="ep", disable=not cfg.progress, mininterval=1.0):
         try:
-            run_expert_episode(env, seed)
+            recoveries.update(run_expert_episode(env, seed).info["recoveries"])
         except (ExpertFailure, UnreachableError) as err:
             cause = failure_cause(err)
             causes[cause] += 1
+            phases[getattr(err, "phase", None) or "unknown"] += 1
             failed_seeds[cause].append(seed)
     elapsed = time.perf_counter() - start
     env.close()
@@ -51,6 +54,8 @@ def evaluate_expert(cfg: ExpertEvalConfig) -> dict:
         "env": cfg.env.to_dict(),
         "success_rate": 1 - n_fail / cfg.n_episodes,
         "failures_by_cause": dict(causes),
+        "failures_by_furthest_phase": dict(phases),
+        "recoveries": dict(recoveries),
         "failed_seeds": {k: v[:20] for k, v in failed_seeds.items()},
         "episodes_per_s": cfg.n_episodes / elapsed,
     }

@@ -2,8 +2,9 @@
 
 A min-jerk (quintic) profile from one joint keyframe to the next whose duration keeps every joint within
 Baxter's velocity limits (scaled by ``speed``). Plain joint-space interpolation bows the gripper's path
-sideways by 3-8 mm on a 15 cm descent, more than the 3.9 mm of clearance the open gripper has around a
-5 cm cube, so by default the path is straightened: at a few knots the joint path is corrected (two
+sideways by 3-8 mm on a 15 cm descent, a large part of the 13.9 mm of clearance the open gripper has on
+each side of a 5 cm cube (and the gripper's path is what a user sees and what a demonstration teaches),
+so by default the path is straightened: at a few knots the joint path is corrected (two
 Jacobian steps) onto the straight line between the two keyframes' gripper poses, and the correction is
 interpolated between knots. Both ends stay exactly the keyframes.
 """

@@ -152,6 +152,23 @@ class BaxterPhysics:
         self.set_state(arm_q, robot.GRIPPER_OPEN, object_pos, object_yaw)
         mujoco.mj_step(self.model, self.data, round(settle_time / self.timestep))
 
+    def set_object_properties(self, mass: float, friction: float) -> None:
+        """Object mass (kg, inertia scaled with it) and sliding friction."""
+        body = self._object_body
+        scale = mass / self.model.body_mass[body]
+        self.model.body_mass[body] = mass
+        self.model.body_inertia[body] *= scale
+        self.model.geom_friction[self._object_geom][0] = friction
+        mujoco.mj_setConst(self.model, self.data)  # derived quantities (constraint scaling) from the new mass
+
+    def object_properties(self) -> tuple[float, float]:
+        return float(self.model.body_mass[self._object_body]), float(self.model.geom_friction[self._object_geom][0])
+
+    def wait(self, seconds: float) -> None:
+        """Let the physics run with the current commands (e.g. a knocked object falls and comes to rest)."""
+        for _ in range(max(1, round(seconds / CONTROL_DT))):
+            self._run(self._substeps_keyframe)
+
     def displace_object(self, offset: np.ndarray) -> None:
         """Teleport the object by ``offset`` (m, base frame) and stop it."""
         self.data.qpos[self._object_qadr : self._object_qadr + 3] += offset

@@ -42,6 +42,10 @@ GRIPPER_CLOSED = 0.0
 STATE_NAMES: tuple[str, ...] = (*JOINT_NAMES, GRIPPER_NAME)
 ACTION_NAMES: tuple[str, ...] = STATE_NAMES
 OBJECT_NAMES: tuple[str, ...] = ("object_x", "object_y", "object_z")
+# Optional parts of the environment state (tasks with a random yaw / a random place target):
+# the yaw as (sin 4 yaw, cos 4 yaw), which is the same for the cube's four symmetric faces, and the goal xy.
+OBJECT_YAW_NAMES: tuple[str, ...] = ("object_yaw_sin4", "object_yaw_cos4")
+GOAL_NAMES: tuple[str, ...] = ("goal_x", "goal_y")
 STATE_DIM = len(STATE_NAMES)
 ACTION_DIM = len(ACTION_NAMES)
 OBJECT_DIM = len(OBJECT_NAMES)
@@ -55,11 +59,10 @@ N_PHASES_PER_SUBTASK = 5
 N_KEYFRAMES = len(PHASE_NAMES)
 KEYFRAME_FPS = 1  # nominal frame rate of a keyframe stream (dataset and env): one FSM state per frame
 
-# Scene facts (Baxter base frame = MuJoCo world frame; see ../shared/notes/baxter.md).
+# Scene facts (Baxter base frame = MuJoCo world frame; provenance in docs/baxter.md).
 TABLE_TOP_Z = -0.155  # world z 0.775 with the base at 0.93
 CUBE_SIZE = 0.05
 CUBE_REST_Z = TABLE_TOP_Z + CUBE_SIZE / 2
-PLACE_TARGET_XY = np.array([0.75, 0.0])
 TASK = "Pick the cube and place it on the target."
 
 # MuJoCo names used by the env, the expert and the viewer.

@@ -6,7 +6,7 @@ episode, so the viewer (``lerobot_pnp.viz``) can watch exactly what ``lerobot-ev
 
 ``load_policy`` checks that the checkpoint fits this env (``observation.state`` (8,),
 ``observation.environment_state`` (3,), ``action`` (8,), no image inputs) and raises
-``IncompatiblePolicyError`` otherwise. Set ``env.unwrapped.on_control_tick`` before ``run_policy_episode`` to
+``IncompatiblePolicyError`` otherwise. Set ``env.unwrapped.physics.on_control_tick`` before ``run_policy_episode`` to
 observe the continuous motion between steps.
 """
 
@@ -22,16 +22,16 @@ from lerobot.utils.constants import ACTION, OBS_STATE
 from lerobot.utils.constants import OBS_ENV_STATE as OBS_ENV
 
 from lerobot_pnp import robot
-from lerobot_pnp.errors import ConfigError
+from lerobot_pnp.errors import PolicyError
 
 CONFIG_NAME = "config.json"
 
 
-class PolicyLoadError(ConfigError):
+class PolicyLoadError(PolicyError):
     """The policy checkpoint is missing or cannot be read."""
 
 
-class IncompatiblePolicyError(ConfigError):
+class IncompatiblePolicyError(PolicyError):
     """The checkpoint's features do not match this env (e.g. a checkpoint trained for another robot)."""
 
 
@@ -64,6 +64,7 @@ class PolicyEpisode:
     actions: np.ndarray  # (T, 8)
     successes: np.ndarray  # (T,) env success flag after each step
     success: bool
+    phases: np.ndarray | None = None  # (T+1,) FSM phase of each observation, where the env reports info["phase"]
     info: dict = field(default_factory=dict)
 
     @property
@@ -172,10 +173,10 @@ def run_policy_episode(
     """
     base = env.unwrapped
     if max_steps is None:
-        max_steps = getattr(env, "_max_episode_steps", None) or getattr(base, "_max_episode_steps", None)
-        max_steps = max_steps or base.config.episode_length
+        max_steps = base.config.episode_length
     loaded.reset()
     obs, info = env.reset(seed=seed, options=reset_options)
+    phases = [info.get("phase")]
     states = [np.asarray(obs["agent_pos"], np.float32)]
     objects = [np.asarray(obs["environment_state"], np.float32)]
     actions, successes = [], []
@@ -189,6 +190,7 @@ def run_policy_episode(
         obs, _, terminated, truncated, info = env.step(action)
         actions.append(action)
         successes.append(bool(info.get("is_success", False)))
+        phases.append(info.get("phase"))
         states.append(np.asarray(obs["agent_pos"], np.float32))
         objects.append(np.asarray(obs["environment_state"], np.float32))
         if terminated or truncated:
@@ -200,4 +202,5 @@ def run_policy_episode(
         actions=np.stack(actions) if actions else np.zeros((0, robot.ACTION_DIM), np.float32),
         successes=np.asarray(successes, dtype=bool),
         success=bool(successes and successes[-1]),
+        phases=np.asarray(phases, dtype=np.int64) if all(p is not None for p in phases) else None,
     )

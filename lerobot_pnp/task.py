@@ -18,32 +18,59 @@ RESET_OPTIONS = ("arm_qpos", "object_pos", "object_yaw")
 _START_TRIES = 20
 
 
+# Inferred task progress, as the index of the FSM state reached (robot.PHASE_NAMES), from the physical state.
+PROGRESS_NAMES = {i: name for i, name in enumerate(robot.PHASE_NAMES)}
+FAILURE_CAUSES = ("not_grasped", "dropped", "not_transported", "not_placed", "not_released")
+_GRASP_MISS_SHIFT = (0.055, 0.07)  # m, along the gripper's x axis: out from between the open fingers
+_DROP_SHIFT = (0.08, 0.12)  # m, sideways out of the closed fingers; the object then falls to the table
+_DISPLACE_SHIFT = (0.04, 0.08)  # m, a released object pushed off the target
+
+
 class PickPlaceTask:
     """Where things start, what disturbs them, what the policy observes and what counts as success."""
 
     def __init__(self, config):
         self.config = config
+        self.place_xy = np.asarray(config.place_low, dtype=float)
+        self._armed: set[str] = set()
+        self._fired: list[str] = []
+        self._bias = np.zeros(3)
+        self._history: list[dict] = []
+        self._furthest = 0
+        self._was_grasped = False
+
+    @property
+    def perturbations_fired(self) -> list[str]:
+        """Names of the perturbations applied so far in this episode (in order)."""
+        return list(self._fired)
 
     # ------------------------------------------------------------------ set-up
     def check_reachable(self, physics: BaxterPhysics) -> None:
-        """Raise ConfigError if any corner of the object box (grasp and hover) or the place target is unreachable."""
+        """Raise ConfigError if any corner of the object box (grasp and hover) or the place region is unreachable."""
         c = self.config
-        yaws = sorted(set(c.yaw_range))
+        yaws = sorted({c.yaw_range[0], c.yaw_range[1]} if c.yaw_range[1] - c.yaw_range[0] < np.pi / 2 else {0.0})
         corners = [(x, y) for x in (c.object_low[0], c.object_high[0]) for y in (c.object_low[1], c.object_high[1])]
-        checks = [("object box corner", p, yaw) for p in corners for yaw in yaws] + [("place target", c.place_xy, 0.0)]
+        places = {(x, y) for x in (c.place_low[0], c.place_high[0]) for y in (c.place_low[1], c.place_high[1])}
+        checks = [("object box corner", p, yaw) for p in corners for yaw in yaws]
+        checks += [("place region corner", p, 0.0) for p in sorted(places)]
         for what, (x, y), yaw in checks:
             seed = robot.NEUTRAL_Q
             try:
                 for z in (robot.CUBE_REST_Z + c.hover_height, robot.CUBE_REST_Z):
-                    seed = physics.ik.solve(np.array([x, y, z]), yaw, seed)
+                    seed = physics.ik.solve(np.array([x, y, z]), _grasp_yaw(yaw), seed)
             except UnreachableError as err:
                 raise ConfigError(
                     f"env: {what} ({x:.3f}, {y:.3f}) with hover {c.hover_height} m is out of the arm's reach: {err}"
                 ) from None
 
     def initialize_episode(self, physics: BaxterPhysics, rng: np.random.Generator, options: dict | None) -> None:
-        """Sample (or take from ``options``) the object pose and the start pose, and reset the physics."""
-        options = dict(options or {})
+        """Sample (or take from ``options``) the object pose, the target and the start pose; reset the physics.
+
+        Random numbers are drawn only for the features a task enables, so the paper's task draws exactly the
+        numbers it always drew (its datasets do not change when features are added).
+        """
+        # LeRobot's own signals (e.g. "lerobot_new_rollout" from lerobot-eval) are not ours to check.
+        options = {k: v for k, v in (options or {}).items() if not str(k).startswith("lerobot_")}
         unknown = sorted(set(options) - set(RESET_OPTIONS))
         if unknown:
             raise ResetOptionError(f"unknown reset option(s) {unknown}; valid options: {list(RESET_OPTIONS)}")
@@ -54,7 +81,6 @@ class PickPlaceTask:
         if "object_pos" in options:
             object_pos = _vector_option(options, "object_pos", 3)
             object_pos[2] = robot.CUBE_REST_Z
-            self._check_object_option(physics, object_pos)
         if "object_yaw" in options:
             yaw = float(_vector_option(options, "object_yaw", 1)[0])
         if "arm_qpos" in options:
@@ -65,18 +91,33 @@ class PickPlaceTask:
                 raise ResetOptionError(f"reset option 'arm_qpos' is outside the joint limits at {names}")
         else:
             q = self._sample_start_q(physics, rng)
-        physics.set_place_target(c.place_xy)
+        self.place_xy = _uniform(rng, c.place_low, c.place_high)
+        if "object_pos" in options:
+            self._check_object_option(physics, object_pos)
+        mass, friction = _uniform(rng, *c.mass_range), _uniform(rng, *c.friction_range)
+        if (mass, friction) != physics.object_properties():
+            physics.set_object_properties(float(mass), float(friction))
+        self._armed = {
+            name for name in ("grasp_miss", "drop", "displace") if _bernoulli(rng, getattr(c, f"{name}_prob"))
+        }
+        self._bias = np.zeros(3)
+        if c.obs_bias_object > 0:
+            angle = rng.uniform(0, 2 * np.pi)
+            self._bias[:2] = c.obs_bias_object * np.array([np.cos(angle), np.sin(angle)])
+        self._fired, self._history, self._furthest, self._was_grasped = [], [], 0, False
+        physics.set_place_target(self.place_xy)
         physics.reset(q, object_pos, yaw)
 
     def _check_object_option(self, physics: BaxterPhysics, pos: np.ndarray) -> None:
         c = self.config
-        if np.linalg.norm(pos[:2] - np.asarray(c.place_xy)) <= c.success_xy_tol + robot.CUBE_SIZE / 2:
+        if np.linalg.norm(pos[:2] - self.place_xy) <= c.success_xy_tol + robot.CUBE_SIZE / 2:
             raise ResetOptionError(
-                f"reset option 'object_pos' {np.round(pos[:2], 3).tolist()} is on the place target {list(c.place_xy)}: "
-                "the episode would start solved"
+                f"reset option 'object_pos' {np.round(pos[:2], 3).tolist()} is on the place target "
+                f"{np.round(self.place_xy, 3).tolist()}: the episode would start solved"
             )
         try:
             physics.ik.solve(pos + [0, 0, c.hover_height], 0.0, robot.NEUTRAL_Q)
+            physics.ik.solve(pos, 0.0, robot.NEUTRAL_Q)
         except UnreachableError:
             raise ResetOptionError(
                 f"reset option 'object_pos' {np.round(pos[:2], 3).tolist()} is out of the arm's reach "
@@ -93,31 +134,95 @@ class PickPlaceTask:
                 continue
         raise UnreachableError(f"no reachable start pose found in the box {c.start_low}..{c.start_high}")
 
-    # ------------------------------------------------------------------ during the episode
+    # ------------------------------------------------------------------ perturbations
     def after_step(self, physics: BaxterPhysics, step_count: int, rng: np.random.Generator) -> None:
-        """Apply the perturbations scheduled after env step ``step_count``."""
+        """Apply the perturbations due after env step ``step_count`` (each at most once per episode).
+
+        nudge: the resting object is pushed before the grasp (the paper's feedback test).
+        grasp_miss: the open gripper is down at the object -> the object slides out from between the fingers.
+        drop: the object is held and lifted -> it is knocked sideways out of the fingers and falls.
+        displace: the object was placed and released -> it is pushed off the target.
+        """
         c = self.config
         if c.nudge_max > 0 and step_count == c.nudge_at_step and not physics.object_in_grasp():
             angle = rng.uniform(0, 2 * np.pi)
             radius = c.nudge_max * np.sqrt(rng.uniform())
             physics.displace_object(np.array([radius * np.cos(angle), radius * np.sin(angle), 0.0]))
+            self._fired.append("nudge")
+        if not self._armed:
+            return
+        obj, _ = physics.object_pose()
+        ee, rot = physics.ee_pose()
+        near = np.linalg.norm(ee[:2] - obj[:2]) < 0.02
+        open_at_object = (
+            near and physics.gripper_opening() > 0.5 and physics.pad_bottom_z() < obj[2] + robot.CUBE_SIZE / 2
+        )
+        if "grasp_miss" in self._armed and open_at_object and not physics.object_in_grasp():
+            self._shift_object(physics, rng, rot[:, 0], _GRASP_MISS_SHIFT, "grasp_miss")
+            return
+        if "drop" in self._armed and physics.object_in_grasp() and obj[2] > robot.CUBE_REST_Z + 0.08:
+            self._shift_object(physics, rng, rot[:, 0], _DROP_SHIFT, "drop")
+            physics.wait(0.8)  # it falls and comes to rest on the table
+            return
+        if "displace" in self._armed and self.is_success(physics):
+            angle = rng.uniform(-np.pi / 3, np.pi / 3)
+            toward = self._toward_object_box(obj)
+            direction = np.array(
+                [
+                    toward[0] * np.cos(angle) - toward[1] * np.sin(angle),
+                    toward[0] * np.sin(angle) + toward[1] * np.cos(angle),
+                    0.0,
+                ]
+            )
+            physics.displace_object(direction * rng.uniform(*_DISPLACE_SHIFT))
+            self._armed.discard("displace")
+            self._fired.append("displace")
 
+    def _toward_object_box(self, obj: np.ndarray) -> np.ndarray:
+        centre = (np.asarray(self.config.object_low) + np.asarray(self.config.object_high)) / 2
+        d = centre - obj[:2]
+        n = np.linalg.norm(d)
+        return d / n if n > 1e-6 else np.array([1.0, 0.0])
+
+    def _shift_object(self, physics, rng, gripper_x: np.ndarray, shift_range, name: str) -> None:
+        """Move the object along the gripper's x axis (out of the fingers), toward the object box."""
+        axis = np.array([gripper_x[0], gripper_x[1], 0.0])
+        axis /= max(np.linalg.norm(axis), 1e-9)
+        obj, _ = physics.object_pose()
+        if axis[:2] @ self._toward_object_box(obj) < 0:
+            axis = -axis
+        physics.displace_object(axis * rng.uniform(*shift_range))
+        self._armed.discard(name)
+        self._fired.append(name)
+
+    # ------------------------------------------------------------------ observations
     def observe(self, physics: BaxterPhysics, rng: np.random.Generator) -> dict[str, np.ndarray]:
-        """The policy's view: ``agent_pos`` (joints + gripper) and ``environment_state`` (object xyz), noisy."""
+        """The policy's view: ``agent_pos`` (joints + gripper) and ``environment_state`` (object xyz [+ yaw
+        features] [+ goal xy]), with the configured noise, bias and latency."""
         c = self.config
         state = physics.state_vector()
-        object_pos, _ = physics.object_pose()
+        object_pos, yaw = physics.object_pose()
         if c.obs_noise_joints > 0:
             state[: robot.N_JOINTS] += rng.normal(0, c.obs_noise_joints, robot.N_JOINTS).astype(np.float32)
         if c.obs_noise_object > 0:
             object_pos = object_pos + rng.normal(0, c.obs_noise_object, 3)
-        return {"agent_pos": state, "environment_state": object_pos.astype(np.float32)}
+        env_state = [object_pos + self._bias]
+        if c.observe_yaw:
+            env_state.append([np.sin(4 * yaw), np.cos(4 * yaw)])
+        if c.observe_goal:
+            env_state.append(self.place_xy)
+        obs = {"agent_pos": state, "environment_state": np.concatenate(env_state).astype(np.float32)}
+        if c.obs_latency <= 0:
+            return obs
+        self._history.append(obs)
+        del self._history[: -(c.obs_latency + 1)]
+        return self._history[0]
 
-    # ------------------------------------------------------------------ success
+    # ------------------------------------------------------------------ progress and success
     def object_placed(self, physics: BaxterPhysics) -> bool:
         """The object rests on the table within tolerance of the target."""
         pos, _ = physics.object_pose()
-        on_target = np.linalg.norm(pos[:2] - np.asarray(self.config.place_xy)) <= self.config.success_xy_tol
+        on_target = np.linalg.norm(pos[:2] - self.place_xy) <= self.config.success_xy_tol
         return bool(on_target and abs(pos[2] - robot.CUBE_REST_Z) < 0.005 and physics.object_speed() < 0.02)
 
     @staticmethod
@@ -134,6 +239,64 @@ class PickPlaceTask:
     def is_success(self, physics: BaxterPhysics) -> bool:
         # The contact query is skipped unless the object is placed (most steps).
         return self.object_placed(physics) and self.gripper_released(physics)
+
+    def progress(self, physics: BaxterPhysics) -> int:
+        """The FSM state the physical situation corresponds to (index into robot.PHASE_NAMES)."""
+        obj, _ = physics.object_pose()
+        ee, _ = physics.ee_pose()
+        held = physics.object_in_grasp()
+        at_target = np.linalg.norm(obj[:2] - self.place_xy) <= self.config.success_xy_tol
+        if held:
+            self._was_grasped = True
+            if obj[2] < robot.CUBE_REST_Z + 0.01:
+                return 7 if at_target else 3  # place/descend (at the target) or pick/close
+            return 6 if np.linalg.norm(obj[:2] - self.place_xy) < 0.03 else 4  # place/approach or pick/retract
+        if self.object_placed(physics):
+            return 9 if self.gripper_released(physics) else 8  # place/retract or place/open
+        if np.linalg.norm(ee[:2] - obj[:2]) < 0.02:
+            return 2 if physics.pad_bottom_z() < obj[2] + robot.CUBE_SIZE / 2 else 1  # pick/grasp or approach
+        return 0
+
+    def step_info(self, physics: BaxterPhysics, success: bool, truncated: bool) -> dict:
+        """``info`` entries: the inferred phase, the furthest reached, the perturbations, the failure cause."""
+        phase = self.progress(physics)
+        self._furthest = max(self._furthest, phase)
+        cause = None
+        if truncated and not success:
+            if phase >= 8:
+                cause = "not_released"
+            elif phase >= 6:
+                cause = "not_placed"
+            elif phase >= 3:
+                cause = "not_transported"
+            else:
+                cause = "dropped" if self._was_grasped else "not_grasped"
+        return {
+            "phase": phase,
+            "furthest_phase": self._furthest,
+            "perturbations": ",".join(self._fired),
+            "failure_cause": cause or "",
+        }
+
+
+def _uniform(rng: np.random.Generator, low, high):
+    """A uniform draw, or ``low`` itself (no draw) when the range is a single value."""
+    low, high = np.asarray(low, dtype=float), np.asarray(high, dtype=float)
+    if np.all(low == high):
+        return low.copy() if low.ndim else float(low)
+    value = rng.uniform(low, high)
+    return value if low.ndim else float(value)
+
+
+def _bernoulli(rng: np.random.Generator, p: float) -> bool:
+    """True with probability ``p``; no draw for p = 0 or 1."""
+    if p <= 0:
+        return False
+    return True if p >= 1 else bool(rng.uniform() < p)
+
+
+def _grasp_yaw(yaw: float) -> float:
+    return (yaw + np.pi / 4) % (np.pi / 2) - np.pi / 4
 
 
 def _vector_option(options: dict, key: str, size: int) -> np.ndarray:

@@ -75,7 +75,7 @@ def _bad_value_outcome(argv: list[str], capsys) -> tuple[int, str]:
     ("argv", "field"),
     [
         (["generate", "--num_episodes=-1"], "num_episodes"),
-        (["generate", "--representation=bogus"], "representation"),
+        (["generate", "--env.control_mode=bogus"], "control_mode"),
         (["expert", "--n_episodes=0"], "n_episodes"),
     ],
 )

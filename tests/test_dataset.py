@@ -151,7 +151,7 @@ def test_split_is_80_20_disjoint_and_stats_verified(kf):
     assert record["generation"]["num_episodes"] == 10 and record["generation"]["seed"] == 0
     assert "env" not in record and "control_mode" not in json.dumps(record)  # the env config lives in one file
     env = json.loads((root / "meta" / "baxter_pnp_env.json").read_text())
-    assert env["type"] == "baxter_pnp" and env["control_mode"] == "keyframe" and env["place_xy"] == [0.6, -0.05]
+    assert env["type"] == "baxter_pnp" and env["control_mode"] == "keyframe" and env["place_low"] == [0.6, -0.05]
     assert not (root / ".pnp_work").exists()
 
 
@@ -176,7 +176,7 @@ def test_existing_root_is_an_error_and_untouched(kf):
     with pytest.raises(DatasetError, match="already exists.*--resume.*--overwrite"):
         generate(_cfg(root, tasks=3))
     res = _cli("generate", f"--repo_id={REPO}", f"--root={root}", "--num_episodes=10", "--progress=false")
-    assert res.returncode == 1 and "already exists" in res.stderr
+    assert res.returncode == 2 and "already exists" in res.stderr
     # --resume on a finished dataset: verified, reported, untouched; different settings are refused
     assert generate(_cfg(root, resume=True))["status"] == "already complete"
     with pytest.raises(ConfigError, match="num_episodes"):
@@ -269,7 +269,7 @@ def test_kill_9_then_resume(tmp_path):
         validate_dataset(root)
     before = _snapshot(root)
     res = _cli("generate", *args)  # no --resume: error, nothing touched
-    assert res.returncode == 1 and "interrupted generation" in res.stderr
+    assert res.returncode == 2 and "interrupted generation" in res.stderr
     assert _snapshot(root) == before
 
     summary = generate(_cfg(root, num_episodes=n, resume=True))
@@ -289,7 +289,7 @@ def test_push_without_token_or_network_fails_fast_and_touches_nothing(kf, tmp_pa
     home = tmp_path / "hf_home"
     t0 = time.time()
     res = _cli("push", f"--repo_id={REPO}", f"--root={root}", env=_cli_env(HF_HOME=str(home)))
-    assert res.returncode == 1 and "no Hugging Face token" in res.stderr, res.stderr
+    assert res.returncode == 2 and "no Hugging Face token" in res.stderr, res.stderr
     res = _cli(
         "push",
         f"--repo_id={REPO}",
@@ -297,10 +297,10 @@ def test_push_without_token_or_network_fails_fast_and_touches_nothing(kf, tmp_pa
         "--connect_timeout_s=3",
         env=_cli_env(HF_HOME=str(home), HF_TOKEN="hf_not_a_real_token"),
     )
-    assert res.returncode == 1 and "cannot push" in res.stderr, res.stderr
+    assert res.returncode == 2 and "cannot push" in res.stderr, res.stderr
     assert time.time() - t0 < 60
     res = _cli("push", f"--repo_id={REPO}", f"--root={root}", env=_cli_env(HF_HUB_OFFLINE="1", HF_TOKEN="hf_x"))
-    assert res.returncode == 1 and "HF_HUB_OFFLINE" in res.stderr
+    assert res.returncode == 2 and "HF_HUB_OFFLINE" in res.stderr
     assert _snapshot(root) == before
 
 

@@ -12,7 +12,7 @@ from lerobot_pnp.env_config import GYM_ID, PAPER_TASK, BaxterPnPEnvConfig, make_
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.ik import ArmIK, gripper_down_rotation
 
-# Reference poses of Rethink's left arm (shared/notes/baxter.md): joints -> left_gripper position, z axis.
+# Reference poses of Rethink's left arm (docs/baxter.md): joints -> left_gripper position, z axis.
 REFERENCE_POSES = [
     ([0, -0.55, 0, 0.75, 0, 1.26, 0], (0.64626, 0.84126, 0.06262), (0.0782, 0.0782, -0.9939)),
     ([-0.08, -1.0, -1.19, 1.94, 0.67, 1.03, -0.50], (0.57971, 0.18329, 0.11370), (0.0537, 0.0159, -0.9984)),
@@ -168,7 +168,7 @@ def test_reset_options_pin_the_start_state(keyframe_env):
     [
         ({"object_yaw": float("nan")}, "object_yaw"),
         ({"object_pos": [1.3, 0.2, 0.0]}, "out of the arm's reach"),
-        ({"object_pos": [*PAPER_TASK["place_xy"], 0.0]}, "start solved"),
+        ({"object_pos": [*PAPER_TASK["place_low"], 0.0]}, "start solved"),
         ({"arm_qpos": [5.0, 0, 0, 0, 0, 0, 0]}, "joint limits"),
         ({"object_position": [0.5, 0.3, 0.0]}, "unknown reset option"),
     ],
@@ -183,7 +183,9 @@ def test_bad_reset_options_raise(keyframe_env, options, message):
 def test_task_is_settable_from_the_env_config_and_recorded(tmp_path):
     from lerobot_pnp.env_config import read_recorded, write_recorded
 
-    cfg = BaxterPnPEnvConfig(object_low=(0.5, 0.2), object_high=(0.6, 0.3), place_xy=(0.65, -0.1))
+    cfg = BaxterPnPEnvConfig(
+        object_low=(0.5, 0.2), object_high=(0.6, 0.3), place_low=(0.65, -0.1), place_high=(0.65, -0.1)
+    )
     env = make_env(cfg)
     obs, _ = env.reset(seed=1)
     assert 0.5 <= obs["environment_state"][0] <= 0.6 and 0.2 <= obs["environment_state"][1] <= 0.3
@@ -191,10 +193,10 @@ def test_task_is_settable_from_the_env_config_and_recorded(tmp_path):
     write_recorded(cfg, tmp_path)
     again = BaxterPnPEnvConfig(task_source=str(tmp_path))
     assert again.to_dict() == cfg.to_dict()
-    assert read_recorded(tmp_path)["place_xy"] == [0.65, -0.1]
+    assert read_recorded(tmp_path)["place_low"] == [0.65, -0.1]
     # a preset named explicitly wins over the recorded task; explicit fields win over both
-    assert BaxterPnPEnvConfig(task_source=str(tmp_path), preset="paper").place_xy == PAPER_TASK["place_xy"]
-    assert BaxterPnPEnvConfig(task_source=str(tmp_path), nudge_max=0.01).place_xy == (0.65, -0.1)
+    assert BaxterPnPEnvConfig(task_source=str(tmp_path), preset="paper").place_low == PAPER_TASK["place_low"]
+    assert BaxterPnPEnvConfig(task_source=str(tmp_path), nudge_max=0.01).place_low == (0.65, -0.1)
 
 
 def test_camera_observations_render_lazily():
@@ -227,3 +229,11 @@ def test_lerobot_env_config_builds_vector_envs():
     assert dense.features_map["pixels/front"] == "observation.images.front"
     with pytest.raises(ConfigError, match="control_mode"):
         BaxterPnPEnvConfig(control_mode="bogus")
+
+
+def test_lerobot_rollout_signal_is_accepted(keyframe_env):
+    from lerobot.envs.utils import NEW_ROLLOUT_OPTION
+
+    a, _ = keyframe_env.reset(seed=4, options={NEW_ROLLOUT_OPTION: True})  # what lerobot-eval passes
+    b, _ = keyframe_env.reset(seed=4)
+    np.testing.assert_array_equal(a["environment_state"], b["environment_state"])

@@ -45,7 +45,7 @@ def test_grasp_lifts_the_cube_and_release_places_it(keyframe_env):
         _, _, terminated, _, info = keyframe_env.step(expert.next_keyframe())
     cube, _ = env.object_pose()
     assert not env.object_in_grasp()
-    assert np.linalg.norm(cube[:2] - np.array(keyframe_env.unwrapped.config.place_xy)) < 0.02
+    assert np.linalg.norm(cube[:2] - keyframe_env.unwrapped.pnp_task.place_xy) < 0.02
     assert cube[2] == pytest.approx(robot.CUBE_REST_Z, abs=3e-3)
     assert info["is_success"] and terminated
 
@@ -95,3 +95,101 @@ def test_unreachable_object_raises_a_typed_error():
 def test_bad_expert_config():
     with pytest.raises(ConfigError, match="grasp_depth"):
         ExpertConfig(grasp_depth=0.2)
+
+
+# ---------------------------------------------------------------------------------------------- task suite
+PERTURBATIONS = {
+    "grasp_miss": ({"grasp_miss_prob": 1.0}, "grasp_missed"),
+    "drop": ({"drop_prob": 1.0}, "dropped"),
+    "displace": ({"displace_prob": 1.0}, "displaced"),
+}
+
+
+@pytest.mark.parametrize("name", sorted(PERTURBATIONS))
+def test_each_perturbation_happens_and_the_expert_recovers(name):
+    from lerobot_pnp.env_config import make_env
+
+    changes, recovery = PERTURBATIONS[name]
+    env = make_env(render_mode=None, keyframe_budget=30, **changes)
+    for seed in range(3):
+        ep = run_expert_episode(env, seed)
+        assert ep.info["perturbations"] == [name] and ep.info["recoveries"] == [recovery]
+        assert ep.success and ep.num_frames > 10  # more keyframes than the undisturbed 10
+        # the recovery is labelled with FSM phases like the rest: it goes back to pick/start (phase 0)
+        assert list(ep.phases).count(0) == 2
+
+
+def test_the_grasp_really_misses_and_the_object_really_leaves_the_gripper():
+    from lerobot_pnp.env_config import make_env
+
+    env = make_env(render_mode=None, keyframe_budget=30, grasp_miss_prob=1.0)
+    env.reset(seed=2)
+    expert, physics = FSMExpert(env), env.unwrapped.physics
+    for _ in range(3):  # approach, grasp (the object slides away here), close
+        env.step(expert.next_keyframe())
+    assert not physics.object_in_grasp() and env.unwrapped.pnp_task.perturbations_fired == ["grasp_miss"]
+
+    env = make_env(render_mode=None, keyframe_budget=30, drop_prob=1.0)
+    env.reset(seed=2)
+    expert = FSMExpert(env)
+    physics = env.unwrapped.physics
+    for _ in range(4):  # approach, grasp, close, retract (lifted: knocked out here)
+        env.step(expert.next_keyframe())
+    obj, _ = physics.object_pose()
+    assert not physics.object_in_grasp() and obj[2] == pytest.approx(robot.CUBE_REST_Z, abs=3e-3)  # on the table
+    assert physics.object_speed() < 0.02  # at rest
+
+
+def test_full_preset_observes_yaw_and_goal_and_is_deterministic():
+    from lerobot_pnp.env_config import make_env
+
+    env = make_env(render_mode=None, preset="full")
+    cfg = env.unwrapped.config
+    assert cfg.environment_state_names[3:] == ["object_yaw_sin4", "object_yaw_cos4", "goal_x", "goal_y"]
+    obs, _ = env.reset(seed=9)
+    _, yaw = env.unwrapped.physics.object_pose()
+    np.testing.assert_allclose(obs["environment_state"][3:5], [np.sin(4 * yaw), np.cos(4 * yaw)], atol=1e-5)
+    np.testing.assert_allclose(obs["environment_state"][5:], env.unwrapped.physics.place_target(), atol=1e-6)
+    np.testing.assert_allclose(obs["environment_state"][5:], env.unwrapped.pnp_task.place_xy, atol=1e-6)
+    # the yaw features are the same for the cube's four symmetric faces
+    env.reset(seed=9, options={"object_yaw": yaw + np.pi / 2})
+    again = env.unwrapped.pnp_task.observe(env.unwrapped.physics, np.random.default_rng(0))
+    np.testing.assert_allclose(again["environment_state"][3:5], obs["environment_state"][3:5], atol=1e-4)
+    a, b = run_expert_episode(env, 21), run_expert_episode(env, 21)
+    np.testing.assert_array_equal(a.actions, b.actions)
+    np.testing.assert_array_equal(a.object_positions, b.object_positions)
+
+
+def test_env_info_reports_phase_and_failure_cause():
+    from lerobot_pnp.env_config import make_env
+
+    env = make_env(render_mode=None, episode_length=4)
+    obs, info = env.reset(seed=3)
+    assert info["phase"] == 0 and info["failure_cause"] == ""
+    expert = FSMExpert(env)
+    for _ in range(3):  # approach, grasp, close: then the budget is nearly spent
+        obs, _, _, truncated, info = env.step(expert.next_keyframe())
+    assert info["phase"] == 3 and info["furthest_phase"] == 3 and not truncated  # pick/close: the object is held
+    hold = np.append(obs["agent_pos"][:7], 0.0).astype(np.float32)
+    *_, truncated, info = env.step(hold)
+    assert truncated and info["failure_cause"] == "not_transported"
+
+
+def test_expert_labels_any_state_and_following_its_labels_succeeds():
+    """DAgger's teacher: from a state reached by someone else, the labelled keyframes still finish the task."""
+    from lerobot_pnp.env_config import make_env
+
+    env = make_env(render_mode=None, keyframe_budget=30)
+    for seed in range(4):
+        obs, _ = env.reset(seed=seed)
+        rng = np.random.default_rng(seed)
+        # a clumsy start: a random joint perturbation of the start pose, then follow the labels only
+        env.step(np.append(obs["agent_pos"][:7] + rng.normal(0, 0.05, 7), 1.0).astype(np.float32))
+        teacher = FSMExpert(env)
+        for _ in range(25):
+            keyframe, phase = teacher.label()
+            assert 0 <= phase < robot.N_KEYFRAMES
+            _, _, terminated, truncated, _ = env.step(keyframe)
+            if terminated or truncated:
+                break
+        assert terminated, f"seed {seed}: following the labels did not finish the task"

@@ -1,172 +1,46 @@
-"""Tests of the ``pnp_lstm`` policy (lerobot_pnp/policy) and its fast training path (lerobot_pnp/train_fast.py).
+"""Tests of the ``pnp_lstm`` policy (lerobot_pnp/policy): config, network, inference, processors, checkpoints.
 
-A small synthetic keyframe dataset (40 episodes x 10 frames, LeRobotDataset v3) with learnable dynamics
-stands in for the simulator's data: the next keyframe is a deterministic function of the object position
-and the phase, so the planner must know the phase (memory / subtask net) to predict it.
+The training paths (fast path, ``lerobot-train`` windows, the ``lerobot-pnp train`` CLI) are tested in
+``test_train_fast.py``.
 """
 
 from __future__ import annotations
 
 import ast
 import json
-import math
-import os
-import subprocess
-import sys
+import logging
 from pathlib import Path
 
-os.environ.setdefault("OMP_NUM_THREADS", "1")
-
-import numpy as np
 import pytest
 import torch
 
 torch.set_num_threads(1)
 
+from keyframe_synth import ACTION, OBS_ENV, OBS_STATE, T  # noqa: E402
 from lerobot.configs import FeatureType, PolicyFeature  # noqa: E402
-from lerobot.datasets import LeRobotDataset  # noqa: E402
-from lerobot.datasets.io_utils import write_info  # noqa: E402
 from lerobot.policies.factory import get_policy_class, make_policy_config, make_pre_post_processors  # noqa: E402
+from safetensors.torch import load_file, save_file  # noqa: E402
 
-from lerobot_pnp.policy import PnpLstmConfig, PnpLstmPolicy  # noqa: E402
-from lerobot_pnp.policy.modeling_pnp_lstm import SubtaskLSTM  # noqa: E402
-from lerobot_pnp.train_fast import (  # noqa: E402
-    TrainFastConfig,
-    load_keyframe_data,
-    split_episodes,
-    train_fast,
-)
+from lerobot_pnp.errors import ConfigError, DatasetError, PolicyError  # noqa: E402
+from lerobot_pnp.policy import PnpLstmConfig, PnpLstmPolicy, make_pnp_lstm_pre_post_processors  # noqa: E402
+from lerobot_pnp.policy.modeling_pnp_lstm import PnpLstm, SubtaskLSTM  # noqa: E402
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
-OBS_STATE, OBS_ENV, ACTION = "observation.state", "observation.environment_state", "action"
-STATE_NAMES = ["left_s0", "left_s1", "left_e0", "left_e1", "left_w0", "left_w1", "left_w2", "gripper"]
-N_EPISODES, N_TRAIN = 40, 32
-T = 10
 
 
-def _features(state_dim: int = 8, action_dim: int = 8, with_action: bool = True) -> dict:
-    feats = {
-        OBS_STATE: {"dtype": "float32", "shape": (state_dim,), "names": STATE_NAMES[:state_dim]},
-        OBS_ENV: {"dtype": "float32", "shape": (3,), "names": ["object_x", "object_y", "object_z"]},
-        "phase.index": {"dtype": "int64", "shape": (1,), "names": None},
-        "phase.subtask": {"dtype": "int64", "shape": (1,), "names": None},
-        "next.done": {"dtype": "bool", "shape": (1,), "names": None},
-        "next.success": {"dtype": "bool", "shape": (1,), "names": None},
-    }
-    if with_action:
-        feats[ACTION] = {"dtype": "float32", "shape": (action_dim,), "names": STATE_NAMES[:action_dim]}
-    return feats
-
-
-def _synthetic_episode(rng: np.random.Generator):
-    """10 keyframes: states, object positions and actions (= next keyframe's joint targets + gripper)."""
-    place = np.array([0.75, 0.0, -0.13])
-    obj0 = np.array([rng.uniform(0.55, 0.85), rng.uniform(-0.25, 0.25), -0.13])
-    w = np.linspace(-1.0, 1.0, 21).reshape(7, 3)
-
-    def joints(o, k):
-        return np.tanh(w @ (o - place) * (1 + 0.3 * k) + 0.1 * k)
-
-    lift = np.array([0.0, 0.0, 0.1])
-    q = [rng.uniform(-0.6, 0.6, 7), joints(obj0 + lift, 1), joints(obj0, 2)]
-    q += [q[2].copy(), joints(obj0 + lift, 1)]  # close, retract
-    q += [q[4].copy(), joints(place + lift, 3) + 0.3 * q[4], joints(place, 4) + 0.3 * q[4]]
-    q += [q[7].copy(), joints(place + lift, 5)]
-    grip = [1, 1, 1, 0, 0, 0, 0, 0, 1, 1]
-    objs = [obj0] * 4 + [obj0 + lift] * 2 + [place + lift, place, place, place]
-    states = [np.concatenate([q[k] + rng.normal(0, 0.005, 7), [grip[k]]]) for k in range(T)]
-    acts = [np.concatenate([q[k + 1], [grip[k + 1]]]) for k in range(T - 1)]
-    acts[4] = np.concatenate([q[4], [grip[4]]])  # pick retract holds (place start == pick retract)
-    acts.append(np.concatenate([q[9], [grip[9]]]))  # place retract holds
-    return states, objs, acts
-
-
-def make_keyframe_dataset(
-    root: Path,
-    n_episodes: int = N_EPISODES,
-    seed: int = 0,
-    splits: dict | None = None,
-    episode_len: int = T,
-    state_dim: int = 8,
-    with_action: bool = True,
-    repo_id: str = "test/pnp_synth",
-) -> LeRobotDataset:
-    rng = np.random.default_rng(seed)
-    ds = LeRobotDataset.create(
-        repo_id,
-        fps=1,
-        features=_features(state_dim, with_action=with_action),
-        root=root,
-        robot_type="baxter",
-        use_videos=False,
-        video_backend="pyav",
-    )
-    for _ in range(n_episodes):
-        states, objs, acts = _synthetic_episode(rng)
-        for k in range(episode_len):
-            frame = {
-                OBS_STATE: states[k % T][:state_dim].astype(np.float32),
-                OBS_ENV: objs[k % T].astype(np.float32),
-                "phase.index": np.array([k % T]),
-                "phase.subtask": np.array([(k % T) // 5]),
-                "next.done": np.array([k == episode_len - 1]),
-                "next.success": np.array([k == episode_len - 1]),
-                "task": "Pick the cube and place it on the target.",
-            }
-            if with_action:
-                frame[ACTION] = acts[k % T].astype(np.float32)
-            ds.add_frame(frame)
-        ds.save_episode()
-    ds.finalize()
-    if splits is not None:
-        ds.meta.info.splits = dict(splits)
-        write_info(ds.meta.info, ds.root)
-    return ds
-
-
-# ---- fixtures -----------------------------------------------------------------------------------
-
-
-@pytest.fixture(scope="module")
-def dataset_root(tmp_path_factory) -> Path:
-    root = tmp_path_factory.mktemp("pnp_ds") / "keyframes"
-    make_keyframe_dataset(root, splits={"train": f"0:{N_TRAIN}", "test": f"{N_TRAIN}:{N_EPISODES}"})
-    return root
-
-
-@pytest.fixture(scope="module")
-def trained(dataset_root, tmp_path_factory):
-    out = tmp_path_factory.mktemp("pnp_train") / "run"
-    cfg = TrainFastConfig(
-        dataset_repo_id="test/pnp_synth",
-        dataset_root=str(dataset_root),
-        policy=PnpLstmConfig(device="cpu", hidden_size=32),
-        epochs=80,
-        batch_size=8,
-        seed=0,
-        output_dir=str(out),
-        progress=False,
-    )
-    result = train_fast(cfg)
-    return result, out
-
-
-@pytest.fixture(scope="module")
-def episodes(dataset_root):
-    """Raw (unnormalised) episodes of the synthetic dataset as (E, 10, D) tensors."""
-    _, data = load_keyframe_data("test/pnp_synth", dataset_root)
-    return data
-
-
-def _fresh_policy(**kw) -> PnpLstmPolicy:
-    torch.manual_seed(0)
+def _config(**kw) -> PnpLstmConfig:
     cfg = PnpLstmConfig(device="cpu", hidden_size=kw.pop("hidden_size", 16), **kw)
     cfg.input_features = {
         OBS_STATE: PolicyFeature(FeatureType.STATE, (8,)),
         OBS_ENV: PolicyFeature(FeatureType.ENV, (3,)),
     }
     cfg.output_features = {ACTION: PolicyFeature(FeatureType.ACTION, (8,))}
-    policy = PnpLstmPolicy(cfg)
+    return cfg
+
+
+def _fresh_policy(**kw) -> PnpLstmPolicy:
+    torch.manual_seed(0)
+    policy = PnpLstmPolicy(_config(**kw))
     policy.eval()
     return policy
 
@@ -190,6 +64,13 @@ def _rollout(policy, eps: dict[str, torch.Tensor], steps: int = T, rows=None) ->
     return torch.stack(out, dim=1)
 
 
+def _stats() -> dict:
+    def s(d):
+        return {"mean": torch.zeros(d), "std": torch.ones(d), "min": -torch.ones(d), "max": torch.ones(d)}
+
+    return {OBS_STATE: s(8), OBS_ENV: s(3), ACTION: s(8)}
+
+
 # ---- LeRobot integration ------------------------------------------------------------------------
 
 
@@ -199,36 +80,60 @@ def test_factory_finds_plugin_classes():
     assert isinstance(cfg, PnpLstmConfig)
     assert type(cfg).__module__ == "lerobot_pnp.policy.configuration_pnp_lstm"
     assert cfg.device == "cpu" and cfg.push_to_hub is False
-    assert cfg.observation_delta_indices == list(range(-9, 1))
-    assert cfg.action_delta_indices == list(range(-9, 1))
+    # Every window holds its whole episode; the sampler picks each episode's first frame only.
+    assert cfg.observation_delta_indices == list(range(-9, 10))
+    assert cfg.action_delta_indices == list(range(-9, 10))
+    assert cfg.drop_n_last_frames == 9
     assert cfg.reward_delta_indices is None
-    cfg.input_features = {
-        OBS_STATE: PolicyFeature(FeatureType.STATE, (8,)),
-        OBS_ENV: PolicyFeature(FeatureType.ENV, (3,)),
-    }
-    cfg.output_features = {ACTION: PolicyFeature(FeatureType.ACTION, (8,))}
+    cfg.input_features = _config().input_features
+    cfg.output_features = _config().output_features
     pre, post = make_pre_post_processors(cfg, dataset_stats=None)
     assert pre.name == "policy_preprocessor" and post.name == "policy_postprocessor"
 
 
+def test_policy_wraps_a_plain_network():
+    """LeRobot's ACTPolicy / ACT split: the network is a plain nn.Module with all the weights."""
+    policy = _fresh_policy()
+    assert isinstance(policy.model, PnpLstm) and not hasattr(PnpLstm, "select_action")
+    assert {n for n, _ in policy.named_parameters()} == {"model." + n for n, _ in policy.model.named_parameters()}
+    x = torch.randn(3, T, 11)
+    with torch.no_grad():
+        torch.testing.assert_close(
+            policy.model(x), policy.predict_sequence({OBS_STATE: x[..., :8], OBS_ENV: x[..., 8:]})
+        )
+
+
 def test_config_validation():
-    with pytest.raises(ValueError, match="num_layers"):
-        PnpLstmConfig(num_layers=3)
-    with pytest.raises(ValueError, match="shared_network"):
-        PnpLstmConfig(carry_hidden_across_subtasks=True)
-    with pytest.raises(ValueError, match="lr_scheduler"):
-        PnpLstmConfig(lr_scheduler="step")
+    for kwargs, match in (
+        ({"num_layers": 3}, "num_layers"),
+        ({"carry_hidden_across_subtasks": True}, "shared_network"),
+        ({"lr_scheduler": "step"}, "lr_scheduler"),
+        ({"optimizer_lr": -1e-3}, "optimizer_lr"),
+        ({"dataset_fps": 0}, "dataset_fps"),
+    ):
+        with pytest.raises(ConfigError, match=match):
+            PnpLstmConfig(**kwargs)
     assert PnpLstmConfig().get_scheduler_preset() is None
     assert PnpLstmConfig(lr_scheduler="cosine").get_scheduler_preset() is not None
     cfg = PnpLstmConfig()
     cfg.input_features = {OBS_STATE: PolicyFeature(FeatureType.STATE, (8,))}
     cfg.output_features = {ACTION: PolicyFeature(FeatureType.ACTION, (8,))}
-    with pytest.raises(ValueError, match="environment_state"):
+    with pytest.raises(ConfigError, match="environment_state"):
         PnpLstmPolicy(cfg)
 
 
+def test_every_config_field_is_documented():
+    import dataclasses
+
+    doc = PnpLstmConfig.__doc__
+    own = [f.name for f in dataclasses.fields(PnpLstmConfig) if f.name in PnpLstmConfig.__annotations__]
+    assert len(own) > 15
+    for name in own:
+        assert f"{name}:" in doc or f"{name} /" in doc or f"/ {name}" in doc, name
+
+
 def test_policy_imports_no_simulator():
-    """The policy package knows tensors and LeRobot features only."""
+    """The policy package knows tensors and LeRobot features only (and the package's error classes)."""
     banned = ("mujoco", "gymnasium", "gym", "lerobot_pnp")
     for path in (REPO_ROOT / "lerobot_pnp" / "policy").glob("*.py"):
         tree = ast.parse(path.read_text())
@@ -240,143 +145,8 @@ def test_policy_imports_no_simulator():
             else:
                 continue
             for m in mods:
-                assert m.split(".")[0] not in banned, f"{path.name} imports {m}"
-
-
-def test_windowed_batches_match_full_episodes(dataset_root):
-    """lerobot-train's windows: normalised correctly, shifted to frame 0, balanced loss == full-episode loss."""
-    from lerobot.datasets import resolve_delta_timestamps
-    from lerobot.policies.factory import make_policy
-
-    plain = LeRobotDataset("test/pnp_synth", root=dataset_root, video_backend="pyav")
-    torch.manual_seed(0)
-    policy = make_policy(PnpLstmConfig(hidden_size=16), ds_meta=plain.meta)  # features from the dataset
-    policy.eval()
-    delta = resolve_delta_timestamps(policy.config, plain.meta)
-    assert delta[OBS_STATE] == [float(k) for k in range(-9, 1)]  # fps = 1: delta indices are seconds
-    ds = LeRobotDataset("test/pnp_synth", root=dataset_root, delta_timestamps=delta, video_backend="pyav")
-    pre, _ = make_pre_post_processors(policy.config, dataset_stats=ds.meta.stats)
-
-    n_ep = 4
-    windows = [ds[i] for i in range(n_ep * T)]  # every frame of the first episodes
-    batch = {
-        k: torch.stack([w[k] for w in windows])
-        for k in (OBS_STATE, OBS_ENV, ACTION, f"{OBS_STATE}_is_pad", f"{OBS_ENV}_is_pad", f"{ACTION}_is_pad")
-    }
-    raw_state = batch[OBS_STATE].clone()
-    assert batch[OBS_STATE].shape == (n_ep * T, T, 8) and batch[f"{OBS_STATE}_is_pad"].shape == (n_ep * T, T)
-    nb = pre(batch)
-    # The normaliser sees (B, T, D) and broadcasts the (D,) stats over B and T.
-    stats = ds.meta.stats[OBS_STATE]
-    expect = (raw_state - torch.as_tensor(stats["mean"]).float()) / (torch.as_tensor(stats["std"]).float() + 1e-8)
-    torch.testing.assert_close(nb[OBS_STATE], expect)
-    assert torch.equal(nb[f"{ACTION}_is_pad"], batch[f"{ACTION}_is_pad"])
-
-    # Full episodes (the fast path) through the same pre-processor.
-    full = {k: torch.stack([nb[k][e * T + T - 1] for e in range(n_ep)]) for k in (OBS_STATE, OBS_ENV, ACTION)}
-    assert not torch.stack([batch[f"{OBS_STATE}_is_pad"][e * T + T - 1] for e in range(n_ep)]).any()
-    with torch.no_grad():
-        full_pred = policy.predict_sequence(full)
-        for i in range(n_ep * T):
-            e, t = divmod(i, T)
-            win = {k: nb[k][i : i + 1] for k in nb if isinstance(nb[k], torch.Tensor) and nb[k].ndim >= 2}
-            # After shifting, position k of the window is episode frame k: same predictions as the full episode.
-            x = policy._gather_inputs(win, sequence=True)
-            n_pad = int(win[f"{OBS_STATE}_is_pad"].sum())
-            assert n_pad == T - 1 - t
-            pred = policy._run_sequence(torch.roll(x, -n_pad, dims=1))
-            torch.testing.assert_close(pred[0, : t + 1], full_pred[e, : t + 1])
-        # Averaged over every window of every episode, the balanced window loss is the full-episode MSE.
-        win_loss, _ = policy.forward({k: v for k, v in nb.items() if isinstance(v, torch.Tensor)})
-        full_loss, _ = policy.forward(full)
-        torch.testing.assert_close(win_loss, full_loss)
-        per_sample, _ = policy.forward({k: v for k, v in nb.items() if isinstance(v, torch.Tensor)}, reduction="none")
-        assert per_sample.shape == (n_ep * T,)
-
-
-def test_forward_rejects_bad_pad_mask():
-    policy = _fresh_policy()
-    b = _norm_episodes(2)
-    pad = torch.zeros(2, T, dtype=torch.bool)
-    pad[0, -1] = True  # padding at the end of a window: not produced by delta indices -9..0
-    with pytest.raises(ValueError, match="Padding"):
-        policy.forward({**b, f"{OBS_STATE}_is_pad": pad, f"{ACTION}_is_pad": pad})
-    with pytest.raises(ValueError, match="longer than an episode"):
-        policy.forward({k: torch.cat([v, v], dim=1) for k, v in b.items()})
-
-
-# ---- training and checkpoints -------------------------------------------------------------------
-
-
-def test_train_fast_reduces_loss_and_writes_outputs(trained):
-    result, out = trained
-    h0 = result.history[0]
-    assert result.final_train_mse < 0.05 * h0["train_mse"], (h0, result.final_train_mse)
-    assert result.final_test_mse < 0.2 * h0["test_mse"], (h0, result.final_test_mse)
-    pm = out / "checkpoints" / "last" / "pretrained_model"
-    assert (out / "checkpoints" / "last").is_symlink()
-    for name in (
-        "config.json",
-        "model.safetensors",
-        "train_config.json",
-        "policy_preprocessor.json",
-        "policy_postprocessor.json",
-    ):
-        assert (pm / name).is_file(), name
-    assert list(pm.glob("policy_preprocessor_step_*_normalizer_processor.safetensors"))
-    assert json.loads((pm / "config.json").read_text())["type"] == "pnp_lstm"
-    assert (out / "loss_curve.png").stat().st_size > 1000
-    lines = (out / "loss_curve.csv").read_text().strip().splitlines()
-    assert lines[0].startswith("epoch,step,train_mse,test_mse") and len(lines) == 1 + 1 + 80
-    err = json.loads((out / "test_keyframe_error.json").read_text())
-    assert err["n_episodes"] == N_EPISODES - N_TRAIN and err["n_train_episodes"] == N_TRAIN
-    assert "info.json" in err["split"]
-    assert list(err["per_joint_mae_deg"]) == STATE_NAMES[:7]
-    assert all(math.isfinite(v) for v in err["per_joint_mae_deg"].values())
-    assert err["mean_joint_mae_deg"] < 5.0
-    assert (out / "train_fast_config.json").is_file()
-
-
-def test_save_load_roundtrip_identical_actions(trained, episodes):
-    result, _ = trained
-    path = result.checkpoint_dir
-    a = PnpLstmPolicy.from_pretrained(path)
-    b = PnpLstmPolicy.from_pretrained(path)
-    cfg = PnpLstmConfig.from_pretrained(path)
-    cfg.pretrained_path = path  # lerobot#4647: processors need the path to get their stats
-    pre, post = make_pre_post_processors(cfg, pretrained_path=str(path))
-    rows = torch.arange(N_TRAIN, N_EPISODES)
-    raw = episodes.batch(rows)
-    acts = []
-    for pol in (a, b):
-        pol.reset()
-        seq = []
-        for k in range(T):
-            obs = pre({OBS_STATE: raw[OBS_STATE][:, k], OBS_ENV: raw[OBS_ENV][:, k]})
-            with torch.inference_mode():
-                seq.append(post(pol.select_action(obs)))
-        acts.append(torch.stack(seq, 1))
-    assert torch.equal(acts[0], acts[1])
-    # Same weights as the in-memory policy that was trained, and sensible predictions in raw units.
-    err = (acts[0][..., :7] - raw[ACTION][..., :7]).abs().mean() * 180 / math.pi
-    assert float(err) < 5.0
-    sd_a = a.state_dict()
-    for k, v in PnpLstmPolicy.from_pretrained(path).state_dict().items():
-        assert torch.equal(v, sd_a[k])
-
-
-def test_train_fast_refuses_existing_output_dir(trained, dataset_root):
-    _, out = trained
-    with pytest.raises(FileExistsError):
-        train_fast(
-            TrainFastConfig(
-                dataset_repo_id="test/pnp_synth",
-                dataset_root=str(dataset_root),
-                output_dir=str(out),
-                epochs=1,
-                progress=False,
-            )
-        )
+                if m != "lerobot_pnp.errors":
+                    assert m.split(".")[0] not in banned, f"{path.name} imports {m}"
 
 
 # ---- inference ----------------------------------------------------------------------------------
@@ -399,14 +169,14 @@ def test_select_action_matches_teacher_forced_sequence():
         torch.testing.assert_close(steps, seq, msg=str(kw))
 
 
-def test_reset_clears_hidden_state():
+def test_reset_clears_the_episode_state():
     policy = _fresh_policy()
     fresh = _fresh_policy()
     eps = _norm_episodes(3)
     _rollout(policy, eps, steps=3)
-    assert policy._step is not None and int(policy._step[0]) == 3
+    assert policy._step == 3
     policy.reset()
-    assert policy._step is None and policy._hidden is None and policy._last_action is None
+    assert policy._step == 0 and policy._state is None and policy._last_action is None
     first = _rollout(policy, eps, steps=1)
     torch.testing.assert_close(first, _rollout(fresh, eps, steps=1))
     # Without reset, the same observation gives a different action (memory + step counter).
@@ -447,6 +217,25 @@ def test_holds_last_action_after_the_last_keyframe():
         torch.testing.assert_close(acts[:, k], acts[:, T - 1])
 
 
+def test_a_long_episode_warns_about_the_control_mode(caplog):
+    """A keyframe policy stepped far past its episode (a dense env) says so once, instead of failing silently."""
+    policy = _fresh_policy()
+    with caplog.at_level(logging.WARNING, logger="lerobot_pnp.policy.modeling_pnp_lstm"):
+        _rollout(policy, _norm_episodes(1), steps=T)
+        assert not caplog.records
+        _rollout(policy, _norm_episodes(1), steps=6 * T)
+    assert len(caplog.records) == 1 and "control_mode dense" in caplog.records[0].getMessage()
+
+
+def test_check_env_fps():
+    cfg = PnpLstmConfig(dataset_fps=1)
+    cfg.check_env_fps(1)
+    cfg.check_env_fps(None)
+    with pytest.raises(PolicyError, match="trained on a 1 fps dataset.*env runs at 20 fps"):
+        cfg.check_env_fps(20)
+    PnpLstmConfig().check_env_fps(20)  # not recorded (older checkpoints): nothing to compare
+
+
 def test_batched_select_action_equals_per_env():
     policy = _fresh_policy()
     eps = _norm_episodes(6)
@@ -455,7 +244,7 @@ def test_batched_select_action_equals_per_env():
         policy.reset()
         single = _rollout(policy, eps, rows=slice(i, i + 1))
         torch.testing.assert_close(single[0], batched[i], rtol=1e-5, atol=1e-6)
-    with pytest.raises(ValueError, match="Batch size changed"):
+    with pytest.raises(PolicyError, match="batch size changed"):
         policy.select_action({OBS_STATE: eps[OBS_STATE][:, 0], OBS_ENV: eps[OBS_ENV][:, 0]})
 
 
@@ -467,32 +256,6 @@ def test_select_action_under_inference_mode_then_without():
         policy.select_action(obs)
     policy.select_action(obs)  # caches created under inference_mode are not modified in place
     assert policy.predict_action_chunk(obs).shape == (2, 1, 8)
-
-
-def test_non_finite_observation_raises():
-    policy = _fresh_policy()
-    obs = {OBS_STATE: torch.zeros(2, 8), OBS_ENV: torch.zeros(2, 3)}
-    bad = {**obs, OBS_STATE: obs[OBS_STATE].clone()}
-    bad[OBS_STATE][1, 3] = float("nan")
-    with pytest.raises(ValueError, match=r"observation\.state.*non-finite"):
-        policy.select_action(bad)
-    bad = {**obs, OBS_ENV: obs[OBS_ENV].clone()}
-    bad[OBS_ENV][0, 0] = float("inf")
-    with pytest.raises(ValueError, match=r"observation\.environment_state.*non-finite"):
-        policy.select_action(bad)
-
-
-def test_mismatched_features_raise():
-    policy = _fresh_policy()
-    with pytest.raises(ValueError, match=r"observation\.state.*shape"):
-        policy.select_action({OBS_STATE: torch.zeros(2, 7), OBS_ENV: torch.zeros(2, 3)})
-    with pytest.raises(ValueError, match=r"observation\.environment_state.*missing"):
-        policy.select_action({OBS_STATE: torch.zeros(2, 8)})
-    with pytest.raises(ValueError, match="leading shape"):
-        policy.select_action({OBS_STATE: torch.zeros(2, 8), OBS_ENV: torch.zeros(3, 3)})
-    b = _norm_episodes(2)
-    with pytest.raises(ValueError, match="'action' has shape"):
-        policy.forward({**b, ACTION: b[ACTION][..., :7]})
 
 
 def test_memoryless_variant_has_no_memory():
@@ -508,131 +271,134 @@ def test_memoryless_variant_has_no_memory():
     torch.testing.assert_close(acts2[:, 2:], acts[:, 2:])  # only step 1's own output changes
 
 
-# ---- dataset validation and splits --------------------------------------------------------------
+# ---- training loss on windows -------------------------------------------------------------------
 
 
-def test_train_fast_config_from_lerobot_train_json():
-    cfg = TrainFastConfig.from_train_config(REPO_ROOT / "configs" / "train_pnp_lstm.json", epochs=3)
-    raw = json.loads((REPO_ROOT / "configs" / "train_pnp_lstm.json").read_text())
-    assert cfg.dataset_repo_id == raw["dataset"]["repo_id"] and cfg.batch_size == raw["batch_size"]
-    assert isinstance(cfg.policy, PnpLstmConfig) and cfg.epochs == 3
-    for key, value in raw["policy"].items():
-        if key != "type":
-            assert getattr(cfg.policy, key) == value, key
+def test_window_loss_equals_whole_episode_loss_wherever_the_window_starts():
+    """A window of frames -(T-1)..T-1 around any sampled frame holds the whole episode: same loss, same info."""
+    policy = _fresh_policy()
+    eps = _norm_episodes(4)
+    full_loss, full_info = policy.forward(eps)
+    length = 2 * T - 1
+    for sampled in (0, 3, T - 1):
+        start = T - 1 - sampled  # window position of episode frame 0
+        win, pad = {}, torch.ones(4, length, dtype=torch.bool)
+        pad[:, start : start + T] = False
+        for key, v in eps.items():
+            w = torch.full((4, length, v.shape[-1]), 123.0)  # LeRobot clamps; any value must be ignored
+            w[:, start : start + T] = v
+            win[key] = w
+            win[f"{key}_is_pad"] = pad
+        loss, info = policy.forward(win)
+        torch.testing.assert_close(loss, full_loss)
+        assert info.keys() == full_info.keys() == {"mse_pick", "mse_place"}
+    per_sample, _ = policy.forward(win, reduction="none")
+    assert per_sample.shape == (4,)
+    torch.testing.assert_close(per_sample.mean(), full_loss)
 
 
-def test_split_episodes():
-    assert split_episodes({"train": "0:8", "test": "8:10"}, 10)[:2] == (list(range(8)), [8, 9])
-    train, test, source = split_episodes({"train": "0:10"}, 10)
-    assert (train, test) == (list(range(8)), [8, 9]) and "fallback" in source
-    assert split_episodes({}, 10, test_override="0:2")[:2] == (list(range(2, 10)), [0, 1])
-    with pytest.raises(ValueError):
-        split_episodes({"test": "0:20"}, 10)
+# ---- the processor: the one place that checks observations --------------------------------------
+
+
+def test_processor_rejects_observations_that_do_not_fit():
+    pre, _ = make_pnp_lstm_pre_post_processors(_config(), dataset_stats=_stats())
+    good = {OBS_STATE: torch.zeros(2, 8), OBS_ENV: torch.zeros(2, 3)}
+    assert pre(dict(good))[OBS_STATE].shape == (2, 8)
+    with pytest.raises(PolicyError, match=r"'observation\.state' has shape \(2, 7\).*trained on \(8,\)"):
+        pre({**good, OBS_STATE: torch.zeros(2, 7)})
+    with pytest.raises(PolicyError, match=r"observation 'observation\.environment_state' is missing"):
+        pre({OBS_STATE: torch.zeros(2, 8)})
+    bad = good[OBS_ENV].clone()
+    bad[1, 0] = float("inf")
+    with pytest.raises(PolicyError, match=r"'observation\.environment_state' contains NaN or inf \(batch row 1\)"):
+        pre({**good, OBS_ENV: bad})
+
+
+def test_processor_names_the_episode_and_frame_of_a_nan_in_a_dataset_batch():
+    cfg = _config(dataset_fps=1)
+    pre, _ = make_pnp_lstm_pre_post_processors(cfg, dataset_stats=_stats())
+    length = 2 * T - 1
+    batch = {
+        OBS_STATE: torch.zeros(3, length, 8),
+        OBS_ENV: torch.zeros(3, length, 3),
+        ACTION: torch.zeros(3, length, 8),
+        "episode_index": torch.tensor([4, 7, 9]),
+        "timestamp": torch.tensor([0.0, 0.0, 0.0]),
+        "index": torch.tensor([40, 70, 90]),
+    }
+    batch[ACTION][1, T - 1 + 6, 2] = float("nan")  # episode 7, frame 6 (window position of frame 0: T-1)
+    with pytest.raises(DatasetError) as err:
+        pre(batch)
+    assert str(err.value).startswith("action contains NaN or inf in episode 7, frame 6")
+    assert len(str(err.value)) < 200  # names the place, does not dump the batch
+    # A NaN in frame 0 is also in the padded copies before it: the frame named is the real one.
+    batch[ACTION][1] = 0.0
+    batch[ACTION][2, :T, 0] = float("nan")
+    batch[f"{ACTION}_is_pad"] = torch.arange(2 * T - 1).expand(3, -1) < T - 1
+    with pytest.raises(DatasetError, match="action contains NaN or inf in episode 9, frame 0"):
+        pre(batch)
+
+
+# ---- checkpoints --------------------------------------------------------------------------------
+
+
+def _save_checkpoint(policy: PnpLstmPolicy, path: Path) -> Path:
+    policy.save_pretrained(path)
+    return path
+
+
+def test_checkpoints_written_before_the_network_split_still_load(tmp_path):
+    """Old checkpoints stored the subtask nets at the policy's top level and had no dataset_fps."""
+    policy = _fresh_policy()
+    path = _save_checkpoint(policy, tmp_path / "old")
+    weights = load_file(path / "model.safetensors")
+    old = {k.removeprefix("model."): v for k, v in weights.items()}
+    assert all(k.startswith("subtask_nets.") for k in old)
+    save_file(old, path / "model.safetensors")
+    config = json.loads((path / "config.json").read_text())
+    config.pop("dataset_fps")
+    (path / "config.json").write_text(json.dumps(config))
+
+    loaded = PnpLstmPolicy.from_pretrained(path)
+    eps = _norm_episodes(2)
+    policy.reset()
+    torch.testing.assert_close(_rollout(loaded, eps), _rollout(policy, eps))
 
 
 @pytest.mark.parametrize(
-    ("kwargs", "match"),
+    ("damage", "match"),
     [
-        ({"with_action": False}, r"no 'action' feature"),
-        ({"state_dim": 7}, r"'observation\.state' has shape \(7,\)"),
-        ({"episode_len": 12}, r"not a keyframe dataset"),
+        ("missing_folder", "no pnp_lstm checkpoint at|not a complete checkpoint"),
+        ("no_weights", r"missing model\.safetensors"),
+        ("corrupt_weights", "cannot read the weights"),
+        ("wrong_weights", "do not fit this pnp_lstm config"),
+        ("corrupt_config", "cannot read the policy config"),
     ],
 )
-def test_train_fast_rejects_wrong_datasets(tmp_path, kwargs, match):
-    root = tmp_path / "bad"
-    make_keyframe_dataset(root, n_episodes=3, **kwargs)
-    cfg = TrainFastConfig(
-        dataset_repo_id="test/pnp_synth",
-        dataset_root=str(root),
-        output_dir=str(tmp_path / "o"),
-        epochs=1,
-        progress=False,
-    )
-    with pytest.raises(ValueError, match=match):
-        train_fast(cfg)
+def test_bad_checkpoints_are_one_clear_policy_error(tmp_path, damage, match):
+    path = _save_checkpoint(_fresh_policy(), tmp_path / "ckpt")
+    if damage == "missing_folder":
+        path = tmp_path / "nothing" / "pretrained_model"
+    elif damage == "no_weights":
+        (path / "model.safetensors").unlink()
+    elif damage == "corrupt_weights":
+        (path / "model.safetensors").write_bytes(b"not a safetensors file")
+    elif damage == "wrong_weights":
+        _fresh_policy(hidden_size=8).save_pretrained(tmp_path / "other")
+        (path / "model.safetensors").write_bytes((tmp_path / "other" / "model.safetensors").read_bytes())
+    elif damage == "corrupt_config":
+        (path / "config.json").write_text("{not json")
+    config = None if damage != "corrupt_config" else _config()
+    with pytest.raises(PolicyError, match=match) as err:
+        PnpLstmPolicy.from_pretrained(path, config=config)
+    assert "\n" not in str(err.value)
 
 
-def test_policy_rejects_non_keyframe_dataset_meta(tmp_path):
-    from lerobot.policies.factory import make_policy
-
-    root = tmp_path / "long"
-    make_keyframe_dataset(root, n_episodes=2, episode_len=12)
-    ds = LeRobotDataset("test/pnp_synth", root=root, video_backend="pyav")
-    with pytest.raises(ValueError, match="Not a keyframe dataset"):
-        make_policy(PnpLstmConfig(), ds_meta=ds.meta)
-
-
-# ---- the real lerobot-train CLI -----------------------------------------------------------------
-
-
-def _plugin_installed() -> bool:
-    from importlib.metadata import PackageNotFoundError, distribution
-
-    try:
-        distribution("lerobot_policy_pnp_lstm")
-        return True
-    except PackageNotFoundError:
-        return False
-
-
-@pytest.mark.slow
-def test_lerobot_train_cli(dataset_root, tmp_path):
-    out = tmp_path / "train"
-    exe = Path(sys.executable).with_name("lerobot-train")
-    cmd = [
-        str(exe),
-        "--dataset.repo_id=test/pnp_synth",
-        f"--dataset.root={dataset_root}",
-        "--dataset.video_backend=pyav",
-        "--policy.type=pnp_lstm",
-        "--policy.device=cpu",
-        "--policy.push_to_hub=false",
-        "--policy.hidden_size=16",
-        "--steps=3",
-        "--batch_size=8",
-        "--num_workers=0",
-        "--save_freq=3",
-        "--log_freq=1",
-        f"--output_dir={out}",
-    ]
-    env = {**os.environ, "OMP_NUM_THREADS": "1", "HF_HUB_OFFLINE": "1"}
-    if not _plugin_installed():  # not pip-installed: let lerobot import the package by path
-        cmd.insert(1, "--policy.discover_packages_path=lerobot_pnp")
-        env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(REPO_ROOT), env.get("PYTHONPATH")]))
-    proc = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=300, cwd=tmp_path)
-    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
-    assert "mse_pick" in proc.stdout + proc.stderr
-    pm = out / "checkpoints" / "last" / "pretrained_model"
-    assert (pm / "train_config.json").is_file()
-    policy = PnpLstmPolicy.from_pretrained(pm)
-    assert policy.config.hidden_size == 16
-    obs = {OBS_STATE: torch.zeros(2, 8), OBS_ENV: torch.zeros(2, 3)}
-    assert torch.isfinite(policy.select_action(obs)).all()
-
-
-def test_loading_a_checkpoint_for_other_features_names_the_mismatch(trained):
+def test_loading_a_checkpoint_for_other_features_names_the_mismatch(tmp_path):
     """make_policy swaps in the env's output features; a different action size must fail clearly."""
-    from lerobot.configs import FeatureType, PolicyFeature
-
-    path = trained[0].checkpoint_dir
+    path = _save_checkpoint(_fresh_policy(), tmp_path / "ckpt")
     cfg = PnpLstmConfig.from_pretrained(path)
-    cfg.output_features = {"action": PolicyFeature(FeatureType.ACTION, (14,))}
-    with pytest.raises(ValueError, match=r"trained with action of shape \(8,\), but the env/dataset provides \(14,\)"):
+    cfg.output_features = {ACTION: PolicyFeature(FeatureType.ACTION, (14,))}
+    with pytest.raises(PolicyError, match=r"trained with action of shape \(8,\), but the env/dataset provides \(14,\)"):
         PnpLstmPolicy.from_pretrained(path, config=cfg)
     assert PnpLstmPolicy.from_pretrained(path, config=PnpLstmConfig.from_pretrained(path)) is not None
-
-
-def test_train_fast_on_a_missing_local_dataset_is_a_clear_error(tmp_path):
-    """A wrong --dataset_root must not fall back to downloading repo_id from the Hub."""
-    from lerobot_pnp.errors import DatasetError
-
-    cfg = TrainFastConfig(
-        dataset_repo_id="local/nothing",
-        dataset_root=str(tmp_path / "missing"),
-        epochs=1,
-        output_dir=str(tmp_path / "out"),
-        progress=False,
-    )
-    with pytest.raises(DatasetError, match="no dataset at"):
-        train_fast(cfg)
-    assert not (tmp_path / "out").exists()

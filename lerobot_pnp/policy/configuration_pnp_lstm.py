@@ -5,6 +5,13 @@ The policy learns the pick-and-place FSM from a *keyframe* dataset: every episod
 start/approach/descend/open/retract). At frame ``k`` the input is the robot state and the object position,
 the target is the next keyframe (joint targets + gripper command).
 
+Training windows: every ``lerobot-train`` sample is one whole episode. The observation/action delta indices
+are ``-(T-1) .. T-1`` around the sampled frame, so a window always contains its whole episode (frames outside
+it are padded), and ``drop_n_last_frames = T-1`` makes LeRobot's ``EpisodeAwareSampler`` sample only the
+first frame of each episode, so an epoch is one pass over the episodes, as in the paper and the fast path.
+The eval split (``--dataset.eval_split``) iterates every frame without that sampler; its windows hold the
+whole episode too, so the held-out loss is the plain per-episode MSE.
+
 LeRobot finds the classes by naming convention: this module is ``configuration_pnp_lstm``, so
 ``PnpLstmConfig`` -> ``PnpLstmPolicy`` in ``modeling_pnp_lstm`` and ``make_pnp_lstm_pre_post_processors``
 in ``processor_pnp_lstm`` (see ``lerobot.policies.factory``).
@@ -22,6 +29,8 @@ from lerobot.optim import AdamConfig
 from lerobot.optim.schedulers import CosineAnnealingWithWarmupSchedulerConfig, LRSchedulerConfig
 from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_STATE
 
+from lerobot_pnp.errors import ConfigError, PolicyError
+
 logger = logging.getLogger(__name__)
 
 LR_SCHEDULERS = ("none", "cosine")
@@ -37,6 +46,12 @@ class PnpLstmConfig(PreTrainedConfig):
     zero hidden state. Loss: MSE on MEAN_STD-normalised actions.
 
     Args:
+        n_obs_steps: LeRobot's observation history length; must be 1 (the LSTM state is the history).
+        device: Torch device of the policy. ``"cpu"``: a ~150k-parameter LSTM is as fast on one CPU thread
+            as on a GPU (LeRobot's default ``None`` auto-selects and logs a warning).
+        push_to_hub: LeRobot's default is True, which makes ``lerobot-train`` demand a ``--policy.repo_id``;
+            here it is opt-in.
+        normalization_mapping: MEAN_STD for the robot state, the object position (ENV) and the action.
         steps_per_subtask: Keyframes per subtask FSM (the paper's 5 states).
         n_subtasks: Number of subtasks (pick, place). An episode has ``n_subtasks * steps_per_subtask``
             frames.
@@ -50,23 +65,24 @@ class PnpLstmConfig(PreTrainedConfig):
         recurrent: ``False`` gives the memoryless ablation: the same layers, but the hidden state is reset
             to zero before every step (same parameter count, no memory).
         input_noise_std: Std of Gaussian noise added to the normalised inputs during training only.
-        balance_window_loss: With ``lerobot-train`` each sample is a window ending at a uniformly sampled
-            frame, so early frames are seen more often than late ones. When True, valid frame ``k`` of a
-            window is weighted by ``T / (T - k)`` so the expected loss equals the plain per-frame MSE of
-            whole episodes (what the fast path and the paper optimise).
+        balance_window_loss: Ignored; kept so that configs and checkpoints written before every training
+            window became a whole episode still load. (It weighted the frames of windows that ended at a
+            uniformly drawn frame.)
         torch_num_threads: If set and the policy runs on CPU, ``torch.set_num_threads`` is called with it
             when the policy is built. This tiny model is ~100x slower with several intra-op threads on a
             small CPU; ``None`` leaves torch alone.
+        dataset_fps: Frame rate of the dataset the policy was trained on, recorded from the dataset's
+            metadata when the policy is built for training (``None``: not recorded, e.g. checkpoints
+            written before it was). A keyframe dataset has one frame per FSM state; evaluating on an env
+            whose control rate differs (``--env.control_mode dense``) cannot work, and whoever builds the
+            env can compare its ``fps`` with this (see ``check_env_fps``).
         optimizer_lr / optimizer_weight_decay / optimizer_grad_clip_norm: Adam preset.
         lr_scheduler: ``"none"`` or ``"cosine"`` (linear warm-up, then cosine annealing to zero over the run).
         scheduler_warmup_steps: Warm-up steps of the cosine schedule.
     """
 
     n_obs_steps: int = 1
-    # A ~150k-parameter LSTM: CPU (1 thread) is as fast as a GPU here and needs no accelerator at eval.
-    # LeRobot's default is None (auto-select), which also logs a warning; pass --policy.device=cuda to opt in.
     device: str | None = "cpu"
-    # LeRobot's default is True, which makes `lerobot-train` demand a --policy.repo_id; opt in instead.
     push_to_hub: bool = False
 
     normalization_mapping: dict[str, NormalizationMode] = field(
@@ -94,6 +110,9 @@ class PnpLstmConfig(PreTrainedConfig):
     balance_window_loss: bool = True
     torch_num_threads: int | None = 1
 
+    # Recorded from the training dataset.
+    dataset_fps: int | None = None
+
     # Optimiser preset (Adam, as in most LSTM work of the time).
     optimizer_lr: float = 1e-3
     optimizer_weight_decay: float = 0.0
@@ -103,29 +122,43 @@ class PnpLstmConfig(PreTrainedConfig):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        if self.steps_per_subtask < 1:
-            raise ValueError(f"steps_per_subtask must be >= 1, got {self.steps_per_subtask}.")
-        if self.n_subtasks < 1:
-            raise ValueError(f"n_subtasks must be >= 1, got {self.n_subtasks}.")
-        if self.num_layers not in (1, 2):
-            raise ValueError(f"num_layers must be 1 or 2, got {self.num_layers}.")
-        if self.hidden_size < 1:
-            raise ValueError(f"hidden_size must be >= 1, got {self.hidden_size}.")
-        if not 0.0 <= self.dropout < 1.0:
-            raise ValueError(f"dropout must be in [0, 1), got {self.dropout}.")
-        if self.input_noise_std < 0.0:
-            raise ValueError(f"input_noise_std must be >= 0, got {self.input_noise_std}.")
-        if self.lr_scheduler not in LR_SCHEDULERS:
-            raise ValueError(f"lr_scheduler must be one of {LR_SCHEDULERS}, got {self.lr_scheduler!r}.")
-        if self.carry_hidden_across_subtasks and not self.shared_network:
-            raise ValueError(
+        checks = [
+            (self.steps_per_subtask >= 1, f"steps_per_subtask must be >= 1, got {self.steps_per_subtask}"),
+            (self.n_subtasks >= 1, f"n_subtasks must be >= 1, got {self.n_subtasks}"),
+            (self.num_layers in (1, 2), f"num_layers must be 1 or 2, got {self.num_layers}"),
+            (self.hidden_size >= 1, f"hidden_size must be >= 1, got {self.hidden_size}"),
+            (0.0 <= self.dropout < 1.0, f"dropout must be in [0, 1), got {self.dropout}"),
+            (self.input_noise_std >= 0.0, f"input_noise_std must be >= 0, got {self.input_noise_std}"),
+            (self.optimizer_lr > 0.0, f"optimizer_lr must be > 0, got {self.optimizer_lr}"),
+            (
+                self.optimizer_weight_decay >= 0.0,
+                f"optimizer_weight_decay must be >= 0, got {self.optimizer_weight_decay}",
+            ),
+            (
+                self.scheduler_warmup_steps >= 0,
+                f"scheduler_warmup_steps must be >= 0, got {self.scheduler_warmup_steps}",
+            ),
+            (
+                self.lr_scheduler in LR_SCHEDULERS,
+                f"lr_scheduler must be one of {LR_SCHEDULERS}, got {self.lr_scheduler!r}",
+            ),
+            (
+                not (self.carry_hidden_across_subtasks and not self.shared_network),
                 "carry_hidden_across_subtasks=True needs shared_network=True: separate subtask networks "
-                "do not share a hidden-state space."
-            )
-        if self.n_obs_steps != 1:
-            raise ValueError(
-                f"pnp_lstm keeps its own history in the LSTM state; n_obs_steps must be 1, got {self.n_obs_steps}."
-            )
+                "do not share a hidden-state space",
+            ),
+            (
+                self.n_obs_steps == 1,
+                f"pnp_lstm keeps its own history in the LSTM state; n_obs_steps must be 1, got {self.n_obs_steps}",
+            ),
+            (
+                self.dataset_fps is None or self.dataset_fps >= 1,
+                f"dataset_fps must be >= 1 or None, got {self.dataset_fps}",
+            ),
+        ]
+        for ok, message in checks:
+            if not ok:
+                raise ConfigError(f"policy.{message}")
 
     # ---- task structure -------------------------------------------------------------------------
 
@@ -134,21 +167,40 @@ class PnpLstmConfig(PreTrainedConfig):
         """Frames per keyframe episode (10 in the paper)."""
         return self.n_subtasks * self.steps_per_subtask
 
+    def check_env_fps(self, env_fps: int | float | None) -> None:
+        """Raise ``PolicyError`` when an env's control rate differs from the training dataset's.
+
+        A keyframe checkpoint stepped at a dense control rate (or the reverse) gives 0 % success without any
+        other symptom. Nothing is checked when either rate is unknown.
+        """
+        if self.dataset_fps is None or env_fps is None or int(env_fps) == int(self.dataset_fps):
+            return
+        raise PolicyError(
+            f"this pnp_lstm checkpoint was trained on a {self.dataset_fps} fps dataset (one step per keyframe "
+            f"when fps is 1), but the env runs at {env_fps} fps: evaluate it with the control mode of its training "
+            "data (e.g. --env.control_mode keyframe)"
+        )
+
     # ---- LeRobot contract -----------------------------------------------------------------------
 
     @property
     def observation_delta_indices(self) -> list[int]:
-        # A window of a whole episode ending at the sampled frame; LeRobot clamps frames before the
-        # episode start and marks them in `<key>_is_pad`.
-        return list(range(-(self.episode_length - 1), 1))
+        # Every window holds its whole episode, wherever the sampled frame lies in it; LeRobot pads the frames
+        # outside the episode (`<key>_is_pad`). With drop_n_last_frames the sampler picks frame 0 only.
+        return list(range(-(self.episode_length - 1), self.episode_length))
 
     @property
     def action_delta_indices(self) -> list[int]:
-        return list(range(-(self.episode_length - 1), 1))
+        return self.observation_delta_indices
 
     @property
     def reward_delta_indices(self) -> None:
         return None
+
+    @property
+    def drop_n_last_frames(self) -> int:
+        """Read by ``lerobot-train`` for its ``EpisodeAwareSampler``: sample each episode's first frame only."""
+        return self.episode_length - 1
 
     def get_optimizer_preset(self) -> AdamConfig:
         return AdamConfig(
@@ -168,18 +220,18 @@ class PnpLstmConfig(PreTrainedConfig):
         outputs = self.output_features or {}
         state = inputs.get(OBS_STATE)
         if state is None or state.type is not FeatureType.STATE:
-            raise ValueError(
+            raise ConfigError(
                 f"pnp_lstm needs the input feature '{OBS_STATE}' (robot joints + gripper); "
-                f"got input features {sorted(inputs)}."
+                f"got input features {sorted(inputs)}"
             )
         env = inputs.get(OBS_ENV_STATE)
         if env is None or env.type is not FeatureType.ENV:
-            raise ValueError(
+            raise ConfigError(
                 f"pnp_lstm needs the input feature '{OBS_ENV_STATE}' (object position); "
-                f"got input features {sorted(inputs)}."
+                f"got input features {sorted(inputs)}"
             )
         if ACTION not in outputs:
-            raise ValueError(f"pnp_lstm needs the output feature '{ACTION}'; got {sorted(outputs)}.")
+            raise ConfigError(f"pnp_lstm needs the output feature '{ACTION}'; got {sorted(outputs)}")
         if self.image_features:
             logger.warning(
                 "pnp_lstm is a state-only planner; it ignores the image features %s.", sorted(self.image_features)
@@ -188,7 +240,7 @@ class PnpLstmConfig(PreTrainedConfig):
             if ft.type is FeatureType.VISUAL:
                 continue
             if len(ft.shape) != 1:
-                raise ValueError(f"pnp_lstm expects 1-D features; '{key}' has shape {tuple(ft.shape)}.")
+                raise ConfigError(f"pnp_lstm expects 1-D features; '{key}' has shape {tuple(ft.shape)}")
 
     @property
     def model_input_keys(self) -> list[str]:

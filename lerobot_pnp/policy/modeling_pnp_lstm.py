@@ -1,20 +1,22 @@
 """``PnpLstmPolicy``: the data-driven task planner of de Magistris et al. 2016 as a LeRobot policy.
 
-Two LSTMs with the same architecture (LSTM + Linear head): the PICK net maps keyframes 0..4 to the next
-keyframe, the PLACE net (starting from a zero hidden state) maps keyframes 5..9. Inputs are the robot state
-(joints + gripper) and the object position, normalised by the pre-processor; outputs are normalised
-actions (next joint targets + gripper command) that the post-processor unnormalises.
+The split follows LeRobot's ``ACTPolicy`` / ``ACT``: ``PnpLstm`` is the plain ``nn.Module`` (two LSTMs with
+a Linear head: the PICK net maps keyframes 0..4 to the next keyframe, the PLACE net, from a zero hidden
+state, keyframes 5..9); ``PnpLstmPolicy`` wraps it with LeRobot's policy API (loss, per-episode inference
+state, checkpoint loading). Inputs are the robot state (joints + gripper) and the object position, normalised
+by the pre-processor, which is also the one place that checks observations; outputs are normalised actions
+(next joint targets + gripper command) that the post-processor unnormalises.
 
 Training batches (``forward``):
-  * windowed, from ``lerobot-train``: every ``observation.*`` key and ``action`` arrive as ``(B, T, D)``
-    with ``T = episode_length`` and ``<key>_is_pad`` masks. The window ends at the sampled frame, so the
-    pads are a prefix; each sequence is shifted left so that position ``k`` holds episode frame ``k``.
-  * whole episodes, from the fast path: ``(B, T, D)`` with no pad masks (all frames valid, frame = position).
+  * windows from ``lerobot-train``: every ``observation.*`` key and ``action`` arrive as ``(B, L, D)`` with
+    ``<key>_is_pad`` masks; each window contains its whole episode (see the config), so the episode is
+    the run of unpadded frames, taken out so that position ``k`` holds episode frame ``k``;
+  * whole episodes from the fast path: ``(B, T, D)`` with no pad masks.
 
-Inference (``select_action``): one ``(B, D)`` observation per environment step. The policy keeps, per
-environment, a step counter and the LSTM state; steps ``0..4`` run the PICK net, steps ``5..9`` the PLACE
-net (its hidden state is zeroed at step 5). After the last keyframe step the policy keeps returning the
-last action it predicted (the hold of the place-retract state). ``reset()`` clears all of it.
+Inference (``select_action``): one ``(B, D)`` observation per environment step, every environment of the
+batch at the same step (LeRobot resets the whole batch at once), so one scalar step counter does. Steps
+``0..4`` run the PICK net, ``5..9`` the PLACE net (its hidden state zeroed at step 5); afterwards the policy
+keeps returning the last action it predicted (the hold of the place-retract state). ``reset()`` clears it.
 """
 
 from __future__ import annotations
@@ -26,12 +28,17 @@ from typing import Any
 import torch
 import torch.nn.functional as F  # noqa: N812
 from lerobot.policies.pretrained import PreTrainedPolicy
-from lerobot.utils.constants import ACTION, OBS_PREFIX
+from lerobot.utils.constants import ACTION
 from torch import Tensor, nn
+
+from lerobot_pnp.errors import ConfigError, DatasetError, PolicyError
 
 from .configuration_pnp_lstm import PnpLstmConfig
 
 logger = logging.getLogger(__name__)
+
+# Checkpoints written before the network became its own module stored its weights at the policy's top level.
+_LEGACY_PREFIX = "subtask_nets."
 
 
 class SubtaskLSTM(nn.Module):
@@ -53,64 +60,167 @@ class SubtaskLSTM(nn.Module):
         out, state = self.lstm(x, state)
         return self.head(self.dropout(out)), state
 
+    def step(self, x: Tensor, state: tuple[Tensor, Tensor] | None) -> tuple[Tensor, tuple[Tensor, Tensor]]:
+        """One time step ``(B, D) -> (B, A)`` in eval mode, with ``torch.lstm_cell`` on the LSTM's own weights.
+
+        Numerically the LSTM's step, at a fifth of ``nn.LSTM``'s per-call overhead at batch 1.
+        """
+        lstm = self.lstm
+        if state is None:
+            zeros = x.new_zeros(lstm.num_layers, x.shape[0], lstm.hidden_size)
+            state = (zeros, zeros)
+        h_all, c_all = state
+        hs, cs = [], []
+        inp = x
+        for layer in range(lstm.num_layers):
+            h, c = torch.lstm_cell(
+                inp,
+                (h_all[layer], c_all[layer]),
+                getattr(lstm, f"weight_ih_l{layer}"),
+                getattr(lstm, f"weight_hh_l{layer}"),
+                getattr(lstm, f"bias_ih_l{layer}"),
+                getattr(lstm, f"bias_hh_l{layer}"),
+            )
+            hs.append(h)
+            cs.append(c)
+            inp = h
+        return self.head(inp), (torch.stack(hs), torch.stack(cs))
+
+
+class PnpLstm(nn.Module):
+    """The planner network: one ``SubtaskLSTM`` per subtask, or one shared net told the subtask (one-hot)."""
+
+    def __init__(self, config: PnpLstmConfig, input_dim: int, action_dim: int):
+        super().__init__()
+        self.config = config
+        extra = config.n_subtasks if config.shared_network else 0
+        n_nets = 1 if config.shared_network else config.n_subtasks
+        self.subtask_nets = nn.ModuleList(
+            SubtaskLSTM(input_dim + extra, config.hidden_size, config.num_layers, config.dropout, action_dim)
+            for _ in range(n_nets)
+        )
+
+    def forward(self, x: Tensor) -> Tensor:
+        """Predict ``(B, T, A)`` from inputs ``(B, T, D)`` whose position ``k`` is episode frame ``k``."""
+        s = self.config.steps_per_subtask
+        outs: list[Tensor] = []
+        state = None
+        for sub in range(self.config.n_subtasks):
+            seg = x[:, sub * s : (sub + 1) * s]
+            if seg.shape[1] == 0:
+                break
+            if not self.config.carry_hidden_across_subtasks:
+                state = None
+            y, state = self._run(sub, seg, state)
+            outs.append(y)
+        return torch.cat(outs, dim=1)
+
+    def step(self, x: Tensor, subtask: int, state: tuple[Tensor, Tensor] | None) -> tuple[Tensor, Any]:
+        """One inference step of ``subtask``'s net: ``(B, D) -> (B, A)`` and the new LSTM state."""
+        net = self.subtask_nets[0 if self.config.shared_network else subtask]
+        if self.config.shared_network:
+            x = torch.cat([x, self._onehot(subtask, x.shape[:1], x)], dim=-1)
+        if not self.config.recurrent:
+            state = None  # memoryless ablation: a zero state before every step
+        return net.step(x, state)
+
+    def _run(self, subtask: int, x: Tensor, state: tuple[Tensor, Tensor] | None) -> tuple[Tensor, Any]:
+        net = self.subtask_nets[0 if self.config.shared_network else subtask]
+        bsz, t, _ = x.shape
+        if self.config.shared_network:
+            x = torch.cat([x, self._onehot(subtask, (bsz, t), x)], dim=-1)
+        if self.config.recurrent:
+            return net(x, state)
+        # Memoryless ablation: same layers, hidden state reset to zero before every step.
+        y, _ = net(x.reshape(bsz * t, 1, x.shape[-1]), None)
+        return y.reshape(bsz, t, -1), None
+
+    def _onehot(self, subtask: int, lead: tuple[int, ...], like: Tensor) -> Tensor:
+        onehot = like.new_zeros(*lead, self.config.n_subtasks)
+        onehot[..., subtask] = 1.0
+        return onehot
+
 
 class PnpLstmPolicy(PreTrainedPolicy):
-    """LSTM task planner (one network per subtask by default). See the module docstring."""
+    """LeRobot policy around ``PnpLstm``. See the module docstring."""
 
     config_class = PnpLstmConfig
     name = "pnp_lstm"
-
-    @classmethod
-    def from_pretrained(cls, pretrained_name_or_path, *, config: PnpLstmConfig | None = None, **kwargs):
-        """LeRobot's loader, plus a clear error when the caller's features do not fit the checkpoint.
-
-        ``make_policy`` replaces the checkpoint's output features with the env's (or dataset's); without this
-        check a different action size surfaces as a bare state_dict size mismatch.
-        """
-        path = Path(str(pretrained_name_or_path))
-        if config is not None and (path / "config.json").is_file():
-            saved = PnpLstmConfig.from_pretrained(path)
-            for group in ("input_features", "output_features"):
-                for key, ft in (getattr(config, group) or {}).items():
-                    saved_ft = (getattr(saved, group) or {}).get(key)
-                    if saved_ft is not None and tuple(saved_ft.shape) != tuple(ft.shape):
-                        raise ValueError(
-                            f"pnp_lstm checkpoint {path} was trained with {key} of shape {tuple(saved_ft.shape)}, "
-                            f"but the env/dataset provides {tuple(ft.shape)}: it belongs to a different robot or task"
-                        )
-        return super().from_pretrained(pretrained_name_or_path, config=config, **kwargs)
 
     def __init__(self, config: PnpLstmConfig, dataset_stats: Any = None, dataset_meta: Any = None, **kwargs):
         super().__init__(config)
         config.validate_features()
         self.config: PnpLstmConfig = config
-
         if (
             config.torch_num_threads is not None
             and torch.device(config.device or "cpu").type == "cpu"
             and torch.get_num_threads() != config.torch_num_threads
         ):
             torch.set_num_threads(config.torch_num_threads)
-
         if dataset_meta is not None:
             _check_keyframe_episodes(dataset_meta, config.episode_length)
+            config.dataset_fps = int(dataset_meta.fps)
 
         self.input_keys: list[str] = config.model_input_keys
-        self.input_dims: list[int] = [int(config.input_features[k].shape[0]) for k in self.input_keys]
+        input_dim = sum(int(config.input_features[k].shape[0]) for k in self.input_keys)
         self.action_dim = int(config.output_features[ACTION].shape[0])
-        extra = config.n_subtasks if config.shared_network else 0
-        n_nets = 1 if config.shared_network else config.n_subtasks
-        self.subtask_nets = nn.ModuleList(
-            SubtaskLSTM(
-                input_dim=sum(self.input_dims) + extra,
-                hidden_size=config.hidden_size,
-                num_layers=config.num_layers,
-                dropout=config.dropout,
-                output_dim=self.action_dim,
-            )
-            for _ in range(n_nets)
-        )
+        self.model = PnpLstm(config, input_dim, self.action_dim)
         self.reset()
+
+    @property
+    def subtask_nets(self) -> nn.ModuleList:
+        """The subtask networks (``model.subtask_nets``)."""
+        return self.model.subtask_nets
+
+    # ---- checkpoints ----------------------------------------------------------------------------
+
+    @classmethod
+    def from_pretrained(cls, pretrained_name_or_path, *, config: PnpLstmConfig | None = None, **kwargs):
+        """LeRobot's loader, with clear ``PolicyError``s for a missing, incomplete or unfitting checkpoint.
+
+        ``make_policy`` replaces the checkpoint's output features with the env's (or dataset's); without the
+        shape check a different action size surfaces as a bare state_dict size mismatch.
+        """
+        path = Path(str(pretrained_name_or_path)).expanduser()
+        if path.exists() or _looks_like_a_path(str(pretrained_name_or_path)):
+            if not path.is_dir():
+                raise PolicyError(f"no pnp_lstm checkpoint at {path}: not a folder")
+            missing = [f for f in ("config.json", "model.safetensors") if not (path / f).is_file()]
+            if missing:
+                raise PolicyError(
+                    f"{path} is not a complete checkpoint folder (missing {', '.join(missing)}); pass a "
+                    "checkpoint's pretrained_model folder, e.g. outputs/train/pnp_lstm/checkpoints/last/pretrained_model"
+                )
+            if config is not None:
+                try:
+                    saved = PnpLstmConfig.from_pretrained(path)
+                except Exception as err:  # draccus / json errors of a corrupt config.json
+                    raise PolicyError(f"cannot read the policy config {path / 'config.json'}: {err}") from None
+                _check_same_shapes(path, config, saved)
+        try:
+            return super().from_pretrained(pretrained_name_or_path, config=config, **kwargs)
+        except (ConfigError, OSError) as err:
+            raise PolicyError(f"cannot load the pnp_lstm checkpoint {path}: {err}") from None
+
+    @classmethod
+    def _load_as_safetensor(cls, model, model_file: str, map_location: str, strict: bool):
+        """Load the weights strictly (LeRobot's default is lenient), mapping the pre-``PnpLstm`` layout."""
+        from safetensors import SafetensorError
+        from safetensors.torch import load_file
+
+        try:
+            state = load_file(model_file, device=str(map_location or "cpu"))
+        except (SafetensorError, OSError) as err:
+            raise PolicyError(f"cannot read the weights {model_file}: {err}") from None
+        state = {("model." + k if k.startswith(_LEGACY_PREFIX) else k): v for k, v in state.items()}
+        try:
+            model.load_state_dict(state, strict=True)
+        except RuntimeError as err:
+            first = str(err).strip().splitlines()
+            raise PolicyError(
+                f"the weights {model_file} do not fit this pnp_lstm config ({first[1].strip() if len(first) > 1 else first[0]})"
+            ) from None
+        return model
 
     # ---- LeRobot policy API ---------------------------------------------------------------------
 
@@ -118,52 +228,29 @@ class PnpLstmPolicy(PreTrainedPolicy):
         return self.parameters()
 
     def reset(self) -> None:
-        """Clear every per-episode cache: step counters, LSTM states and the held action."""
-        self._step: Tensor | None = None
-        self._hidden: tuple[Tensor, Tensor] | None = None
+        """Clear every per-episode cache: the step counter, the LSTM state and the held action."""
+        self._step = 0
+        self._state: tuple[Tensor, Tensor] | None = None
         self._last_action: Tensor | None = None
 
     def forward(self, batch: dict[str, Tensor], reduction: str = "mean") -> tuple[Tensor, dict]:
-        """Masked MSE between predicted and target normalised actions over the valid frames.
+        """MSE between predicted and target normalised actions over each episode's frames.
 
         ``reduction="none"`` returns one loss per sample (LeRobot's sample-weighting hook).
         """
         if reduction not in ("mean", "none"):
-            raise ValueError(f"reduction must be 'mean' or 'none', got {reduction!r}.")
-        x = self._gather_inputs(batch, sequence=True)
-        y = self._get_action_target(batch, x.shape[:2])
-        bsz, length = x.shape[:2]
-        t_ep = self.config.episode_length
-
-        pad = self._get_pad_mask(batch, bsz, length)
-        windowed = pad is not None
-        if windowed:
-            n_pad = pad.sum(dim=1)
-            if bool((n_pad >= length).any()):
-                raise ValueError("A training window has no valid frame (all padded).")
-            pos = torch.arange(length, device=x.device)
-            idx = (pos.unsqueeze(0) + n_pad.unsqueeze(1)).clamp(max=length - 1)  # (B, T)
-            x = x.gather(1, idx.unsqueeze(-1).expand(-1, -1, x.shape[-1]))
-            y = y.gather(1, idx.unsqueeze(-1).expand(-1, -1, y.shape[-1]))
-            valid = pos.unsqueeze(0) < (length - n_pad).unsqueeze(1)
-        else:
-            valid = torch.ones(bsz, length, dtype=torch.bool, device=x.device)
-
+            raise ConfigError(f"reduction must be 'mean' or 'none', got {reduction!r}")
+        x = torch.cat([batch[k] for k in self.input_keys], dim=-1)
+        y = batch[ACTION]
+        x, y, valid = self._episodes_of(batch, x, y)
         if self.training and self.config.input_noise_std > 0:
             x = x + self.config.input_noise_std * torch.randn_like(x)
 
-        pred = self._run_sequence(x)
+        pred = self.model(x)
         err = F.mse_loss(pred, y, reduction="none").mean(dim=-1)  # (B, T)
         validf = valid.to(err.dtype)
-
-        if windowed and self.config.balance_window_loss:
-            k = torch.arange(length, device=x.device, dtype=err.dtype)
-            weight = t_ep / (t_ep - k)  # 1 / P(frame k is in a window ending at a uniform frame)
-            per_sample = (err * validf * weight).sum(dim=1) / t_ep
-            loss = per_sample.mean()
-        else:
-            per_sample = (err * validf).sum(dim=1) / validf.sum(dim=1).clamp(min=1.0)
-            loss = (err * validf).sum() / validf.sum().clamp(min=1.0)
+        per_sample = (err * validf).sum(dim=1) / validf.sum(dim=1).clamp(min=1.0)
+        loss = (err * validf).sum() / validf.sum().clamp(min=1.0)
 
         info: dict[str, float] = {}
         with torch.no_grad():
@@ -178,47 +265,29 @@ class PnpLstmPolicy(PreTrainedPolicy):
 
     @torch.no_grad()
     def select_action(self, batch: dict[str, Tensor], **kwargs: Any) -> Tensor:
-        """One normalised action per environment, ``(B, action_dim)``; advances the step counters."""
-        x = self._gather_inputs(batch, sequence=False)  # (B, D_in)
-        bsz = x.shape[0]
+        """One normalised action per environment, ``(B, action_dim)``; advances the step counter."""
         cfg = self.config
-        if self._step is None:
-            self._init_inference_state(bsz, x.device, x.dtype)
-        elif self._step.shape[0] != bsz:
-            raise ValueError(
-                f"Batch size changed from {self._step.shape[0]} to {bsz} within an episode; "
-                "call policy.reset() when the environments are reset."
-            )
-        assert self._step is not None and self._hidden is not None and self._last_action is not None
-
-        # All updates are out of place, so the caches work with and without torch.inference_mode().
         step = self._step
-        action = self._last_action  # rows past the last keyframe keep holding their last action
-        active = step < cfg.episode_length
-        subtask = torch.div(step, cfg.steps_per_subtask, rounding_mode="floor")
-        h, c = self._hidden
-        for sub in torch.unique(subtask[active]).tolist():
-            rows = active & (subtask == sub)
-            idx = rows.nonzero(as_tuple=True)[0]
-            # Entering a subtask: its network starts from a zero hidden state (paper: the place net is
-            # run from scratch on the pick-retract state), unless the shared net carries it over.
-            if not (cfg.carry_hidden_across_subtasks and sub > 0):
-                starting = (rows & (step == sub * cfg.steps_per_subtask)).view(1, -1, 1)
-                h = torch.where(starting, torch.zeros_like(h), h)
-                c = torch.where(starting, torch.zeros_like(c), c)
-            state = (h.index_select(1, idx), c.index_select(1, idx)) if cfg.recurrent else None
-            y, new_state = self._apply_net(sub, x.index_select(0, idx).unsqueeze(1), state)
-            if new_state is not None:
-                h = h.index_copy(1, idx, new_state[0])
-                c = c.index_copy(1, idx, new_state[1])
-            action = action.index_copy(0, idx, y[:, 0])
-        self._hidden = (h, c)
-        self._last_action = action
         self._step = step + 1
+        if step >= cfg.episode_length:
+            if step == 4 * cfg.episode_length:
+                _warn_long_episode(cfg, step)
+            if self._last_action is not None and self._last_action.shape[0] != _batch_size(batch, self.input_keys):
+                raise PolicyError(_BATCH_CHANGED)
+            return self._last_action  # the hold of the last keyframe (read-only: a fresh tensor per episode)
+        x = torch.cat([batch[k] for k in self.input_keys], dim=-1)
+        state = self._state
+        if state is not None and state[0].shape[1] != x.shape[0]:
+            raise PolicyError(_BATCH_CHANGED)
+        subtask, k = divmod(step, cfg.steps_per_subtask)
+        if k == 0 and not (cfg.carry_hidden_across_subtasks and subtask > 0):
+            state = None  # entering a subtask: its net starts from a zero hidden state (the paper)
+        action, self._state = self.model.step(x, subtask, state)
+        self._last_action = action
         return action
 
     def predict_action_chunk(self, batch: dict[str, Tensor], **kwargs: Any) -> Tensor:
-        """``select_action`` with a time dimension, ``(B, 1, action_dim)``. Advances the step counters."""
+        """``select_action`` with a time dimension, ``(B, 1, action_dim)``. Advances the step counter."""
         return self.select_action(batch, **kwargs).unsqueeze(1)
 
     # ---- sequence model -------------------------------------------------------------------------
@@ -226,141 +295,68 @@ class PnpLstmPolicy(PreTrainedPolicy):
     def predict_sequence(self, batch: dict[str, Tensor]) -> Tensor:
         """Teacher-forced prediction for whole episodes: inputs ``(B, T, D)`` from frame 0 -> ``(B, T, A)``.
 
-        Stateless (does not touch the inference caches); used for evaluation on a dataset.
+        Stateless (does not touch the inference state); used for evaluation on a dataset.
         """
-        x = self._gather_inputs(batch, sequence=True)
-        return self._run_sequence(x)
+        return self.model(torch.cat([batch[k] for k in self.input_keys], dim=-1))
 
-    def _run_sequence(self, x: Tensor) -> Tensor:
-        """Run the subtask networks over ``x`` whose position ``k`` is episode frame ``k``."""
-        s = self.config.steps_per_subtask
-        outs: list[Tensor] = []
-        state = None
-        for sub in range(self.config.n_subtasks):
-            seg = x[:, sub * s : (sub + 1) * s]
-            if seg.shape[1] == 0:
-                break
-            if not self.config.carry_hidden_across_subtasks:
-                state = None
-            y, state = self._apply_net(sub, seg, state)
-            outs.append(y)
-        return torch.cat(outs, dim=1)
+    def _episodes_of(self, batch: dict[str, Tensor], x: Tensor, y: Tensor) -> tuple[Tensor, Tensor, Tensor]:
+        """Each sample's episode as ``(B, T, ·)`` from frame 0, and the mask of its real frames ``(B, T)``.
 
-    def _apply_net(
-        self, subtask: int, x: Tensor, state: tuple[Tensor, Tensor] | None
-    ) -> tuple[Tensor, tuple[Tensor, Tensor] | None]:
-        """Apply the network of ``subtask`` to ``x`` of shape ``(B, t, D_in)``."""
-        cfg = self.config
-        net = self.subtask_nets[0 if cfg.shared_network else subtask]
-        bsz, t, _ = x.shape
-        if cfg.shared_network:
-            onehot = torch.zeros(bsz, t, cfg.n_subtasks, dtype=x.dtype, device=x.device)
-            onehot[..., subtask] = 1.0
-            x = torch.cat([x, onehot], dim=-1)
-        if cfg.recurrent:
-            return net(x, state)
-        # Memoryless ablation: same layers, hidden state reset to zero before every step.
-        y, _ = net(x.reshape(bsz * t, 1, x.shape[-1]), None)
-        return y.reshape(bsz, t, -1), None
-
-    def _init_inference_state(self, bsz: int, device: torch.device, dtype: torch.dtype) -> None:
-        cfg = self.config
-        self._step = torch.zeros(bsz, dtype=torch.long, device=device)
-        shape = (cfg.num_layers, bsz, cfg.hidden_size)
-        self._hidden = (torch.zeros(shape, dtype=dtype, device=device), torch.zeros(shape, dtype=dtype, device=device))
-        self._last_action = torch.zeros(bsz, self.action_dim, dtype=dtype, device=device)
-
-    # ---- batch checking -------------------------------------------------------------------------
-
-    def _gather_inputs(self, batch: dict[str, Tensor], *, sequence: bool) -> Tensor:
-        """Concatenate the model inputs, checking presence, shape and finiteness of every feature.
-
-        ``sequence=True``: each feature is ``(B, T, D)``; otherwise ``(B, D)`` (or ``(D,)``, taken as B=1).
+        A window's unpadded frames are its episode (the window covers the whole episode); the fast path's
+        batches are whole episodes already.
         """
-        parts: list[Tensor] = []
-        lead_shape: tuple[int, ...] | None = None
-        ref_param = next(self.parameters())
-        for key, dim in zip(self.input_keys, self.input_dims, strict=True):
-            if key not in batch:
-                present = sorted(k for k in batch if k.startswith(OBS_PREFIX))
-                raise ValueError(
-                    f"Input feature '{key}' (shape ({dim},)) is missing from the batch; "
-                    f"observation keys present: {present}."
-                )
-            t = batch[key]
-            if not isinstance(t, Tensor):
-                t = torch.as_tensor(t)
-            if not sequence and t.ndim == 1:
-                t = t.unsqueeze(0)
-            want_ndim = 3 if sequence else 2
-            if t.ndim != want_ndim or t.shape[-1] != dim:
-                layout = "(B, T, D)" if sequence else "(B, D)"
-                raise ValueError(
-                    f"Input feature '{key}' has shape {tuple(t.shape)}; expected {layout} with D={dim} "
-                    f"(config.input_features['{key}'].shape = ({dim},))."
-                )
-            if lead_shape is None:
-                lead_shape = tuple(t.shape[:-1])
-            elif tuple(t.shape[:-1]) != lead_shape:
-                raise ValueError(
-                    f"Input feature '{key}' has leading shape {tuple(t.shape[:-1])}, other inputs have {lead_shape}."
-                )
-            if not bool(torch.isfinite(t).all()):
-                raise ValueError(f"Input feature '{key}' contains non-finite values (NaN or inf).")
-            parts.append(t.to(device=ref_param.device, dtype=ref_param.dtype))
-        x = torch.cat(parts, dim=-1)
-        if sequence and x.shape[1] > self.config.episode_length:
-            raise ValueError(
-                f"Sequences of {x.shape[1]} frames are longer than an episode of the task "
-                f"({self.config.episode_length} = {self.config.n_subtasks} x {self.config.steps_per_subtask}); "
-                "pnp_lstm trains on a keyframe dataset."
-            )
-        return x
+        t_ep = self.config.episode_length
+        pads = [batch[f"{k}_is_pad"] for k in (*self.input_keys, ACTION) if f"{k}_is_pad" in batch]
+        if not pads:
+            bsz, length = x.shape[:2]
+            return x, y, torch.ones(bsz, length, dtype=torch.bool, device=x.device)
+        pad = pads[0].to(device=x.device, dtype=torch.bool)
+        real = ~pad
+        n_real = real.sum(dim=1)
+        first = real.to(torch.int8).argmax(dim=1)  # the episode's frame 0 (windows are contiguous)
+        pos = torch.arange(t_ep, device=x.device)
+        idx = (first.unsqueeze(1) + pos).clamp(max=x.shape[1] - 1)  # (B, T)
+        x = x.gather(1, idx.unsqueeze(-1).expand(-1, -1, x.shape[-1]))
+        y = y.gather(1, idx.unsqueeze(-1).expand(-1, -1, y.shape[-1]))
+        return x, y, pos.unsqueeze(0) < n_real.unsqueeze(1)
 
-    def _get_action_target(self, batch: dict[str, Tensor], lead_shape: tuple[int, ...]) -> Tensor:
-        if ACTION not in batch:
-            raise ValueError(f"Training batch has no '{ACTION}' key.")
-        y = batch[ACTION]
-        if y.ndim != 3 or tuple(y.shape[:2]) != tuple(lead_shape) or y.shape[-1] != self.action_dim:
-            raise ValueError(
-                f"'{ACTION}' has shape {tuple(y.shape)}; "
-                f"expected ({lead_shape[0]}, {lead_shape[1]}, {self.action_dim})."
-            )
-        if not bool(torch.isfinite(y).all()):
-            raise ValueError(f"'{ACTION}' contains non-finite values (NaN or inf).")
-        ref = next(self.parameters())
-        return y.to(device=ref.device, dtype=ref.dtype)
 
-    def _get_pad_mask(self, batch: dict[str, Tensor], bsz: int, length: int) -> Tensor | None:
-        """The window's pad mask ``(B, T)`` (True = frame outside the episode), or None for full episodes."""
-        masks = {
-            k: batch[f"{k}_is_pad"]
-            for k in (*self.input_keys, ACTION)
-            if f"{k}_is_pad" in batch and isinstance(batch[f"{k}_is_pad"], Tensor)
-        }
-        if not masks:
-            return None
-        pad: Tensor | None = None
-        for key, m in masks.items():
-            m = m.to(torch.bool)
-            if tuple(m.shape) != (bsz, length):
-                raise ValueError(f"'{key}_is_pad' has shape {tuple(m.shape)}; expected ({bsz}, {length}).")
-            if pad is None:
-                pad = m
-            elif not torch.equal(pad, m):
-                raise ValueError(
-                    "Pad masks of the inputs and the action differ; observation and action windows must use "
-                    "the same delta indices."
+_BATCH_CHANGED = (
+    "the batch size changed within an episode; call policy.reset() when the environments are reset "
+    "(LeRobot's rollout does)"
+)
+
+
+def _batch_size(batch: dict[str, Tensor], keys: list[str]) -> int:
+    return int(batch[keys[0]].shape[0])
+
+
+def _warn_long_episode(cfg: PnpLstmConfig, step: int) -> None:
+    logger.warning(
+        "pnp_lstm was trained on keyframe episodes of %d steps (dataset fps %s) but has been stepped %d times "
+        "since reset: is the env in another control mode (e.g. --env.control_mode dense)? It only holds its "
+        "last keyframe from step %d on.",
+        cfg.episode_length,
+        cfg.dataset_fps if cfg.dataset_fps is not None else "unknown",
+        step,
+        cfg.episode_length,
+    )
+
+
+def _looks_like_a_path(name: str) -> bool:
+    """A local path rather than a Hub repo id (``owner/name``)."""
+    return name.startswith((".", "/", "~")) or name.count("/") > 1 or "\\" in name
+
+
+def _check_same_shapes(path: Path, config: PnpLstmConfig, saved: PnpLstmConfig) -> None:
+    for group in ("input_features", "output_features"):
+        for key, ft in (getattr(config, group) or {}).items():
+            saved_ft = (getattr(saved, group) or {}).get(key)
+            if saved_ft is not None and tuple(saved_ft.shape) != tuple(ft.shape):
+                raise PolicyError(
+                    f"pnp_lstm checkpoint {path} was trained with {key} of shape {tuple(saved_ft.shape)}, "
+                    f"but the env/dataset provides {tuple(ft.shape)}: it belongs to a different robot or task"
                 )
-        assert pad is not None
-        pad = pad.to(self.subtask_nets[0].head.weight.device)
-        # Windows end at the sampled frame, so padding (frames before the episode start) is a prefix.
-        if length > 1 and bool((pad[:, 1:] & ~pad[:, :-1]).any()):
-            raise ValueError(
-                "Padding inside or at the end of a window: pnp_lstm expects windows that end at the sampled frame "
-                "(observation/action delta indices -(T-1)..0)."
-            )
-        return pad
 
 
 def _subtask_names(n: int) -> list[str]:
@@ -371,11 +367,11 @@ def _check_keyframe_episodes(dataset_meta: Any, episode_length: int) -> None:
     """Fail early (at policy construction in ``lerobot-train``) on a dataset that is not a keyframe dataset."""
     try:
         lengths = list(dataset_meta.episodes["length"])
-    except Exception:
+    except (AttributeError, KeyError, TypeError):
         return
     bad = sorted({int(n) for n in lengths if int(n) != episode_length})
     if bad:
-        raise ValueError(
-            f"Not a keyframe dataset: pnp_lstm needs every episode to have exactly {episode_length} frames "
-            f"(one per FSM state), found episode lengths {bad[:10]}."
+        raise DatasetError(
+            f"not a keyframe dataset: pnp_lstm needs every episode to have exactly {episode_length} frames "
+            f"(one per FSM state), found episode lengths {bad[:10]}"
         )

@@ -1,14 +1,15 @@
-"""Pre/post-processors of ``pnp_lstm``: a feature check, then LeRobot's default pipelines.
+"""Pre/post-processors of ``pnp_lstm``: a batch check, then LeRobot's default pipelines.
 
-Pre: check observations against the checkpoint's inputs -> rename (none) -> add batch dim -> device ->
+Pre: check the batch against the checkpoint's features -> rename (none) -> add batch dim -> device ->
 MEAN_STD normalisation of STATE, ENV and ACTION. Post: unnormalise the action -> CPU.
 
-The check is the one custom step (registered on import as ``pnp_lstm_check_observation``; importing the
-plugin registers it): without it an env or dataset whose observations do not fit the checkpoint fails deep
-inside the normaliser with a bare tensor-size error; with it the error names the feature, both shapes and
-NaN/inf values.
+The check is the one place that checks observations (the policy itself does not): every batch passes it,
+the env's observations in ``lerobot-eval`` and the dataset's windows in ``lerobot-train``. Without it an env
+or dataset that does not fit the checkpoint fails deep inside the normaliser with a bare tensor-size error,
+and a NaN in a dataset becomes a NaN loss many steps later. It is registered on import as
+``pnp_lstm_check_observation`` (importing the plugin registers it).
 
-Windowed training keys arrive as ``(B, T, D)``; the normaliser broadcasts its ``(D,)`` stats over the
+Windowed training keys arrive as ``(B, L, D)``; the normaliser broadcasts its ``(D,)`` stats over the
 leading dimensions, so windows are normalised exactly like single frames. ``<key>_is_pad`` masks pass
 through untouched (complementary data).
 """
@@ -25,9 +26,13 @@ from lerobot.processor import (
     PolicyAction,
     PolicyProcessorPipeline,
     ProcessorStepRegistry,
+    TransitionKey,
     make_default_policy_processor_steps,
     make_policy_processor_pipelines,
 )
+from lerobot.utils.constants import ACTION, OBS_PREFIX
+
+from lerobot_pnp.errors import DatasetError, PolicyError
 
 from .configuration_pnp_lstm import PnpLstmConfig
 
@@ -35,31 +40,78 @@ from .configuration_pnp_lstm import PnpLstmConfig
 @ProcessorStepRegistry.register("pnp_lstm_check_observation")
 @dataclass
 class CheckObservationStep(ObservationProcessorStep):
-    """Raise a clear ValueError when an observation is missing, has the wrong size, or is not finite."""
+    """Raise a clear error when an input is missing, has the wrong size, or is not finite.
+
+    ``PolicyError`` for observations that do not fit the checkpoint (an env or a batch from elsewhere);
+    ``DatasetError`` naming the episode and frame for a non-finite value in a dataset batch (one that carries
+    ``episode_index``, as ``lerobot-train``'s do).
+    """
 
     expected: dict[str, list[int]] = field(default_factory=dict)  # feature -> shape the checkpoint was trained on
+    action_shape: list[int] | None = None  # checked when a batch carries an action (training)
+    fps: int | None = None  # dataset fps and window offsets: to name the frame of a bad value
+    delta_indices: list[int] | None = None
+
+    def __call__(self, transition):
+        transition = super().__call__(transition)
+        action = transition.get(TransitionKey.ACTION)
+        if isinstance(action, torch.Tensor) and self.action_shape is not None:
+            extra = transition.get(TransitionKey.COMPLEMENTARY_DATA) or {}
+            self._check(ACTION, action, self.action_shape, extra)
+        return transition
 
     def observation(self, observation: dict[str, Any]) -> dict[str, Any]:
+        extra = (self._current_transition or {}).get(TransitionKey.COMPLEMENTARY_DATA) or {}
         for key, shape in self.expected.items():
             if key not in observation:
-                raise ValueError(
+                raise PolicyError(
                     f"pnp_lstm: observation {key!r} is missing (the checkpoint needs {sorted(self.expected)}; "
-                    f"got {sorted(k for k in observation if k.startswith('observation.'))})"
+                    f"got {sorted(k for k in observation if k.startswith(OBS_PREFIX))})"
                 )
-            value = observation[key]
-            if not isinstance(value, torch.Tensor):
-                value = torch.as_tensor(value)
-            if tuple(value.shape[-len(shape) :]) != tuple(shape):
-                raise ValueError(
-                    f"pnp_lstm: observation {key!r} has shape {tuple(value.shape)} but the checkpoint was trained "
-                    f"on {tuple(shape)} per frame: this checkpoint is for a different env or dataset"
-                )
-            if value.is_floating_point() and not bool(torch.isfinite(value).all()):
-                raise ValueError(f"pnp_lstm: observation {key!r} contains NaN or inf: {value.tolist()}")
+            self._check(key, observation[key], shape, extra)
         return observation
 
+    def _check(self, key: str, value: Any, shape: list[int], extra: dict) -> None:
+        if not isinstance(value, torch.Tensor):
+            value = torch.as_tensor(value)
+        if tuple(value.shape[-len(shape) :]) != tuple(shape):
+            what = "observation " if key.startswith(OBS_PREFIX) else ""
+            raise PolicyError(
+                f"pnp_lstm: {what}{key!r} has shape {tuple(value.shape)} but the checkpoint was trained on "
+                f"{tuple(shape)} per frame: this checkpoint is for a different env or dataset"
+            )
+        if value.is_floating_point() and not bool(torch.isfinite(value).all()):
+            raise self._non_finite(key, value, len(shape), extra)
+
+    def _non_finite(self, key: str, value: torch.Tensor, feature_ndim: int, extra: dict) -> Exception:
+        bad = (~torch.isfinite(value)).flatten(start_dim=value.ndim - feature_ndim).any(dim=-1)
+        pad = extra.get(f"{key}_is_pad")
+        if isinstance(pad, torch.Tensor) and pad.shape == bad.shape and bool((bad & ~pad.bool()).any()):
+            bad = bad & ~pad.bool()  # padded positions are copies of the episode's first/last frame
+        where = tuple(int(i) for i in bad.nonzero()[0]) if bad.ndim else ()
+        row = where[0] if where else 0
+        episodes = extra.get("episode_index")
+        if episodes is None:
+            return PolicyError(f"pnp_lstm: observation {key!r} contains NaN or inf (batch row {row})")
+        episode = int(torch.as_tensor(episodes).reshape(-1)[row])
+        frame = "?"
+        timestamps = extra.get("timestamp")
+        if self.fps and timestamps is not None:
+            frame0 = round(float(torch.as_tensor(timestamps).reshape(-1)[row]) * self.fps)
+            offset = self.delta_indices[where[1]] if self.delta_indices and len(where) > 1 else 0
+            frame = str(frame0 + offset)
+        return DatasetError(
+            f"{key} contains NaN or inf in episode {episode}, frame {frame}: fix or regenerate the dataset "
+            "(lerobot-pnp generate validates what it writes)"
+        )
+
     def get_config(self) -> dict[str, Any]:
-        return {"expected": self.expected}
+        return {
+            "expected": self.expected,
+            "action_shape": self.action_shape,
+            "fps": self.fps,
+            "delta_indices": self.delta_indices,
+        }
 
     def transform_features(self, features):
         return features
@@ -79,13 +131,14 @@ def make_pnp_lstm_pre_post_processors(
         for key, ft in (config.input_features or {}).items()
         if ft.type in (FeatureType.STATE, FeatureType.ENV)
     }
+    action = (config.output_features or {}).get(ACTION)
+    check = CheckObservationStep(
+        expected=expected,
+        action_shape=list(action.shape) if action is not None else None,
+        fps=config.dataset_fps,
+        delta_indices=config.observation_delta_indices,
+    )
     return make_policy_processor_pipelines(
-        input_steps=[
-            CheckObservationStep(expected=expected),
-            s.rename_observations,
-            s.add_batch_dim,
-            s.to_device,
-            s.normalize,
-        ],
+        input_steps=[check, s.rename_observations, s.add_batch_dim, s.to_device, s.normalize],
         output_steps=[s.unnormalize, s.to_cpu],
     )

@@ -1,0 +1,71 @@
+"""The scripted expert on every task suite: success over seeded episodes, failures by cause and phase.
+
+Issue target: >= 99.5 % on `paper`, on `full` and on each perturbation alone (1000 episodes each).
+
+    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_expert.py --episodes 1000 --out outputs/bench_expert.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from pathlib import Path
+
+import lerobot_pnp  # noqa: F401  (registers the env)
+from lerobot_pnp.env_config import BaxterPnPEnvConfig
+from lerobot_pnp.expert_eval import ExpertEvalConfig, evaluate_expert
+
+BUDGET = {"keyframe_budget": 40}  # room for recoveries
+SUITES: dict[str, dict] = {
+    "paper": {},
+    "full": {"preset": "full"},
+    "nudge 3 cm": {"nudge_max": 0.03},
+    "grasp_miss": {"grasp_miss_prob": 1.0, **BUDGET},
+    "drop": {"drop_prob": 1.0, **BUDGET},
+    "displace": {"displace_prob": 1.0, **BUDGET},
+    "obs noise": {"obs_noise_object": 0.005, "obs_noise_joints": 0.01},
+    "obs bias 1 cm": {"obs_bias_object": 0.01},
+    "latency 1 step": {"obs_latency": 1},
+    "random yaw": {"yaw_range": (-math.pi, math.pi), "observe_yaw": True},
+    "random place target": {"place_low": (0.50, -0.20), "place_high": (0.70, -0.05), "observe_goal": True},
+    "mass/friction": {"mass_range": (0.3, 0.8), "friction_range": (0.7, 1.2)},
+}
+
+
+def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
+    """95 % Wilson score interval of a success rate k/n."""
+    p = k / n
+    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    return centre - half, centre + half
+
+
+def main(argv=None) -> dict:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--episodes", type=int, default=1000)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--suites", nargs="*", default=list(SUITES))
+    parser.add_argument("--out", type=Path, default=Path("outputs/bench_expert.json"))
+    args = parser.parse_args(argv)
+    results = {}
+    for name in args.suites:
+        env = BaxterPnPEnvConfig(**SUITES[name])
+        res = evaluate_expert(ExpertEvalConfig(n_episodes=args.episodes, seed=args.seed, env=env, progress=False))
+        k = round(res["success_rate"] * args.episodes)
+        res["wilson95"] = wilson(k, args.episodes)
+        results[name] = res
+        lo, hi = res["wilson95"]
+        print(
+            f"{name:<22} {100 * res['success_rate']:6.1f} %  [{100 * lo:5.1f}, {100 * hi:5.1f}]  "
+            f"{res['episodes_per_s']:5.1f} ep/s  failures {res['failures_by_cause'] or '-'} "
+            f"by phase {res['failures_by_furthest_phase'] or '-'}  recoveries {res['recoveries'] or '-'}",
+            flush=True,
+        )
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(results, indent=2, default=list))
+    return results
+
+
+if __name__ == "__main__":
+    main()

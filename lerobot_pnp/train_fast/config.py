@@ -1,0 +1,178 @@
+"""Configuration of the fast training path (``lerobot-pnp train``), validated when it is built.
+
+Everything that can be checked without reading the dataset is checked here, so a bad flag is one clear
+``ConfigError`` before any work starts (the CLI prints it as one line and exits 2).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import draccus
+
+from lerobot_pnp import robot
+from lerobot_pnp.errors import ConfigError
+from lerobot_pnp.policy import PnpLstmConfig
+
+
+@dataclass
+class TrainFastConfig:
+    """Configuration of :func:`lerobot_pnp.train_fast.train_fast`.
+
+    Defaults live here; ``from_train_config`` reads a ``lerobot-train`` JSON.
+
+    Args:
+        dataset_repo_id: LeRobot repo id of the keyframe dataset.
+        dataset_root: Local dataset folder; ``None``: LeRobot's cache / the Hub.
+        policy: The ``pnp_lstm`` hyper-parameters (``--policy.hidden_size=64`` ...).
+        epochs: Passes over the training episodes (ignored when ``steps`` is set).
+        steps: Total optimiser steps; overrides ``epochs`` when set.
+        batch_size: Episodes per batch.
+        lr: Learning rate; overrides ``policy.optimizer_lr`` when set.
+        seed: Seed of the initialisation and of the episode order.
+        output_dir: Where the checkpoints, loss curve and held-out error are written; must not exist (or be
+            empty) unless ``overwrite``.
+        overwrite: Allow an existing ``output_dir`` (its files are replaced).
+        test_episodes: ``"start:stop"``: held-out episodes, overriding the dataset's test split.
+        eval_every_epochs: Held-out MSE every N epochs (the loss curve's resolution).
+        save_every_epochs: Extra checkpoints every N epochs; 0: only the final one.
+        num_threads: ``torch.set_num_threads``; this model is far faster on 1 thread.
+        progress: tqdm progress bar.
+    """
+
+    dataset_repo_id: str = "local/baxter_pnp_keyframe"
+    dataset_root: str | None = None
+    policy: PnpLstmConfig = field(default_factory=PnpLstmConfig)
+    epochs: int = 300
+    steps: int | None = None
+    batch_size: int = 64
+    lr: float | None = None
+    seed: int = 1000
+    output_dir: str = "outputs/train_fast/pnp_lstm"
+    overwrite: bool = False
+    test_episodes: str | None = None
+    eval_every_epochs: int = 1
+    save_every_epochs: int = 0
+    num_threads: int | None = 1
+    progress: bool = True
+
+    def __post_init__(self) -> None:
+        if self.test_episodes is not None:
+            self.test_episodes = normalize_episode_range(self.test_episodes)
+        checks = [
+            (_is_int(self.epochs) and self.epochs >= 1, f"epochs must be an integer >= 1, got {self.epochs!r}"),
+            (
+                self.steps is None or (_is_int(self.steps) and self.steps >= 1),
+                f"steps must be an integer >= 1 (or unset), got {self.steps!r}",
+            ),
+            (
+                _is_int(self.batch_size) and self.batch_size >= 1,
+                f"batch_size must be an integer >= 1, got {self.batch_size!r}",
+            ),
+            (
+                self.lr is None or (isinstance(self.lr, int | float) and 0 < self.lr < float("inf")),
+                f"lr must be a positive number, got {self.lr!r}",
+            ),
+            (
+                _is_int(self.eval_every_epochs) and self.eval_every_epochs >= 1,
+                f"eval_every_epochs must be an integer >= 1, got {self.eval_every_epochs!r}",
+            ),
+            (
+                _is_int(self.save_every_epochs) and self.save_every_epochs >= 0,
+                f"save_every_epochs must be an integer >= 0, got {self.save_every_epochs!r}",
+            ),
+            (
+                self.num_threads is None or (_is_int(self.num_threads) and self.num_threads >= 1),
+                f"num_threads must be an integer >= 1 (or unset), got {self.num_threads!r}",
+            ),
+            (
+                _is_int(self.seed) and 0 <= self.seed < 2**63,
+                f"seed must be an integer in [0, 2**63), got {self.seed!r}",
+            ),
+            (
+                self.policy.episode_length == robot.N_KEYFRAMES,
+                f"policy.n_subtasks x policy.steps_per_subtask = {self.policy.episode_length}, but a keyframe "
+                f"episode has {robot.N_KEYFRAMES} frames",
+            ),
+        ]
+        for ok, message in checks:
+            if not ok:
+                raise ConfigError(message)
+        out = Path(self.output_dir)
+        if out.exists() and not out.is_dir():
+            raise ConfigError(f"output_dir {out} exists and is not a folder")
+        if out.is_dir() and any(out.iterdir()) and not self.overwrite:
+            raise ConfigError(
+                f"output_dir {out} already exists and is not empty; choose another folder or pass --overwrite "
+                "(its files are replaced)"
+            )
+
+    @classmethod
+    def from_train_config(cls, path: str | Path, **overrides: Any) -> TrainFastConfig:
+        """Take dataset, policy, batch size, seed and output dir from a ``lerobot-train`` config JSON.
+
+        ``steps`` is not taken over (a ``lerobot-train`` step is a batch of windows, a fast-path step a batch
+        of whole episodes); the fast path trains for ``epochs`` unless ``steps`` is given in ``overrides``.
+        """
+        data = json.loads(Path(path).read_text())
+        kwargs: dict[str, Any] = {}
+        ds = data.get("dataset") or {}
+        if ds.get("repo_id"):
+            kwargs["dataset_repo_id"] = ds["repo_id"]
+        if ds.get("root"):
+            kwargs["dataset_root"] = ds["root"]
+        if data.get("policy"):
+            kwargs["policy"] = policy_config_from_dict(data["policy"])
+        for key in ("batch_size", "seed"):
+            if data.get(key) is not None:
+                kwargs[key] = data[key]
+        if data.get("output_dir"):
+            kwargs["output_dir"] = str(data["output_dir"]) + "_fast"
+        kwargs.update(overrides)
+        return cls(**kwargs)
+
+
+def _is_int(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def normalize_episode_range(spec: Any) -> str:
+    """``"start:stop"`` from what the command line delivers, or a ``ConfigError``.
+
+    The CLI's parser (draccus) reads every value as YAML 1.1, where ``10:20`` is the base-60 integer 620
+    (``a:b`` with ``a >= 1`` and ``b < 60``). A whole number is never a valid range, so such a value is
+    turned back into ``a:b`` (exact: ``a = n // 60``, ``b = n % 60``). ``"1120:1400"`` (``b >= 60``) and
+    ``"0:20"`` reach us as strings.
+    """
+    if (_is_int(spec) or (isinstance(spec, str) and spec.strip().isdigit())) and int(spec) >= 60:
+        n = int(spec)  # the smallest base-60 reading is '1:00' = 60
+        spec = f"{n // 60}:{n % 60}"
+    text = str(spec).strip()
+    parts = text.split(":")
+    if len(parts) != 2 or not all(p.strip().isdigit() for p in parts):
+        raise ConfigError(f"test_episodes must be a range 'start:stop' of episode indices, got {spec!r}")
+    start, stop = (int(p) for p in parts)
+    if start >= stop:
+        raise ConfigError(f"test_episodes {text!r} is empty: start must be smaller than stop")
+    return f"{start}:{stop}"
+
+
+def policy_config_from_dict(policy: dict[str, Any]) -> PnpLstmConfig:
+    """Build a ``PnpLstmConfig`` from the ``policy`` block of a LeRobot config JSON (draccus decoding)."""
+    policy = dict(policy)
+    ptype = policy.pop("type", "pnp_lstm")
+    if ptype != "pnp_lstm":
+        raise ConfigError(f"the fast path trains pnp_lstm only; the config's policy type is {ptype!r}")
+    with tempfile.NamedTemporaryFile("w", suffix=".json", delete=False) as f:
+        json.dump(policy, f)
+        tmp = f.name
+    try:
+        with draccus.config_type("json"):
+            return draccus.parse(PnpLstmConfig, tmp, args=[])
+    finally:
+        os.unlink(tmp)

@@ -1,0 +1,159 @@
+"""A keyframe dataset as tensors ``(E, T, D)`` for the fast path: load, check, split.
+
+A keyframe dataset is tiny (1400 episodes x 10 frames in the paper), so it is read once, whole, with
+LeRobot's loader. The checks say what is wrong in terms of the dataset (which feature, which episode and
+frame) before any training starts; they raise ``DatasetError`` (``ConfigError`` for a bad split request).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_STATE
+
+from lerobot_pnp import robot
+from lerobot_pnp.errors import ConfigError, DatasetError
+
+# The keyframe dataset's model features and their shapes (one source of truth: lerobot_pnp.robot).
+KEYFRAME_FEATURES: dict[str, tuple[int, ...]] = {
+    OBS_STATE: (robot.STATE_DIM,),
+    OBS_ENV_STATE: (robot.OBJECT_DIM,),
+    ACTION: (robot.ACTION_DIM,),
+}
+TEST_SPLIT_NAMES = ("test", "val", "validation", "eval")
+FALLBACK_TEST_FRACTION = 0.2
+
+
+@dataclass
+class KeyframeData:
+    """All episodes of a keyframe dataset as tensors ``(E, T, D)`` (raw, unnormalised)."""
+
+    state: torch.Tensor
+    env_state: torch.Tensor
+    action: torch.Tensor
+    episode_index: torch.Tensor  # (E,)
+    train_idx: torch.Tensor  # rows of the tensors above
+    test_idx: torch.Tensor
+    split_source: str  # where the split came from
+
+    def batch(self, rows: torch.Tensor) -> dict[str, torch.Tensor]:
+        return {OBS_STATE: self.state[rows], OBS_ENV_STATE: self.env_state[rows], ACTION: self.action[rows]}
+
+
+def validate_keyframe_dataset(meta: Any, episode_length: int = robot.N_KEYFRAMES) -> None:
+    """Raise ``DatasetError`` unless ``meta`` (a ``LeRobotDatasetMetadata``) describes a keyframe dataset."""
+    features = meta.features
+    for key, shape in KEYFRAME_FEATURES.items():
+        ft = features.get(key)
+        if ft is None:
+            raise DatasetError(
+                f"dataset '{meta.repo_id}' has no '{key}' feature (expected float32, shape {shape}); "
+                f"its features are {sorted(features)}"
+            )
+        if tuple(ft["shape"]) != shape:
+            raise DatasetError(
+                f"dataset '{meta.repo_id}': feature '{key}' has shape {tuple(ft['shape'])}, expected {shape}"
+            )
+        if ft.get("dtype") not in ("float32", "float64"):
+            raise DatasetError(
+                f"dataset '{meta.repo_id}': feature '{key}' has dtype {ft.get('dtype')}, expected float32"
+            )
+    lengths = [int(n) for n in meta.episodes["length"]]
+    if not lengths:
+        raise DatasetError(f"dataset '{meta.repo_id}' has no episodes")
+    bad = sorted({n for n in lengths if n != episode_length})
+    if int(meta.fps) != robot.KEYFRAME_FPS or bad:
+        what = f"fps {meta.fps}" + (f", episodes of {bad[:5]} frames" if bad else "")
+        raise DatasetError(
+            f"dataset '{meta.repo_id}' is not a keyframe dataset ({what}): the pnp_lstm trainer needs one frame per "
+            f"FSM state ({episode_length} per episode, fps {robot.KEYFRAME_FPS}); a dense dataset (--env.control_mode "
+            "dense) cannot train it"
+        )
+
+
+def parse_range(spec: str, n_episodes: int) -> list[int]:
+    """Episode indices of ``"start:stop"``, which must lie within ``0:n_episodes``."""
+    try:
+        a, b = (int(x) for x in str(spec).split(":"))
+    except ValueError:
+        raise ConfigError(f"episode range {spec!r} is not of the form 'start:stop'") from None
+    if not 0 <= a <= b <= n_episodes:
+        raise ConfigError(f"episode range {spec!r} is outside the dataset's episodes 0:{n_episodes}")
+    return list(range(a, b))
+
+
+def split_episodes(
+    splits: dict[str, str] | None, n_episodes: int, test_override: str | None = None
+) -> tuple[list[int], list[int], str]:
+    """(train episodes, test episodes, source) from LeRobot's ``info.json`` ``splits`` or the 80/20 fallback."""
+    splits = dict(splits or {})
+    if test_override is not None:
+        test = parse_range(test_override, n_episodes)
+        source = f"override test={test_override}"
+    else:
+        name = next((n for n in TEST_SPLIT_NAMES if n in splits), None)
+        if name is not None:
+            test = parse_range(splits[name], n_episodes)
+            source = f"meta/info.json splits {splits}"
+        else:
+            n_test = max(1, round(FALLBACK_TEST_FRACTION * n_episodes)) if n_episodes > 1 else 0
+            test = list(range(n_episodes - n_test, n_episodes))
+            source = f"fallback: last {n_test} of {n_episodes} episodes held out (no test split in meta/info.json)"
+    test_set = set(test)
+    if test_override is None and "train" in splits and any(n in splits for n in TEST_SPLIT_NAMES):
+        train = [e for e in parse_range(splits["train"], n_episodes) if e not in test_set]
+    else:
+        train = [e for e in range(n_episodes) if e not in test_set]
+    if not train:
+        raise ConfigError(f"the split leaves no training episodes ({source})")
+    return train, test, source
+
+
+def load_keyframe_data(
+    repo_id: str, root: str | Path | None, test_override: str | None = None
+) -> tuple[Any, KeyframeData]:
+    """Load a keyframe LeRobotDataset into tensors. Returns ``(dataset, data)``."""
+    from lerobot_pnp.dataset import open_local_dataset
+
+    ds = open_local_dataset(repo_id, root)
+    validate_keyframe_dataset(ds.meta)
+    t_ep = robot.N_KEYFRAMES
+    cols = [OBS_STATE, OBS_ENV_STATE, ACTION, "episode_index", "frame_index"]
+    table = ds.hf_dataset.select_columns(cols).with_format("torch")[:]
+    order = torch.as_tensor(np.lexsort((table["frame_index"].numpy(), table["episode_index"].numpy())))
+    n_ep = len(order) // t_ep
+    frame = table["frame_index"][order].reshape(n_ep, t_ep)
+    ep = table["episode_index"][order].reshape(n_ep, t_ep)
+    if not torch.equal(frame, torch.arange(t_ep).expand(n_ep, t_ep)) or not bool((ep == ep[:, :1]).all()):
+        raise DatasetError(
+            f"dataset '{repo_id}' is not a keyframe dataset: frame indices are not 0..{t_ep - 1} per episode"
+        )
+
+    def seq(key: str) -> torch.Tensor:
+        values = table[key][order].to(torch.float32).reshape(n_ep, t_ep, -1)
+        bad = ~torch.isfinite(values).all(dim=-1)
+        if bool(bad.any()):
+            row, k = (int(i) for i in bad.nonzero()[0])
+            raise DatasetError(
+                f"dataset '{repo_id}': {key} contains NaN or inf in episode {int(ep[row, 0])}, frame {k} "
+                f"({int(bad.sum())} frame(s) in all); fix or regenerate the dataset"
+            )
+        return values
+
+    episode_index = ep[:, 0].clone()
+    train_eps, test_eps, source = split_episodes(ds.meta.info.splits, ds.meta.total_episodes, test_override)
+    row_of = {int(e): i for i, e in enumerate(episode_index.tolist())}
+    data = KeyframeData(
+        state=seq(OBS_STATE),
+        env_state=seq(OBS_ENV_STATE),
+        action=seq(ACTION),
+        episode_index=episode_index,
+        train_idx=torch.tensor([row_of[e] for e in train_eps], dtype=torch.long),
+        test_idx=torch.tensor([row_of[e] for e in test_eps], dtype=torch.long),
+        split_source=source,
+    )
+    return ds, data

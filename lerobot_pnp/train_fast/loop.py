@@ -1,0 +1,252 @@
+"""The fast path's training loop: whole episodes as preloaded tensors, the same policy, loss and checkpoints.
+
+The data are normalised once with the same LeRobot pre-processor ``lerobot-train`` uses; each step is one
+batch of whole episodes (what a ``lerobot-train`` step sees too, with this policy's windows), without a
+DataLoader. Checkpoints are written with LeRobot's own ``save_checkpoint`` in ``lerobot-train``'s layout.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import random
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import draccus
+import numpy as np
+import torch
+from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_STATE
+
+from lerobot_pnp.policy import PnpLstmPolicy
+
+from .config import TrainFastConfig
+from .data import load_keyframe_data
+from .report import action_names, keyframe_error, write_curve
+
+logger = logging.getLogger(__name__)
+
+
+@dataclass
+class TrainFastResult:
+    checkpoint_dir: Path  # .../checkpoints/<step>/pretrained_model
+    steps: int
+    final_train_mse: float
+    final_test_mse: float
+    test_keyframe_error: dict[str, Any]
+    history: list[dict[str, float]]
+
+    def summary(self) -> dict[str, Any]:
+        """What a person wants printed: where the checkpoint is and how good it is."""
+        return {
+            "checkpoint": str(self.checkpoint_dir),
+            "steps": self.steps,
+            "final_train_mse": self.final_train_mse,
+            "final_test_mse": self.final_test_mse,
+            "mean_joint_mae_deg": self.test_keyframe_error.get("mean_joint_mae_deg"),
+        }
+
+
+@dataclass
+class _Run:
+    """What a checkpoint needs, gathered once."""
+
+    cfg: TrainFastConfig
+    out_dir: Path
+    total_steps: int
+    policy: PnpLstmPolicy
+    optimizer: Any
+    scheduler: Any
+    preprocessor: Any
+    postprocessor: Any
+    opt_cfg: Any
+    sched_cfg: Any
+
+    def save(self, step: int) -> Path:
+        from lerobot.common.train_utils import get_step_checkpoint_dir, save_checkpoint, update_last_checkpoint
+        from lerobot.configs.default import DatasetConfig
+        from lerobot.configs.train import TrainPipelineConfig
+
+        cfg = self.cfg
+        train_cfg = TrainPipelineConfig(
+            dataset=DatasetConfig(repo_id=cfg.dataset_repo_id, root=cfg.dataset_root, video_backend="pyav"),
+            policy=self.policy.config,
+            output_dir=self.out_dir,
+            job_name="pnp_lstm_train_fast",
+            seed=cfg.seed,
+            num_workers=0,
+            batch_size=cfg.batch_size,
+            steps=self.total_steps,
+            env_eval_freq=0,
+            save_freq=step,
+            optimizer=self.opt_cfg,
+            scheduler=self.sched_cfg,
+        )
+        ckpt = get_step_checkpoint_dir(self.out_dir, self.total_steps, step)
+        save_checkpoint(
+            checkpoint_dir=ckpt,
+            step=step,
+            cfg=train_cfg,
+            policy=self.policy,
+            optimizer=self.optimizer,
+            scheduler=self.scheduler,
+            preprocessor=self.preprocessor,
+            postprocessor=self.postprocessor,
+            batch_size=cfg.batch_size,
+        )
+        update_last_checkpoint(ckpt)
+        return ckpt / "pretrained_model"
+
+
+def _seed_everything(seed: int) -> None:
+    random.seed(seed)
+    np.random.seed(seed % 2**32)
+    torch.manual_seed(seed)
+
+
+@torch.no_grad()
+def _mse(policy: PnpLstmPolicy, batch: dict[str, torch.Tensor] | None) -> float:
+    if batch is None:
+        return float("nan")
+    was_training = policy.training
+    policy.eval()
+    loss, _ = policy.forward(batch)
+    policy.train(was_training)
+    return float(loss)
+
+
+def train_fast(cfg: TrainFastConfig) -> TrainFastResult:
+    """Train ``pnp_lstm`` on whole keyframe episodes; see the package docstring for what is written."""
+    from lerobot.policies.factory import make_policy, make_pre_post_processors
+
+    if cfg.num_threads is not None:
+        torch.set_num_threads(cfg.num_threads)
+    out_dir = Path(cfg.output_dir)
+    _seed_everything(cfg.seed)
+
+    ds, data = load_keyframe_data(cfg.dataset_repo_id, cfg.dataset_root, cfg.test_episodes)
+    logger.info(
+        "Keyframe dataset %s: %d train / %d test episodes (%s)",
+        cfg.dataset_repo_id,
+        len(data.train_idx),
+        len(data.test_idx),
+        data.split_source,
+    )
+
+    policy_cfg = cfg.policy
+    policy_cfg.input_features = {}  # derived from the dataset, as in lerobot-train
+    policy_cfg.output_features = {}
+    policy: PnpLstmPolicy = make_policy(policy_cfg, ds_meta=ds.meta)  # type: ignore[assignment]
+    preprocessor, postprocessor = make_pre_post_processors(policy_cfg, dataset_stats=ds.meta.stats)
+    device = next(policy.parameters()).device
+
+    # Normalise everything once with the same pre-processor lerobot-train uses.
+    def prep(rows: torch.Tensor) -> dict[str, torch.Tensor] | None:
+        if not len(rows):
+            return None
+        out = preprocessor(data.batch(rows))
+        return {k: out[k].to(device) for k in (OBS_STATE, OBS_ENV_STATE, ACTION)}
+
+    train_all = prep(data.train_idx)
+    test_all = prep(data.test_idx)
+    assert train_all is not None  # split_episodes guarantees training episodes
+
+    opt_cfg = policy_cfg.get_optimizer_preset()
+    if cfg.lr is not None:
+        opt_cfg.lr = cfg.lr
+    sched_cfg = policy_cfg.get_scheduler_preset()
+    n_train = len(data.train_idx)
+    steps_per_epoch = math.ceil(n_train / cfg.batch_size)
+    total_steps = cfg.steps if cfg.steps is not None else cfg.epochs * steps_per_epoch
+    n_epochs = math.ceil(total_steps / steps_per_epoch)
+    optimizer = opt_cfg.build(policy.get_optim_params())
+    scheduler = sched_cfg.build(optimizer, total_steps) if sched_cfg is not None else None
+    run = _Run(cfg, out_dir, total_steps, policy, optimizer, scheduler, preprocessor, postprocessor, opt_cfg, sched_cfg)
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    with open(out_dir / "train_fast_config.json", "w") as f, draccus.config_type("json"):
+        draccus.dump(cfg, f, indent=4)
+
+    def point(epoch: int, step: int, train_mse: float, elapsed: float) -> dict[str, float]:
+        lr = optimizer.param_groups[0]["lr"]
+        return {
+            "epoch": epoch,
+            "step": step,
+            "train_mse": train_mse,
+            "test_mse": _mse(policy, test_all),
+            "lr": lr,
+            "time_s": elapsed,
+        }
+
+    history = [point(0, 0, _mse(policy, train_all), 0.0)]
+    gen = torch.Generator().manual_seed(cfg.seed)
+    step = 0
+    t0 = time.perf_counter()
+    pbar = None
+    if cfg.progress:
+        from tqdm.auto import tqdm
+
+        pbar = tqdm(total=n_epochs, desc="pnp_lstm (fast)", unit="epoch")
+    policy.train()
+    for epoch in range(1, n_epochs + 1):
+        perm = torch.randperm(n_train, generator=gen).to(device)
+        losses: list[float] = []
+        for i in range(0, n_train, cfg.batch_size):
+            rows = perm[i : i + cfg.batch_size]
+            loss, _ = policy.forward({k: v[rows] for k, v in train_all.items()})
+            optimizer.zero_grad(set_to_none=True)
+            loss.backward()
+            if opt_cfg.grad_clip_norm and opt_cfg.grad_clip_norm > 0:
+                torch.nn.utils.clip_grad_norm_(policy.parameters(), opt_cfg.grad_clip_norm)
+            optimizer.step()
+            if scheduler is not None:
+                scheduler.step()
+            losses.append(float(loss.detach()))
+            step += 1
+            if step >= total_steps:
+                break
+        last = epoch == n_epochs
+        if last or epoch % cfg.eval_every_epochs == 0:
+            history.append(point(epoch, step, float(np.mean(losses)), time.perf_counter() - t0))
+            if pbar is not None:
+                pbar.set_postfix(train=f"{history[-1]['train_mse']:.4g}", test=f"{history[-1]['test_mse']:.4g}")
+        if pbar is not None:
+            pbar.update(1)
+        if cfg.save_every_epochs > 0 and epoch % cfg.save_every_epochs == 0 and not last:
+            run.save(step)
+            policy.train()
+    if pbar is not None:
+        pbar.close()
+    policy.eval()
+    ckpt_dir = run.save(step)
+
+    final_train = _mse(policy, train_all)
+    final_test = _mse(policy, test_all)
+    if test_all is not None:
+        err = keyframe_error(policy, postprocessor, test_all, data.action[data.test_idx], action_names(ds.meta))
+    else:
+        err = {"n_episodes": 0}
+    err.update(
+        {
+            "split": data.split_source,
+            "n_train_episodes": n_train,
+            "n_test_episodes": len(data.test_idx),
+            "final_train_mse": final_train,
+            "final_test_mse": final_test,
+            "steps": step,
+            "checkpoint": str(ckpt_dir),
+        }
+    )
+    (out_dir / "test_keyframe_error.json").write_text(json.dumps(err, indent=2))
+    write_curve(history, out_dir)
+    logger.info(
+        "pnp_lstm fast training done: train MSE %.4g, test MSE %.4g, test joint MAE %.3f deg -> %s",
+        final_train,
+        final_test,
+        err.get("mean_joint_mae_deg", float("nan")),
+        ckpt_dir,
+    )
+    return TrainFastResult(ckpt_dir, step, final_train, final_test, err, history)

@@ -1,0 +1,94 @@
+"""``visualize``: load what was asked for, log it, and show it (viewer, .rrd file and/or screenshot)."""
+
+from __future__ import annotations
+
+import os
+import sys
+import tempfile
+from pathlib import Path
+
+from lerobot_pnp.errors import ConfigError
+from lerobot_pnp.viz.config import VizConfig
+from lerobot_pnp.viz.recording import log_policy_comparison, log_run, make_blueprint
+from lerobot_pnp.viz.screenshot import take_screenshot
+
+APPLICATION_ID = "lerobot_pnp"
+
+
+def _has_display() -> bool:
+    if sys.platform != "linux":
+        return True
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
+def visualize(cfg: VizConfig) -> dict:
+    """Log the requested dataset episodes and/or policy rollouts to Rerun; returns a summary."""
+    import rerun as rr
+
+    from lerobot_pnp.viz.rollouts import rollout_config, rollout_with_expert
+    from lerobot_pnp.viz.sources import load_episode, open_dataset, replay_config, replay_episode
+
+    if cfg.repo_id is None and cfg.policy_path is None:
+        raise ConfigError("nothing to show: give --repo_id (with --root) for dataset episodes and/or --policy.path")
+    if cfg.save is None and cfg.screenshot is None and not _has_display():
+        raise ConfigError(
+            "no display to spawn the Rerun viewer on: pass --save out.rrd (open it with `rerun out.rrd`) "
+            "or --screenshot out.png"
+        )
+    # Load and check everything before opening the recording, so bad input fails fast and writes nothing.
+    episodes, replay_cfg = [], None
+    if cfg.repo_id is not None:
+        ds = open_dataset(cfg.repo_id, cfg.root)
+        episodes = [load_episode(ds, i) for i in cfg.episode_index]
+        replay_cfg = replay_config(ds)
+    loaded, policy_cfg = None, None
+    if cfg.policy_path is not None:
+        from lerobot_pnp.rollout import load_policy
+
+        loaded = load_policy(cfg.policy_path, device=cfg.device)
+        policy_cfg = rollout_config(str(loaded.path), cfg.task_source, cfg.control_mode)
+    seeds = [cfg.seed + i for i in range(cfg.n_rollouts)] if loaded is not None else []
+
+    runs = [replay_episode(ep, replay_cfg, cfg.log_hz) for ep in episodes]
+    runs += [
+        rollout_with_expert(loaded, policy_cfg, seed, cfg.log_hz, cfg.compare_expert, name=f"rollout_{i}")
+        for i, seed in enumerate(seeds)
+    ]
+
+    with tempfile.TemporaryDirectory(prefix="lerobot_pnp_viz_") as tmp:
+        rrd = Path(cfg.save).expanduser() if cfg.save else Path(tmp) / "recording.rrd"
+        rec = rr.RecordingStream(APPLICATION_ID, recording_id=None)
+        blueprint = make_blueprint([(run.name, run.is_rollout) for run in runs])
+        if cfg.save is not None or cfg.screenshot is not None:
+            rrd.parent.mkdir(parents=True, exist_ok=True)
+            rec.save(str(rrd), default_blueprint=blueprint)
+        else:
+            rec.spawn(default_blueprint=blueprint)
+        title = cfg.repo_id or Path(cfg.policy_path).name
+        rec.send_recording_name(f"{title} ({', '.join(run.name for run in runs)})")
+        summary: dict = {"recording": str(cfg.save) if cfg.save else "spawned viewer", "runs": []}
+        for run in runs:
+            run.scene.log_static(rec, run.name, _posed_data(run))
+            log_run(rec, run)
+            if run.is_rollout:
+                log_policy_comparison(rec, run)
+                run.info["policy"] = str(loaded.path)
+            summary["runs"].append({"run": run.name, **run.info})
+        rec.flush()
+        if cfg.save is not None or cfg.screenshot is not None:
+            rec.disconnect()
+        if cfg.save is None and cfg.screenshot is not None:
+            summary["recording"] = None
+        if cfg.screenshot is not None:
+            summary["screenshot"] = str(take_screenshot(rrd, cfg.screenshot, cfg.window))
+    return summary
+
+
+def _posed_data(run):
+    """An MjData of the run's model posed at its last state (for the static poses and the target)."""
+    import mujoco
+
+    data = mujoco.MjData(run.scene.model)
+    data.qpos[:] = run.qpos
+    mujoco.mj_kinematics(run.scene.model, data)
+    return data

@@ -1,0 +1,316 @@
+"""Logging runs to a Rerun recording: the motion, the plots, keyframe markers, and the blueprint.
+
+Timelines: ``time`` (duration, simulated seconds since reset) carries every sample; ``frame_index``
+(sequence) carries the rows logged at a run's frames, whose values are the dataset's own (at frame ``k``,
+``plots/joints/<j>`` equals ``observation.state[k]``). Entity paths are listed in ``lerobot_pnp.viz``.
+
+Keyframe markers are labelled once per *place*: FSM phases reached at nearly the same point (grasp and close;
+approach, retract and the next start above the object; descend and open) share one marker whose label names
+them all, and labels of nearby markers are lifted to different heights on leader lines, so the labels do not
+pile up into an unreadable cluster.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from lerobot_pnp import robot
+from lerobot_pnp.viz.sampling import Run, phase_name
+from lerobot_pnp.viz.scene import quat_xyzw
+
+PICK_COLOR, PLACE_COLOR, EXPERT_COLOR, EE_COLOR = (255, 140, 0), (40, 200, 220), (90, 220, 90), (255, 200, 0)
+# One colour per joint (and the gripper), the same in every plot, so a joint is found across panels.
+SERIES_COLORS = (
+    (31, 119, 180),
+    (255, 127, 14),
+    (44, 160, 44),
+    (214, 39, 40),
+    (148, 103, 189),
+    (140, 86, 75),
+    (227, 119, 194),
+    (188, 189, 34),
+)
+MERGE_DISTANCE = 0.03  # m: keyframes closer than this share a marker and a label
+LABEL_SPACING = 0.25  # m (horizontal): labels of markers closer than this are drawn on different levels
+LABEL_LIFT = 0.05  # m: height of one label level above its marker
+# The 3D view's initial eye: from the front right of the robot, above the table, looking at the workspace.
+EYE_POSITION = (1.6, -0.92, 0.78)
+EYE_TARGET = (0.42, 0.15, 0.06)
+
+
+def _scalars(rec, path: str, indexes, values) -> None:
+    import rerun as rr
+
+    rec.send_columns(path, indexes=indexes, columns=rr.Scalars.columns(scalars=np.asarray(values, dtype=np.float64)))
+
+
+def _indexes(times: np.ndarray, frames: np.ndarray | None = None) -> list:
+    import rerun as rr
+
+    idx = [rr.TimeColumn("time", duration=np.asarray(times, dtype=np.float64))]
+    if frames is not None:
+        idx.insert(0, rr.TimeColumn("frame_index", sequence=np.asarray(frames, dtype=np.int64)))
+    return idx
+
+
+def _style(rec, path: str, color, name: str, *, points: bool = False, steps: bool = False) -> None:
+    """Static series style: a line (``steps``: held until the next value) or cross markers."""
+    import rerun as rr
+
+    if points:
+        style = rr.SeriesPoints(colors=[color], names=[name], markers=["cross"], marker_sizes=[5.0])
+    else:
+        style = rr.SeriesLines(colors=[color], names=[name], interpolation_mode="StepAfter" if steps else None)
+    rec.log(path, style, static=True)
+
+
+def log_run(rec, run: Run) -> None:
+    """One run's continuous samples (``time``), its frames (``frame_index`` + ``time``) and its keyframes."""
+    import rerun as rr
+
+    name, scene, samples, frames = run.name, run.scene, run.samples, run.frames
+    t = samples["t"]
+    ft = t[frames.sample]
+    tick_idx, frame_idx = _indexes(t), _indexes(ft, frames.frame_index)
+    for j, b in enumerate(scene.dynamic):
+        for idx, rows in ((tick_idx, slice(None)), (frame_idx, frames.sample)):
+            rec.send_columns(
+                f"{name}/{scene.entity[b]}",
+                indexes=idx,
+                columns=rr.Transform3D.columns(
+                    translation=samples["xpos"][rows, j], quaternion=quat_xyzw(samples["xquat"][rows, j])
+                ),
+            )
+    for idx, rows in ((tick_idx, slice(None)), (frame_idx, frames.sample)):
+        pts = samples["ee"][rows]
+        rec.send_columns(
+            f"{name}/world/ee", indexes=idx, columns=[*rr.Points3D.columns(positions=pts).partition([1] * len(pts))]
+        )
+    rec.log(f"{name}/world/ee", rr.Points3D.from_fields(radii=[0.01], colors=[EE_COLOR]), static=True)
+    rec.log(f"{name}/world/ee_path", rr.LineStrips3D([samples["ee"]], colors=[EE_COLOR], radii=[0.003]), static=True)
+    # Time series: the continuous samples (simulated, noise-free) ...
+    for j, joint in enumerate(robot.JOINT_NAMES):
+        _style(rec, f"{name}/plots/joints/{joint}", SERIES_COLORS[j], joint)
+        _scalars(rec, f"{name}/plots/joints/{joint}", tick_idx, samples["q"][:, j])
+    _style(rec, f"{name}/plots/gripper", SERIES_COLORS[robot.N_JOINTS], "gripper opening")
+    _style(rec, f"{name}/plots/success", (90, 220, 120), "success", steps=True)
+    _scalars(rec, f"{name}/plots/gripper", tick_idx, samples["gripper"])
+    for j, axis in enumerate("xyz"):
+        _style(rec, f"{name}/plots/object/{axis}", ((230, 80, 80), (80, 200, 80), (80, 140, 255))[j], axis)
+        _scalars(rec, f"{name}/plots/object/{axis}", tick_idx, samples["object"][:, j])
+    _scalars(rec, f"{name}/plots/success", tick_idx, samples["success"])
+    # ... and the frames, with the recorded values.
+    for j, joint in enumerate(robot.JOINT_NAMES):
+        _scalars(rec, f"{name}/plots/joints/{joint}", frame_idx, frames.state[:, j])
+    _scalars(rec, f"{name}/plots/gripper", frame_idx, frames.state[:, robot.N_JOINTS])
+    for j, axis in enumerate("xyz"):
+        _scalars(rec, f"{name}/plots/object/{axis}", frame_idx, frames.object[:, j])
+    # success is the env's check of the simulated state (the dataset's next.success marks only the last frame)
+    _scalars(rec, f"{name}/plots/success", frame_idx, samples["success"][frames.sample])
+    valid = np.all(np.isfinite(frames.action), axis=1)
+    if valid.any():
+        act_idx = _indexes(ft[valid], frames.frame_index[valid])
+        for j, action in enumerate(robot.ACTION_NAMES):
+            _scalars(rec, f"{name}/plots/action/{action}", act_idx, frames.action[valid, j])
+    known = frames.phase >= 0
+    if known.any():
+        idx = _indexes(ft[known], frames.frame_index[known])
+        # The phase log: one line each time a phase is entered (dense runs spend many frames in each).
+        entered = known & (np.r_[-2, frames.phase[:-1]] != frames.phase)
+        texts = [phase_name(p) for p in frames.phase[entered]]
+        rec.send_columns(
+            f"{name}/plots/phase",
+            indexes=_indexes(ft[entered], frames.frame_index[entered]),
+            columns=rr.TextLog.columns(text=texts, level=["INFO"] * len(texts)),
+        )
+        _style(rec, f"{name}/plots/phase_index", (200, 200, 200), "phase index", steps=True)
+        _scalars(rec, f"{name}/plots/phase_index", tick_idx, _phase_per_sample(len(t), frames.sample, frames.phase))
+        _scalars(rec, f"{name}/plots/phase_index", idx, frames.phase[known])
+        pos, phases = keyframes_reached(run)
+        log_keyframes(rec, f"{name}/world/keyframes", pos, phases)
+
+
+def _phase_per_sample(n: int, frame_samples: np.ndarray, phases: np.ndarray) -> np.ndarray:
+    out = np.full(n, float(max(phases[0], 0)))
+    for s, p in zip(frame_samples, phases):
+        if p >= 0:
+            out[s:] = p
+    return out
+
+
+def keyframes_reached(run: Run) -> tuple[np.ndarray, list[int]]:
+    """End-effector positions where the run entered each FSM phase (a recovery re-enters some), and the phase."""
+    pos, phases, last = [], [], None
+    for k, p in enumerate(run.frames.phase):
+        if p < 0 or p == last:
+            continue
+        last = int(p)
+        pos.append(run.samples["ee"][run.frames.sample[k]])
+        phases.append(int(p))
+    return np.asarray(pos).reshape(-1, 3), phases
+
+
+def merged_labels(positions: np.ndarray, phases: list[int]) -> tuple[np.ndarray, list[str], list]:
+    """One marker per place: phases within ``MERGE_DISTANCE`` of each other share it (see module doc).
+
+    Labels are short: the phases' short names joined by " · " in the order reached, coloured by the subtask
+    of the first (pick orange, place cyan); a place phase in a pick-coloured marker is written "place <name>".
+    """
+    groups: list[list[int]] = []
+    for k in range(len(phases)):
+        near = [g for g in groups if np.linalg.norm(positions[k] - positions[g[0]]) < MERGE_DISTANCE]
+        if near:
+            near[0].append(k)
+        else:
+            groups.append([k])
+    pos, labels, colors = [], [], []
+    for group in groups:
+        first = _subtask(phases[group[0]])
+        names = []
+        for k in group:
+            subtask, _, short = phase_name(phases[k]).rpartition("/")
+            name = short if subtask in ("", first) else f"{subtask} {short}"
+            if name not in names:
+                names.append(name)
+        pos.append(positions[group[0]])
+        labels.append(" · ".join(names))
+        colors.append(PICK_COLOR if first == robot.SUBTASKS[0] else PLACE_COLOR)
+    return np.asarray(pos).reshape(-1, 3), labels, colors
+
+
+def _subtask(phase: int) -> str:
+    return robot.SUBTASKS[min(max(int(phase), 0) // robot.N_PHASES_PER_SUBTASK, len(robot.SUBTASKS) - 1)]
+
+
+def label_anchors(positions: np.ndarray) -> np.ndarray:
+    """Where each marker's label is drawn: above the marker, on the lowest free level.
+
+    Markers near each other (within ``LABEL_SPACING`` horizontally) get their labels on different levels, so
+    from the usual side views the texts are stacked instead of written over each other.
+    """
+    anchors, taken = [], []
+    for p in positions:
+        level = 0
+        while any(lv == level and np.linalg.norm(p[:2] - q[:2]) < LABEL_SPACING for q, lv in taken):
+            level += 1
+        taken.append((p, level))
+        anchors.append(p + [0.0, 0.0, LABEL_LIFT * (level + 1)])
+    return np.asarray(anchors).reshape(-1, 3)
+
+
+def log_keyframes(rec, path: str, positions: np.ndarray, phases: list[int], *, color=None, labelled=True) -> None:
+    """Markers at ``path`` (their labels show on hover); with ``labelled``, the labels drawn at ``path/labels``."""
+    import rerun as rr
+
+    if len(positions) == 0:
+        return
+    pos, labels, colors = merged_labels(positions, phases)
+    colors = [color] * len(pos) if color else colors
+    rec.log(path, rr.Points3D(pos, labels=labels, colors=colors, radii=[0.012], show_labels=False), static=True)
+    if not labelled:
+        return
+    anchors = label_anchors(pos)
+    rec.log(
+        f"{path}/labels",
+        rr.Points3D(anchors, labels=labels, colors=colors, radii=[0.002], show_labels=True),
+        static=True,
+    )
+    leaders = [np.stack([p, a]) for p, a in zip(pos, anchors)]
+    rec.log(f"{path}/leaders", rr.LineStrips3D(leaders, colors=colors, radii=[0.0015]), static=True)
+
+
+def log_policy_comparison(rec, run: Run) -> None:
+    """Predicted keyframes (3D, labelled) and, with an expert reference, the expert's (3D) and the differences."""
+    import rerun as rr
+
+    name, frames, expert = run.name, run.frames, run.expert
+    scratch = mujoco.MjData(run.scene.model)
+    n = int(np.sum(np.all(np.isfinite(frames.action), axis=1)))
+    pred = frames.action[:n]
+    pred_ee = np.array([run.scene.ee_position(run.qpos, a, scratch) for a in pred]).reshape(-1, 3)
+    # Action k commands the phase of the next observation (k + 1).
+    reached = [int(p) for p in frames.phase[1 : n + 1]]
+    log_keyframes(rec, f"{name}/world/keyframes", pred_ee, reached)
+    if expert is None or "actions" not in expert:
+        return
+    ref = expert["actions"]
+    ref_ee = np.array([run.scene.ee_position(run.qpos, a, scratch) for a in ref]).reshape(-1, 3)
+    ref_phases = [min(k + 1, robot.N_KEYFRAMES - 1) for k in range(len(ref))]
+    log_keyframes(rec, f"{name}/world/expert_keyframes", ref_ee, ref_phases, color=EXPERT_COLOR, labelled=False)
+    if len(expert["ee_path"]):
+        path = rr.LineStrips3D([expert["ee_path"]], colors=[EXPERT_COLOR], radii=[0.002])
+        rec.log(f"{name}/world/expert_ee_path", path, static=True)
+    m = min(n, len(ref))
+    if m == 0:
+        return
+    idx = _indexes(run.samples["t"][frames.sample[:m]], frames.frame_index[:m])
+    for j, action in enumerate(robot.ACTION_NAMES):
+        _style(rec, f"{name}/policy/pred/{action}", SERIES_COLORS[j], f"policy {action}", steps=True)
+        _style(rec, f"{name}/policy/expert/{action}", SERIES_COLORS[j], f"expert {action}", points=True)
+        _scalars(rec, f"{name}/policy/pred/{action}", idx, pred[:m, j])
+        _scalars(rec, f"{name}/policy/expert/{action}", idx, ref[:m, j])
+    err = np.abs(pred[:m] - ref[:m])
+    for j, joint in enumerate(robot.JOINT_NAMES):
+        _style(rec, f"{name}/policy/error/joints/{joint}", SERIES_COLORS[j], joint)
+        _scalars(rec, f"{name}/policy/error/joints/{joint}", idx, err[:, j])
+    _scalars(rec, f"{name}/policy/error/gripper", idx, err[:, robot.N_JOINTS])
+    ee_err = np.linalg.norm(pred_ee[:m] - ref_ee[:m], axis=1)
+    _scalars(rec, f"{name}/policy/error/ee_pos", idx, ee_err)
+    run.info["mean_joint_error_rad"] = float(err[:, : robot.N_JOINTS].mean())
+    run.info["mean_ee_error_m"] = float(ee_err.mean())
+    run.info["max_ee_error_m"] = float(ee_err.max())
+
+
+def make_blueprint(runs: list[tuple[str, bool]]):
+    """One tab per run: the 3D view framed on the workspace, and plots titled with what they show."""
+    import rerun.blueprint as rrb
+
+    tabs = []
+    for run, is_policy in runs:
+        phase = rrb.Tabs(
+            rrb.TimeSeriesView(
+                origin=f"{run}/plots/phase_index",
+                name=f"FSM phase (0 {robot.PHASE_NAMES[0]} .. {robot.N_KEYFRAMES - 1} {robot.PHASE_NAMES[-1]})",
+            ),
+            rrb.TextLogView(origin=f"{run}/plots/phase", name="FSM phase entered (time, name)"),
+        )
+        plots = [
+            rrb.TimeSeriesView(origin=f"{run}/plots/joints", name="joint angles (rad)"),
+            rrb.TimeSeriesView(
+                name="gripper opening (0 closed, 1 open) · success (0/1)",
+                contents=[f"{run}/plots/gripper", f"{run}/plots/success"],
+            ),
+            rrb.TimeSeriesView(origin=f"{run}/plots/object", name="object position x, y, z (m)"),
+        ]
+        if is_policy:
+            plots += [
+                rrb.TimeSeriesView(
+                    name="keyframe targets: policy (steps) vs expert (crosses), 7 joints (rad) + gripper",
+                    contents=[f"{run}/policy/pred/**", f"{run}/policy/expert/**"],
+                ),
+                rrb.TimeSeriesView(
+                    origin=f"{run}/policy/error/joints", name="policy - expert: joint target error, absolute (rad)"
+                ),
+                rrb.TimeSeriesView(
+                    name="policy - expert: keyframe end-effector distance (m) · gripper command error",
+                    contents=[f"{run}/policy/error/ee_pos", f"{run}/policy/error/gripper"],
+                ),
+            ]
+        else:
+            plots.append(phase)
+        what = "policy (labelled, orange/cyan) vs expert (green)" if is_policy else "replay"
+        view3d = rrb.Spatial3DView(
+            origin=f"{run}/world",
+            name=f"{run}: {what} · end-effector path (yellow) · keyframes",
+            background=(28, 32, 38),
+            eye_controls=rrb.EyeControls3D(position=EYE_POSITION, look_target=EYE_TARGET, eye_up=(0, 0, 1)),
+        )
+        tabs.append(rrb.Horizontal(view3d, rrb.Vertical(*plots), column_shares=[3, 2], name=run))
+    return rrb.Blueprint(
+        rrb.Tabs(*tabs),
+        rrb.BlueprintPanel(state="collapsed"),
+        rrb.SelectionPanel(state="collapsed"),
+        # Open on the end of the run (the whole path drawn, the object placed); scrub or press play from there.
+        rrb.TimePanel(state="collapsed", play_state="following"),
+    )

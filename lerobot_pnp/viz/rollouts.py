@@ -1,0 +1,116 @@
+"""Policy rollouts for the viewer, each beside the FSM expert run from the same start.
+
+A checkpoint is run closed loop in the task it was trained on (``task_source`` = the checkpoint: its
+training config names the dataset, whose recorded task is read back), seeded like ``lerobot-eval``. The
+expert is run in a second env from the same seed (same start pose and object), so its keyframes are what the
+policy should have commanded; the viewer logs both and their differences.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+
+from lerobot_pnp import robot
+from lerobot_pnp.env_config import BaxterPnPEnvConfig, make_env, read_recorded
+from lerobot_pnp.errors import PnPError
+from lerobot_pnp.viz.sampling import Frames, Run, Sampler
+from lerobot_pnp.viz.scene import SceneModel
+from lerobot_pnp.viz.sources import MOTION_FIELDS
+
+logger = logging.getLogger(__name__)
+
+
+def rollout_config(checkpoint: str, task_source: str | None, control_mode: str | None) -> BaxterPnPEnvConfig:
+    """The env a policy is shown in: the recorded task of ``task_source`` (default: the checkpoint's)."""
+    source = task_source or checkpoint
+    recorded = read_recorded(source)
+    if recorded is None:
+        logger.warning("viz: %s records no task (no dataset env config found): rollouts use the paper's task", source)
+        return BaxterPnPEnvConfig(preset="paper", control_mode=control_mode or "keyframe", cameras=[])
+    motion = {k: recorded[k] for k in MOTION_FIELDS if recorded.get(k) is not None}
+    if control_mode is not None and control_mode != motion.get("control_mode", control_mode):
+        motion = {"control_mode": control_mode}  # another mode: its own fps
+    elif control_mode is not None:
+        motion["control_mode"] = control_mode
+    return BaxterPnPEnvConfig(task_source=str(source), cameras=[], **motion)
+
+
+def rollout_with_expert(
+    loaded, config: BaxterPnPEnvConfig, seed: int, hz: float, compare_expert: bool, name: str = "rollout_0"
+) -> Run:
+    """Run the policy from ``seed`` (sampled continuously) and, optionally, the expert from the same start."""
+    from lerobot_pnp.rollout import run_policy_episode
+
+    env = make_env(config, render_mode=None)
+    base = env.unwrapped
+    physics = base.physics
+    scene = SceneModel(physics.model)
+    sampler = Sampler(physics, scene, base.is_success, hz)
+    frame_samples: list[int] = []
+
+    def on_step(k, obs, action):
+        if k == 0:
+            sampler.start()
+            physics.on_control_tick = sampler
+        frame_samples.append(sampler.sample())
+
+    try:
+        pe = run_policy_episode(env, loaded, seed, on_step=on_step)
+        frame_samples.append(sampler.sample())  # the final observation
+        qpos = physics.data.qpos.copy()
+        place_target = physics.place_target().round(4).tolist()
+    finally:
+        physics.on_control_tick = None
+        env.close()
+    n = pe.num_steps
+    actions = np.full((n + 1, robot.ACTION_DIM), np.nan, np.float32)
+    actions[:n] = pe.actions
+    # The phase a keyframe policy is in: the env's info["phase"] where it reports one, else the step index.
+    if pe.phases is not None:
+        phases = pe.phases
+    else:
+        phases = np.arange(n + 1) if config.control_mode == "keyframe" else np.full(n + 1, -1)
+    frames = Frames(
+        frame_index=np.arange(n + 1),
+        sample=np.asarray(frame_samples, dtype=np.int64),
+        state=pe.states,
+        object=pe.object_positions,
+        action=actions,
+        phase=np.minimum(np.asarray(phases), robot.N_KEYFRAMES - 1),
+        success=np.concatenate([[0.0], pe.successes.astype(float)]),
+    )
+    info = {"seed": seed, "steps": n, "success": pe.success, "place_target": place_target}
+    expert = None
+    if compare_expert and config.control_mode == "keyframe":
+        expert = expert_reference(config, seed, hz)
+        info["expert_success"] = expert["success"]
+        if expert.get("error"):
+            info["expert_error"] = expert["error"]
+    samples = sampler.arrays()
+    info["samples"] = len(samples["t"])
+    return Run(
+        name=name, scene=scene, qpos=qpos, samples=samples, frames=frames, info=info, is_rollout=True, expert=expert
+    )
+
+
+def expert_reference(config: BaxterPnPEnvConfig, seed: int, hz: float) -> dict:
+    """The FSM expert's actions and end-effector path from the start state ``seed`` gives."""
+    from lerobot_pnp.expert import run_expert_episode
+
+    env = make_env(config, render_mode=None)
+    physics = env.unwrapped.physics
+    path: list[np.ndarray] = []
+    physics.on_control_tick = lambda p: path.append(p.ee_pose()[0])
+    out: dict = {"success": False}
+    try:
+        ep = run_expert_episode(env, seed)
+        out.update(success=ep.success, actions=ep.actions)
+    except PnPError as err:  # the expert failed (unreachable / dropped): the path so far, no keyframes
+        out["error"] = str(err)
+    finally:
+        physics.on_control_tick = None
+        env.close()
+    out["ee_path"] = np.asarray(path[:: max(1, round(100 / hz))]).reshape(-1, 3)
+    return out
