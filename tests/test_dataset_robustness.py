@@ -45,7 +45,7 @@ def _run(args: list[str], preexec_fn=None, timeout: float = 240) -> subprocess.C
 def _one_line_error(res: subprocess.CompletedProcess, *needles: str) -> str:
     """Failed, with exactly one line on stderr naming the problem, and no traceback."""
     lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
-    assert res.returncode != 0, res.stdout
+    assert res.returncode == 2, (res.returncode, res.stdout)  # the CLI's exit status for any PnPError
     assert "Traceback" not in res.stderr and len(lines) == 1, res.stderr[-3000:]
     for needle in needles:
         assert needle in lines[0], lines[0]
