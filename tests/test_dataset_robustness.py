@@ -45,7 +45,7 @@ def _run(args: list[str], preexec_fn=None, timeout: float = 240) -> subprocess.C
 def _one_line_error(res: subprocess.CompletedProcess, *needles: str) -> str:
     """Failed, with exactly one line on stderr naming the problem, and no traceback."""
     lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
-    assert res.returncode != 0, res.stdout
+    assert res.returncode == 2, (res.returncode, res.stdout)  # the CLI's exit status for any PnPError
     assert "Traceback" not in res.stderr and len(lines) == 1, res.stderr[-3000:]
     for needle in needles:
         assert needle in lines[0], lines[0]
@@ -117,6 +117,20 @@ def test_resume_after_kill_keeps_unrelated_files_and_finishes(tmp_path):
     # --overwrite replaces the dataset, not the user's files
     generate(GenerateConfig(repo_id=REPO, root=str(root), num_episodes=2, workers=1, overwrite=True, progress=False))
     assert (root / "notes.txt").read_text() == "keep me" and validate_dataset(root)["total_episodes"] == 2
+
+
+def test_ctrl_c_is_one_line_and_resume_finishes(tmp_path):
+    root = tmp_path / "sigint"
+    proc = subprocess.Popen(
+        _args(root, 8, "--tasks=4", "--workers=1"), env=_env(), stderr=subprocess.PIPE, text=True,
+        start_new_session=True,
+    )  # fmt: skip
+    _wait_for(_first_shard_done(root), proc)
+    os.killpg(proc.pid, signal.SIGINT)  # Ctrl-C in a terminal: the whole process group
+    _, err = proc.communicate(timeout=120)
+    _one_line_error(subprocess.CompletedProcess(proc.args, proc.returncode, "", err), "interrupted", "--resume")
+    generate(GenerateConfig(repo_id=REPO, root=str(root), num_episodes=8, workers=1, resume=True, progress=False))
+    assert verify_dataset(root)["total_episodes"] == 8
 
 
 # ---------------------------------------------------------------------------------------------- 4: validation

@@ -16,6 +16,7 @@ from pathlib import Path
 import pytest
 
 from lerobot_pnp.dataset import GenerateConfig, SlurmOptions, data_hash, generate, verify_dataset
+from lerobot_pnp.errors import DatasetError
 
 _MISSING = [b for b in ("sbatch", "squeue", "sinfo") if shutil.which(b) is None]
 pytestmark = [
@@ -63,6 +64,9 @@ def test_slurm_run_equals_local_run(cluster, tmp_path):
     )
     assert submitted["status"] == "submitted" and len(submitted["job_ids"]) == 2, submitted
     assert json.loads((root / ".pnp_work" / "slurm.json").read_text())["job_ids"] == submitted["job_ids"]
+    # the submitting process has exited: the queued/running jobs themselves guard the root against --overwrite
+    with pytest.raises(DatasetError, match="still queued or running"):
+        generate(GenerateConfig(repo_id="test/slurm", root=str(root), num_episodes=n, overwrite=True, progress=False))
     _wait_complete(root, submitted["job_ids"])
     info = verify_dataset(root)
     assert info["total_episodes"] == n and local["episodes"] == n

@@ -61,7 +61,10 @@ def simulate_slot(env, base_seed: int, num_episodes: int, slot: int, max_retries
         try:
             ep = run_expert_episode(env, seed)
             if keyframe and ep.num_frames != robot.N_KEYFRAMES:
-                raise ExpertFailure(f"seed {seed}: expert failed: short_episode ({ep.num_frames} frames)")
+                # the paper's layout: exactly one frame per FSM phase (a recovering expert takes more)
+                raise ExpertFailure(
+                    f"seed {seed}: {ep.num_frames} keyframes, not {robot.N_KEYFRAMES}", "not_10_keyframes"
+                )
         except (UnreachableError, ExpertFailure) as err:
             failures.append({"slot": slot, "seed": seed, "cause": failure_cause(err), "message": str(err)})
             continue

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import shutil
 import time
 from dataclasses import asdict, dataclass, field
@@ -47,7 +48,7 @@ class SlurmOptions:
 
     partition: str = "cpu"
     cpus_per_task: int = 1
-    mem_per_cpu_gb: float = 2
+    mem_per_cpu_gb: int = 2  # GB per CPU (an integer: sbatch rejects "1.5G")
     time: str = "04:00:00"  # per task, HH:MM:SS
     qos: str | None = None
     job_name: str = "pnp_generate"
@@ -194,7 +195,7 @@ def _generate_locked(cfg: GenerateConfig, root: Path, t_start: float) -> dict:
     reused = _drop_invalid_completions(work, logs, cfg.num_episodes, tasks)
     shard_step = GenerateShard(
         work=str(work), repo_id=cfg.repo_id, env=run["env"], seed=cfg.seed, num_episodes=cfg.num_episodes,
-        max_retries=cfg.max_retries, parent_pid=_pid(),
+        max_retries=cfg.max_retries, parent_pid=os.getpid(),
     )  # fmt: skip
     progress_dir = work / "progress"
     if progress_dir.exists():
@@ -221,12 +222,6 @@ def _generate_locked(cfg: GenerateConfig, root: Path, t_start: float) -> dict:
         episodes_per_s=round((cfg.num_episodes - reused) / sim_wall, 2) if cfg.num_episodes > reused else None,
     )
     return summary
-
-
-def _pid() -> int:
-    import os
-
-    return os.getpid()
 
 
 def _check_same_run(recorded: dict, cfg: GenerateConfig, recorded_env: dict) -> None:

@@ -27,6 +27,7 @@ from lerobot_pnp.errors import DatasetError
 
 TRASH_DIR = ".pnp_work.trash"
 DATASET_ENTRIES = ("meta", "data", "videos")  # what LeRobot writes into a dataset root
+LOCK_FILE = ".pnp_lock"  # only where a directory cannot be flock-ed (NFS); never deleted while in use
 
 
 def disk_error(root: Path, err: OSError) -> DatasetError:
@@ -45,6 +46,13 @@ def disk_error(root: Path, err: OSError) -> DatasetError:
     )
 
 
+def _busy(root: Path) -> DatasetError:
+    return DatasetError(
+        f"another `lerobot-pnp generate` is writing {root}; wait for it to finish (or stop it) "
+        "before --resume or --overwrite"
+    )
+
+
 class RootLock:
     """An exclusive, non-blocking ``flock`` on the root directory (released when the process dies)."""
 
@@ -59,12 +67,23 @@ class RootLock:
         self.fd = os.open(root, os.O_RDONLY | os.O_DIRECTORY)
         try:
             fcntl.flock(self.fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as err:
+            os.close(self.fd)
+            self.fd = None
+            if err.errno not in (errno.EAGAIN, errno.EACCES):
+                # e.g. NFS, where flock is emulated with POSIX locks that need a writable descriptor
+                self._lock_file(root)
+                return
+            raise _busy(root) from None
+
+    def _lock_file(self, root: Path) -> None:
+        self.fd = os.open(root / LOCK_FILE, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.lockf(self.fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
             os.close(self.fd)
-            raise DatasetError(
-                f"another `lerobot-pnp generate` is writing {root}; wait for it to finish (or stop it) "
-                "before --resume or --overwrite"
-            ) from None
+            self.fd = None
+            raise _busy(root) from None
 
     def close(self) -> None:
         if self.fd is not None:
@@ -80,7 +99,7 @@ class RootLock:
 
 def root_state(root: Path) -> str:
     """empty | interrupted (a work folder) | complete (a dataset) | foreign (other files only)."""
-    entries = {p.name for p in root.iterdir()} - {TRASH_DIR}
+    entries = {p.name for p in root.iterdir()} - {TRASH_DIR, LOCK_FILE}
     if WORK_DIR in entries:
         return "interrupted"
     if (root / "meta" / "info.json").is_file():
