@@ -410,3 +410,21 @@ def test_config_validation():
     assert normalize_args(
         GenerateConfig, ["--repo-id", "a/b", "--resume", "--num-episodes=3", "--overwrite", "false"]
     ) == ["--repo_id", "a/b", "--resume=true", "--num_episodes=3", "--overwrite", "false"]
+
+
+def test_full_preset_dataset_has_goal_yaw_and_recoveries(tmp_path):
+    """The `full` task: 7-d environment state (object, yaw features, goal), recovery episodes kept, preset recorded."""
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    from lerobot_pnp.env_config import BaxterPnPEnvConfig, read_recorded
+
+    root = tmp_path / "full"
+    generate(_cfg(root, num_episodes=8, env=BaxterPnPEnvConfig(preset="full")))
+    ds = LeRobotDataset(REPO, root=root, video_backend="pyav")
+    names = ds.meta.features["observation.environment_state"]["names"]
+    assert names == ["object_x", "object_y", "object_z", "object_yaw_sin4", "object_yaw_cos4", "goal_x", "goal_y"]
+    lengths = [int(n) for n in ds.meta.episodes["length"]]
+    assert max(lengths) > robot.N_KEYFRAMES  # at least one episode recovered from a perturbation
+    assert read_recorded(root)["preset"] == "full"
+    phases = np.asarray(ds.hf_dataset["phase.index"]).reshape(-1)
+    assert phases.min() == 0 and phases.max() == robot.N_KEYFRAMES - 1

@@ -1,6 +1,6 @@
 """The one feature spec of a pnp dataset (LeRobot ``features`` dict), derived from the env config.
 
-Per frame: ``observation.state`` (7 joints + gripper), ``observation.environment_state`` (object xyz),
+Per frame: ``observation.state`` (7 joints + gripper), ``observation.environment_state`` (object xyz [+ sin/cos 4 yaw] [+ goal xy]),
 ``action``, ``next.done``, ``next.success``, ``phase.index`` (FSM phase 0..9), ``phase.subtask`` (0 pick,
 1 place), ``episode.seed`` (the expert seed that re-simulates the episode exactly) and the task string.
 ``phase.*`` and ``episode.*`` are deliberately not ``observation.*`` so LeRobot never feeds them to a policy.
@@ -17,12 +17,14 @@ ROBOT_TYPE = "baxter"
 def dataset_features(env=None) -> dict:
     """LeRobot feature spec for datasets recorded from ``env`` (a ``BaxterPnPEnvConfig``; None = no cameras)."""
     scalar = {"shape": (1,), "names": None}
+    env_state_names = env.environment_state_names if env is not None else list(robot.OBJECT_NAMES)
     features = {
         "observation.state": {"dtype": "float32", "shape": (robot.STATE_DIM,), "names": list(robot.STATE_NAMES)},
+        # object xyz, then (sin 4 yaw, cos 4 yaw) and the goal xy when the task observes them
         "observation.environment_state": {
             "dtype": "float32",
-            "shape": (robot.OBJECT_DIM,),
-            "names": list(robot.OBJECT_NAMES),
+            "shape": (len(env_state_names),),
+            "names": env_state_names,
         },
         "action": {"dtype": "float32", "shape": (robot.ACTION_DIM,), "names": list(robot.ACTION_NAMES)},
         "next.done": {"dtype": "bool", **scalar},
