@@ -54,13 +54,17 @@ class _Timer:
         return wrapped
 
 
-def cli_run(tree: Path, root: Path, episodes: int, workers: int, dense: bool = False) -> dict:
+def cli_run(
+    tree: Path, root: Path, episodes: int, workers: int, dense: bool = False, preset: str | None = None
+) -> dict:
     """``lerobot-pnp generate`` from ``tree`` (PYTHONPATH), timed from outside; returns its summary + hash."""
     args = [PNP, "generate", "--repo_id=bench/kf", f"--root={root}", f"--num_episodes={episodes}", "--seed=0"]
     args += ["--progress=false"] + ([f"--workers={workers}"] if workers else [])
     if dense:
         new_api = (tree / "lerobot_pnp" / "dataset" / "__init__.py").exists()
         args += ["--env.control_mode=dense", "--env.fps=20"] if new_api else ["--representation=dense", "--fps=20"]
+    if preset:
+        args.append(f"--env.preset={preset}")
     env = {**os.environ, "PYTHONPATH": str(tree), "OMP_NUM_THREADS": "1"}
     load = os.getloadavg()[0]
     t0 = time.perf_counter()
@@ -120,6 +124,9 @@ def main(argv=None) -> int:
     p.add_argument("--old-tree", type=Path, default=None, help="reference checkout run side by side")
     p.add_argument("--dense-episodes", type=int, default=0)
     p.add_argument("--profile-episodes", type=int, default=0)
+    p.add_argument(
+        "--full-vs-paper", action="store_true", help="also generate the `full` task's dataset (target <= 2x)"
+    )
     p.add_argument("--out", type=Path, default=None)
     args = p.parse_args(argv)
     out = args.out or Path(tempfile.mkdtemp(prefix="bench_dataset_"))
@@ -135,6 +142,16 @@ def main(argv=None) -> int:
             f"\n{args.episodes} keyframe episodes: new {new['wall_s']} s vs old {old['wall_s']} s "
             f"(new/old = {new['wall_s'] / old['wall_s']:.2f}; load before: {new['load_before']} / "
             f"{old['load_before']}); same content hash: {new['hash'] == old['hash']}",
+            flush=True,
+        )
+    if args.full_vs_paper:
+        results["full"] = cli_run(HERE, out / "full", args.episodes, args.workers, preset="full")
+        print(json.dumps(results["full"]), flush=True)
+        full, paper = results["full"], results["new"]
+        print(
+            f"\n{args.episodes} keyframe episodes: full {full['wall_s']} s vs paper {paper['wall_s']} s "
+            f"(full/paper = {full['wall_s'] / paper['wall_s']:.2f}, target <= 2; load before: "
+            f"{full['load_before']} / {paper['load_before']})",
             flush=True,
         )
     if args.dense_episodes:

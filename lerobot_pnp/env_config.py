@@ -110,7 +110,8 @@ class BaxterPnPEnvConfig(EnvConfig):
     preset: str | None = None
     # A dataset folder or checkpoint whose recorded task to use (default: from the command line, see above).
     task_source: str | None = None
-    control_mode: str = "keyframe"  # keyframe (one step = move to a joint keyframe) | dense (one control period)
+    # keyframe (one step = move to a joint keyframe) | dense (one control period); None = the recorded one, else keyframe
+    control_mode: str | None = None
     episode_length: int | None = None  # env steps before truncation; default keyframe_budget (dense: 3 s per keyframe)
     cameras: list[str] = field(default_factory=list)  # rendered camera observations: front, overhead, wrist
     image_height: int = 240
@@ -183,7 +184,24 @@ class BaxterPnPEnvConfig(EnvConfig):
                 setattr(self, name, base[name])
         if self.preset is None:
             self.preset = recorded.get("preset", "paper")
+        self._resolve_control(recorded)
         self.task_source = None  # resolved: the config now stands on its own
+
+    def _resolve_control(self, recorded: dict) -> None:
+        """Control mode and rate: the recorded ones (the data a policy learned from), and an explicit flag that
+        contradicts them is an error (a keyframe policy run at 20 Hz fails every episode, silently)."""
+        rec_mode, rec_fps = recorded.get("control_mode"), recorded.get("fps")
+        if self.control_mode is None:
+            self.control_mode = rec_mode or "keyframe"
+            if self.fps is None and rec_mode == self.control_mode:
+                self.fps = rec_fps
+        elif rec_mode and self.control_mode != rec_mode:
+            raise ConfigError(
+                f"env.control_mode={self.control_mode!r} contradicts the recorded task ({rec_mode!r}, fps {rec_fps}) "
+                "of the dataset/checkpoint this run uses; drop the flag, or pass --env.preset to start from a preset"
+            )
+        elif rec_mode and self.fps is not None and rec_fps is not None and self.fps != rec_fps:
+            raise ConfigError(f"env.fps={self.fps} contradicts the recorded fps {rec_fps} of the dataset/checkpoint")
 
     def _validate(self) -> None:
         if self.control_mode not in CONTROL_MODES:

@@ -197,6 +197,12 @@ def test_task_is_settable_from_the_env_config_and_recorded(tmp_path):
     # a preset named explicitly wins over the recorded task; explicit fields win over both
     assert BaxterPnPEnvConfig(task_source=str(tmp_path), preset="paper").place_low == PAPER_TASK["place_low"]
     assert BaxterPnPEnvConfig(task_source=str(tmp_path), nudge_max=0.01).place_low == (0.65, -0.1)
+    # a keyframe policy/dataset run in dense control would fail silently: the contradiction is an error
+    with pytest.raises(ConfigError, match="contradicts the recorded task"):
+        BaxterPnPEnvConfig(task_source=str(tmp_path), control_mode="dense")
+    write_recorded(BaxterPnPEnvConfig(control_mode="dense"), tmp_path)
+    dense = BaxterPnPEnvConfig(task_source=str(tmp_path))
+    assert dense.control_mode == "dense" and dense.fps == 20
 
 
 def test_camera_observations_render_lazily():
