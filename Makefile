@@ -26,6 +26,8 @@ demo: $(STAMP)
 	$(VENV)/bin/lerobot-pnp demo --config_path configs/demo.json
 
 test: $(STAMP)
+	$(VENV)/bin/ruff check .
+	$(VENV)/bin/ruff format --check .
 	$(VENV)/bin/python -m pytest -q
 
 clean:
