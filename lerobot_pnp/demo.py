@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from lerobot_pnp.report.cli_eval import EvalSpec, run_eval  # noqa: F401  (the lerobot-eval CLI runner)
 from lerobot_pnp.report.run import StudyConfig, run_study
 
 

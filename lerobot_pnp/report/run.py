@@ -45,6 +45,7 @@ PRESETS: dict[str, dict] = {
         "methods": ["expert", "lookup_table", "clocked_lstm"],
         "suites": [SuiteSpec("nominal", 500), SuiteSpec("nudge_0.03", 200), SuiteSpec("obs_noise_0.005", 200)],
         "data_efficiency": [],
+        "cli_check_episodes": 100,
     },
     "quick": {
         "num_episodes": 300,
@@ -53,6 +54,7 @@ PRESETS: dict[str, dict] = {
         "methods": ["lookup_table", "clocked_lstm"],
         "suites": [SuiteSpec("nominal", 100), SuiteSpec("nudge_0.03", 100)],
         "data_efficiency": [],
+        "cli_check_episodes": 0,
     },
     "full": {
         "num_episodes": 1400,
@@ -73,6 +75,7 @@ PRESETS: dict[str, dict] = {
             SuiteSpec("random_place", 200),
         ],
         "data_efficiency": [10, 30, 100, 300, 1120],
+        "cli_check_episodes": 200,
     },
 }
 
@@ -93,6 +96,9 @@ class StudyConfig:
     methods: list[str] | None = None
     suites: list[SuiteSpec] | None = None
     data_efficiency: list[int] | None = None  # numbers of training demonstrations (clocked LSTM vs lookup)
+    # episodes of the nominal suite re-run through the real `lerobot-eval` CLI (first learned method, first
+    # seed) to show the in-process evaluation gives the same per-episode successes; 0 = skip
+    cli_check_episodes: int | None = None
     eval_seed: int = 100_000  # first evaluation seed (disjoint from the dataset's seeds 0..)
     eval_batch_size: int = 50  # sub-envs of the SyncVectorEnv
     fresh: bool = False  # delete output_dir first
@@ -224,10 +230,48 @@ def run_study(cfg: StudyConfig) -> dict:
         timings[f"eval/{method.name}/{tag}/{suite.name}"] = data["wall_s"]
         results.setdefault(method.name, {}).setdefault(tag, {})[suite.name] = records_from_json(data)
 
+    cli_check = _cli_check(cfg, methods, artifacts, results, out, timings)
+
     _stage("4/4 report")
-    summary = write_report(out, cfg, methods, results, base_env, generation, timings, machine(), _command())
+    summary = write_report(out, cfg, methods, results, base_env, generation, timings, machine(), _command(), cli_check)
     print(f"\nreport: {out / 'report.md'}")
     return summary
+
+
+def _cli_check(cfg: StudyConfig, methods, artifacts, results, out: Path, timings: dict) -> dict | None:
+    """The first seeds of the nominal suite through the `lerobot-eval` CLI, compared episode by episode."""
+    from lerobot_pnp.report.cli_eval import EvalSpec, run_eval
+
+    learned = [m for m in methods if m.learned]
+    if (
+        not cfg.cli_check_episodes
+        or not learned
+        or "nominal" not in results.get(learned[0].name, {}).get(tag := str(cfg.train_seeds[0]), {})
+    ):
+        return None
+    n = min(cfg.cli_check_episodes, len(results[learned[0].name][tag]["nominal"]))
+    _stage(f"3b cross-check: {n} nominal episodes of {learned[0].name} seed {tag} through the lerobot-eval CLI")
+    t = time.perf_counter()
+    cli = run_eval(
+        artifacts[(learned[0].name, tag)],
+        out / "lerobot_eval_cli" / "nominal",
+        EvalSpec("nominal", n),
+        cfg.eval_seed,
+        cfg.eval_batch_size,
+    )
+    timings["cli_check"] = time.perf_counter() - t
+    ours = {r.seed: r.success for r in results[learned[0].name][tag]["nominal"] if r.seed < cfg.eval_seed + n}
+    theirs = cli["per_episode"]
+    agree = sum(ours.get(s) == v for s, v in theirs.items())
+    return {
+        "method": learned[0].name,
+        "seed": tag,
+        "n": len(theirs),
+        "agree": agree,
+        "cli_pc_success": cli["pc_success"],
+        "in_process_successes": sum(ours.values()),
+        "eval_info": cli["eval_info"],
+    }
 
 
 def _suites_for(cfg: StudyConfig, n_demos: int | None):

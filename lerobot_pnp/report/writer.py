@@ -46,7 +46,9 @@ def compare(results, method: str, suite: str):
     return comps or None
 
 
-def write_report(out: Path, cfg, methods, results, base_env, generation, timings, machine, command) -> dict:
+def write_report(
+    out: Path, cfg, methods, results, base_env, generation, timings, machine, command, cli_check=None
+) -> dict:
     figs = out / "figures"
     prov = f"{command}  |  config: {out / 'study_config.json'}  |  {machine['cpu']}, {machine['cores_available']} cores"
     labels = {m.name: m.label for m in methods}
@@ -145,6 +147,7 @@ def write_report(out: Path, cfg, methods, results, base_env, generation, timings
         "success": table,
         "vs_lookup_table": comparisons,
         "timings_s": timings,
+        "lerobot_eval_cli_check": cli_check,
         "figures": [f for _, f in figures],
     }
     (out / "summary.json").write_text(json.dumps(summary, indent=1, default=str))
@@ -189,6 +192,7 @@ def _markdown(cfg, methods, results, suite_names, table, comparisons, figures, s
         f"for the final `info` of each episode. Every method runs the same seeds ({cfg.eval_seed} onwards, unseen "
         f"by the dataset's seeds 0..). Learned methods: {len(cfg.train_seeds)} training seeds {cfg.train_seeds}, "
         f"{cfg.epochs} epochs each on {int(cfg.num_episodes * 0.8)} demonstrations; their rate pools the seeds.",
+        *_cli_lines(summary.get("lerobot_eval_cli_check")),
         "Intervals: 95 % Wilson. Pooling seeds treats them as one sample; the per-seed range is shown beside it.",
         "",
         "## Success by suite",
@@ -250,6 +254,16 @@ def _markdown(cfg, methods, results, suite_names, table, comparisons, figures, s
         "",
     ]
     return "\n".join(lines)
+
+
+def _cli_lines(c: dict | None) -> list[str]:
+    if not c:
+        return []
+    return [
+        f"Cross-check with the real `lerobot-eval` CLI (subprocess, `{c['eval_info']}`): {c['method']} seed "
+        f"{c['seed']} on the first {c['n']} nominal seeds: {c['cli_pc_success']:.1f}% success; the in-process "
+        f"records agree on {c['agree']} of {c['n']} episodes.",
+    ]
 
 
 def _fmt(d: dict) -> str:
