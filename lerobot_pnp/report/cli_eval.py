@@ -51,11 +51,9 @@ def run_eval(checkpoint: Path, out: Path, spec: EvalSpec, seed: int, batch_size:
         print(f"  done in {time.perf_counter() - start:.0f} s", flush=True)
     info = json.loads(info_path.read_text())
     overall = info["overall"]
-    per_episode = {}
-    for group in info.values():
-        for e in group.get("per_episode", []) if isinstance(group, dict) else []:
-            if e.get("seed") is not None:
-                per_episode[int(e["seed"])] = bool(e["success"])
+    # one task here: its successes are in seed order, seed + i (eval_policy's start_seed numbering)
+    successes = [ok for task in info.get("per_task", []) for ok in task["metrics"]["successes"]]
+    per_episode = {seed + i: bool(ok) for i, ok in enumerate(successes[: spec.n_episodes])}
     return {
         "pc_success": overall["pc_success"],
         "n_episodes": overall.get("n_episodes", spec.n_episodes),

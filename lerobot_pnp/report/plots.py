@@ -9,6 +9,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import matplotlib
+import matplotlib.patches
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
@@ -51,11 +52,11 @@ def success_heatmap(
 ) -> Path:
     """Success rate per cell of the object box, one panel per method (``panels``: name -> EpisodeRecords)."""
     n = len(panels)
-    fig, axes = plt.subplots(1, n, figsize=(3.3 * n + 0.8, 3.6), squeeze=False)
+    fig, axes = plt.subplots(1, n, figsize=(3.4 * n + 1.2, 3.9), squeeze=False, layout="constrained")
     xe = np.linspace(low[0], high[0], bins + 1)
     ye = np.linspace(low[1], high[1], bins + 1)
     image = None
-    for ax, (name, records) in zip(axes[0], panels.items(), strict=True):
+    for k, (ax, (name, records)) in enumerate(zip(axes[0], panels.items(), strict=True)):
         x = np.array([r.object_x for r in records])
         y = np.array([r.object_y for r in records])
         s = np.array([r.success for r in records], dtype=float)
@@ -66,25 +67,20 @@ def success_heatmap(
         for i in range(bins):
             for j in range(bins):
                 if total[i, j]:
-                    ax.text(
-                        (ye[j] + ye[j + 1]) / 2,
-                        (xe[i] + xe[i + 1]) / 2,
-                        f"{int(total[i, j])}",
-                        ha="center",
-                        va="center",
-                        fontsize=6,
-                        color="0.2",
-                    )
-        ax.set_title(f"{name}: {100 * s.mean():.0f}% of {len(s)}", fontsize=9)
+                    cx, cy = (ye[j] + ye[j + 1]) / 2, (xe[i] + xe[i + 1]) / 2
+                    ax.text(cx, cy, f"{int(total[i, j])}", ha="center", va="center", fontsize=6, color="0.2")
+        ax.set_title(f"{name}\n{100 * s.mean():.0f}% of {len(s)}", fontsize=9)
         ax.set_xlabel("object y (m)")
-        ax.set_ylabel("object x (m)")
+        if k == 0:
+            ax.set_ylabel("object x (m)")
         ax.invert_xaxis()  # y grows to the robot's left: seen from the robot
-    fig.colorbar(image, ax=list(axes[0]), label="success rate (cell; number = episodes)", shrink=0.85)
+        ax.set_aspect("equal")
+    fig.colorbar(image, ax=list(axes[0]), label="success rate per cell\n(number = episodes)", shrink=0.85)
     if title:
         fig.suptitle(title, fontsize=10)
-    fig.text(0.01, 0.005, provenance, fontsize=6, color="0.35", ha="left", va="bottom", wrap=True)
+    fig.supxlabel(provenance, fontsize=6, color="0.35")
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110, bbox_inches="tight")
+    fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
 
@@ -118,21 +114,24 @@ def failures_by_phase(failures: dict[str, dict[str, dict[str, int]]], path: Path
     ``failures``: method -> {phase name: {cause: count}}.
     """
     n = len(failures)
-    fig, axes = plt.subplots(1, n, figsize=(3.6 * n, 3.6), squeeze=False, sharey=True)
+    fig, axes = plt.subplots(1, n, figsize=(3.6 * n, 3.8), squeeze=False, sharey=True)
     causes = sorted({c for per in failures.values() for counts in per.values() for c in counts})
     phases = list(robot.PHASE_NAMES)
+    top = 1.0
     for ax, (name, per_phase) in zip(axes[0], failures.items(), strict=True):
         bottom = np.zeros(len(phases))
         for k, cause in enumerate(causes):
             h = np.array([per_phase.get(p, {}).get(cause, 0) for p in phases], dtype=float)
-            if h.any():
-                ax.bar(range(len(phases)), h, bottom=bottom, color=f"C{k}", label=cause)
+            ax.bar(range(len(phases)), h, bottom=bottom, color=f"C{k}")
             bottom += h
+        top = max(top, bottom.max())
         ax.set_xticks(range(len(phases)), [p.replace("/", "\n") for p in phases], fontsize=6)
         ax.set_title(f"{name} ({int(bottom.sum())} failures)", fontsize=9)
         ax.set_xlabel("furthest phase reached")
     axes[0][0].set_ylabel("failed episodes")
+    axes[0][0].set_ylim(0, top * 1.12)
     if causes:
-        axes[0][-1].legend(fontsize=7, title="cause", title_fontsize=7)
+        handles = [matplotlib.patches.Patch(color=f"C{k}", label=c) for k, c in enumerate(causes)]
+        fig.legend(handles=handles, fontsize=7, title="failure cause", title_fontsize=7, loc="upper right")
     fig.suptitle(title, fontsize=10)
     return _finish(fig, path, provenance)

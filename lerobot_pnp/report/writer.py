@@ -184,8 +184,8 @@ def _markdown(cfg, methods, results, suite_names, table, comparisons, figures, s
         f"LeRobot {mach['lerobot']}, torch {mach['torch']}, MuJoCo {mach['mujoco']}, gymnasium {mach['gymnasium']}.",
         f"Stage wall time (s): dataset {t.get('dataset', 0):.0f}, training "
         f"{sum(v for k, v in t.items() if k.startswith('train/')):.0f}, evaluation "
-        f"{sum(v for k, v in t.items() if k.startswith('eval/')):.0f} (total {total:.0f}; stages reused from an "
-        "earlier run count their original time).",
+        f"{sum(v for k, v in t.items() if k.startswith('eval/')):.0f} (total {total:.0f}; an evaluation reused from an "
+        "earlier run shows its original time, a reused dataset or training only the time to find it).",
         "",
         "Evaluation: stock LeRobot `lerobot.scripts.lerobot_eval.eval_policy` (the function `lerobot-eval` runs), "
         "called in process on the `SyncVectorEnv` of `BaxterPnPEnvConfig.create_envs`, with a recording wrapper "
