@@ -90,9 +90,13 @@ def rate_curves(
 ) -> Path:
     """Success rate vs a swept value, one line per method, with 95 % Wilson intervals as bars."""
     fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    xs = [p[0] for pts in curves.values() for p in pts]
+    dodge = 0.012 * (max(xs) - min(xs)) if xs and not logx else 0.0  # overlapping methods stay visible
     for i, (name, points) in enumerate(curves.items()):
         points = sorted(points)
-        x = np.array([p[0] for p in points])
+        x = np.array([p[0] for p in points]) + (i - (len(curves) - 1) / 2) * dodge
+        if logx:
+            x = x * (1.04 ** (i - (len(curves) - 1) / 2))
         r = np.array([100 * p[1].rate for p in points])
         lo = np.array([100 * p[1].interval[0] for p in points])
         hi = np.array([100 * p[1].interval[1] for p in points])
@@ -113,8 +117,10 @@ def failures_by_phase(failures: dict[str, dict[str, dict[str, int]]], path: Path
 
     ``failures``: method -> {phase name: {cause: count}}.
     """
+    none = [name for name, per in failures.items() if not any(per.values())]
+    failures = {name: per for name, per in failures.items() if any(per.values())} or {"(no failures)": {}}
     n = len(failures)
-    fig, axes = plt.subplots(1, n, figsize=(3.6 * n, 3.8), squeeze=False, sharey=True)
+    fig, axes = plt.subplots(1, n, figsize=(4.2 * n + 1.4, 3.8), squeeze=False, sharey=True)
     causes = sorted({c for per in failures.values() for counts in per.values() for c in counts})
     phases = list(robot.PHASE_NAMES)
     top = 1.0
@@ -132,6 +138,13 @@ def failures_by_phase(failures: dict[str, dict[str, dict[str, int]]], path: Path
     axes[0][0].set_ylim(0, top * 1.12)
     if causes:
         handles = [matplotlib.patches.Patch(color=f"C{k}", label=c) for k, c in enumerate(causes)]
-        fig.legend(handles=handles, fontsize=7, title="failure cause", title_fontsize=7, loc="upper right")
-    fig.suptitle(title, fontsize=10)
+        axes[0][-1].legend(
+            handles=handles,
+            fontsize=7,
+            title="failure cause",
+            title_fontsize=7,
+            loc="upper left",
+            bbox_to_anchor=(1.01, 1),
+        )
+    fig.suptitle(title + (f" (no failures: {', '.join(none)})" if none else ""), fontsize=10)
     return _finish(fig, path, provenance)

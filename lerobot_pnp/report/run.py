@@ -218,7 +218,7 @@ def run_study(cfg: StudyConfig) -> dict:
             timings[f"eval/{method.name}/{tag}/{suite.name}"] = data["wall_s"]
             results.setdefault(method.name, {}).setdefault(tag, {})[suite.name] = records_from_json(data)
 
-    cli_check = _cli_check(cfg, methods, artifacts, results, out, timings)
+    cli_check = _cli_check(cfg, methods, results, out, timings)
 
     _stage("4/4 report")
     summary = write_report(out, cfg, methods, results, base_env, generation, timings, machine(), _command(), cli_check)
@@ -240,7 +240,7 @@ def _evaluate(method, artifact, ctx, suite, n_episodes: int, base_env, cfg: Stud
     return data
 
 
-def _cli_check(cfg: StudyConfig, methods, artifacts, results, out: Path, timings: dict) -> dict | None:
+def _cli_check(cfg: StudyConfig, methods, results, out: Path, timings: dict) -> dict | None:
     """The first seeds of the nominal suite through the `lerobot-eval` CLI, compared episode by episode."""
     from lerobot_pnp.report.cli_eval import EvalSpec, run_eval
 
@@ -252,11 +252,14 @@ def _cli_check(cfg: StudyConfig, methods, artifacts, results, out: Path, timings
     ):
         return None
     n = min(cfg.cli_check_episodes, len(results[learned[0].name][tag]["nominal"]))
+    cli_dir = out / "lerobot_eval_cli" / "nominal"
+    if cfg.report_only and not (cli_dir / "eval_info.json").is_file():
+        return None
     _stage(f"3b cross-check: {n} nominal episodes of {learned[0].name} seed {tag} through the lerobot-eval CLI")
     t = time.perf_counter()
     cli = run_eval(
-        artifacts[(learned[0].name, tag)],
-        out / "lerobot_eval_cli" / "nominal",
+        adapters.checkpoint_of(out / "train" / learned[0].name / f"seed{tag}"),
+        cli_dir,
         EvalSpec("nominal", n),
         cfg.eval_seed,
         cfg.eval_batch_size,
