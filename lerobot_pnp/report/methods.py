@@ -56,10 +56,16 @@ def _expert_eval(artifact, ctx, env_cfg, n, start_seed, batch_size):
     return eval_expert(env_cfg, n, start_seed)
 
 
+_EPISODES: dict[tuple[str, int | None], adapters.Episodes] = {}
+
+
 def _lookup_eval(artifact, ctx, env_cfg, n, start_seed, batch_size):
     from lerobot_pnp.report.baselines import LookupTablePolicy, identity_processors
 
-    episodes = adapters.load_train_episodes(ctx.dataset_root, limit=ctx.n_demos)
+    key = (str(ctx.dataset_root), ctx.n_demos)
+    if key not in _EPISODES:  # one read per dataset and subset, not one per suite
+        _EPISODES[key] = adapters.load_train_episodes(ctx.dataset_root, limit=ctx.n_demos)
+    episodes = _EPISODES[key]
     pre, post = identity_processors()
     return eval_lerobot_policy(LookupTablePolicy(episodes), pre, post, env_cfg, n, start_seed, batch_size)
 
