@@ -136,3 +136,21 @@ def test_quick_study_writes_a_report_where_the_planner_beats_the_lookup_table(tm
     summary = json.loads((out / "summary.json").read_text())
     nudge = summary["vs_lookup_table"]["clocked_lstm"]["nudge_0.03"]
     assert nudge["difference"] > 0 and nudge["max_p"] < 0.05, nudge
+
+
+# ---------------------------------------------------------------------------------------------- command line
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["demo", "--quick", "--full"], "either --quick or --full"),
+        (["report", "--methods", "[clocked_lstm,bogus]"], "unknown method(s) ['bogus']"),
+        (["report", "--preset", "huge"], "preset must be one of"),
+    ],
+)
+def test_study_commands_reject_bad_configs_in_one_line(argv, message, capsys, tmp_path):
+    from lerobot_pnp import cli
+
+    assert cli.main([*argv, f"--output_dir={tmp_path / 'never'}"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and len(err.splitlines()) == 1, err
+    assert not (tmp_path / "never").exists()  # nothing was started
