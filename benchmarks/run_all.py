@@ -69,6 +69,7 @@ def main() -> int:
     p.add_argument("--only", nargs="*", default=None, help="benchmark names (default: every benchmarks/bench_*.py)")
     p.add_argument("--out", type=Path, default=ROOT / "outputs" / "bench_all")
     p.add_argument("--lines", type=int, default=4, help="lines of each benchmark's own summary to show")
+    p.add_argument("--width", type=int, default=150, help="cut table lines to this many characters")
     args = p.parse_args()
     found = sorted(f.stem for f in HERE.glob("bench_*.py"))
     names = args.only or found
@@ -101,9 +102,9 @@ def main() -> int:
     for name, settings, rc, wall, summary, _ in rows:
         status = "ok" if rc == 0 else f"FAIL {rc}"
         first, *rest = summary or ["(no output)"]
-        print(f"{name:<15} {settings:<9} {status:<8} {wall:7.0f}  {first}")
+        print(f"{name:<15} {settings:<9} {status:<8} {wall:7.0f}  {first}"[: args.width])
         for line in rest:
-            print(f"{'':<42}{line}")
+            print(f"{'':<42}{line}"[: args.width])
     return 0 if all(r[2] == 0 for r in rows) else 1
 
 
