@@ -307,6 +307,18 @@ def _claims(table, comparisons) -> list[str]:
                 f"- *The planner corrects itself after a {s.replace('_', ' ')}*: {100 * v['rate']:.1f}% -> "
                 + ("holds." if v["interval"][0] >= 0.5 else "does not hold: the clocked LSTM cannot retry a phase.")
             )
+    worse = [
+        (s, c)
+        for s, c in comparisons.get("clocked_lstm", {}).items()
+        if c["max_p"] < 0.05 and c["difference"] < 0 and all(str(x).startswith("-") for x in c["per_seed"])
+    ]
+    if worse:
+        listed = "; ".join(f"`{s}` {100 * c['difference']:+.1f} pts (max p {c['max_p']:.2g})" for s, c in worse)
+        out.append(
+            "- *Feedback has a cost*: the open-loop lookup table beats the clocked LSTM, with every training seed, on "
+            f"{listed}. The planner acts on what it observes, so a stale observation or a disturbance it never saw "
+            "in training (the cube's yaw is not observed in the paper's task) derails it, while the replay ignores it."
+        )
     mem, lstm = table.get("nominal", {}).get("memoryless"), table.get("nominal", {}).get("clocked_lstm")
     if mem and lstm:
         out.append(
