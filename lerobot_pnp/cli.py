@@ -40,7 +40,12 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "demo": (
         "lerobot_pnp.demo:DemoConfig",
         "lerobot_pnp.demo:run_demo",
-        "end to end: generate, train, evaluate (the README's main job)",
+        "end to end: generate, train, evaluate, write report.md (the README's main job; --quick, --full)",
+    ),
+    "report": (
+        "lerobot_pnp.report.run:StudyConfig",
+        "lerobot_pnp.report.run:run_study",
+        "the reproduction study (methods x suites x seeds -> report.md; --full: the whole study, resumable)",
     ),
 }
 

@@ -1,0 +1,155 @@
+"""The study's only calls into the dataset generator and the fast trainer (both being restructured).
+
+Kept in one place on purpose: when ``GenerateConfig`` takes an ``env`` field, or the trainer's config moves,
+only this module changes. Everything else in ``lerobot_pnp.report`` talks to these three functions and to
+LeRobot's own dataset/policy APIs.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from lerobot_pnp.errors import DatasetError, PnPError
+
+BATCH_SIZE = 64  # episodes per batch (the fast trainer's default)
+
+
+def generate_dataset(root: Path, num_episodes: int, seed: int, workers: int = 0, preset: str = "paper") -> dict:
+    """Generate (or finish, or reuse) an expert dataset of ``num_episodes`` in ``root``; returns its summary."""
+    from lerobot_pnp.dataset import GenerateConfig, generate, validate_dataset
+
+    if preset != "paper":
+        raise PnPError(f"the dataset generator on this branch only generates the 'paper' task, not {preset!r}")
+    if root.exists() and (root / "meta" / "info.json").exists():
+        try:
+            validate_dataset(root)
+            return {"root": str(root), "status": "reused"}
+        except PnPError:
+            pass
+    cfg = GenerateConfig(
+        repo_id=f"local/{root.name}",
+        root=str(root),
+        num_episodes=num_episodes,
+        seed=seed,
+        workers=workers,
+        resume=root.exists(),
+        progress=True,
+    )
+    return generate(cfg)
+
+
+def train_pnp_lstm(
+    dataset_root: Path, output_dir: Path, seed: int, epochs: int, policy_overrides: dict, n_demos: int | None = None
+) -> Path:
+    """Train ``pnp_lstm`` with the fast trainer; returns the ``pretrained_model`` folder (lerobot-eval loads it).
+
+    ``n_demos`` trains on the first ``n_demos`` episodes only: the trainer's test-split override holds out
+    every later episode (so the held-out loss is measured on more episodes, never on training ones).
+    """
+    from lerobot_pnp.policy import PnpLstmConfig
+    from lerobot_pnp.train_fast import TrainFastConfig, train_fast
+
+    test_episodes, steps = None, None
+    if n_demos is not None:
+        info = json.loads((dataset_root / "meta" / "info.json").read_text())
+        total = int(info["total_episodes"])
+        if not 1 <= n_demos < total:
+            raise PnPError(f"n_demos must be in [1, {total - 1}] for {dataset_root}, got {n_demos}")
+        test_episodes = f"{n_demos}:{total}"
+        # the same number of optimiser steps as a run on the whole training split (not the same epochs)
+        n_full = len(range(*(int(v) for v in info.get("splits", {}).get("train", f"0:{total}").split(":"))))
+        steps = epochs * math.ceil(n_full / BATCH_SIZE)
+
+    train_fast(
+        TrainFastConfig(
+            dataset_repo_id=f"local/{dataset_root.name}",
+            dataset_root=str(dataset_root),
+            policy=PnpLstmConfig(**policy_overrides),
+            epochs=epochs,
+            seed=seed,
+            output_dir=str(output_dir),
+            overwrite=True,
+            progress=False,
+            test_episodes=test_episodes,
+            steps=steps,
+            batch_size=BATCH_SIZE,
+        )
+    )
+    return checkpoint_of(output_dir)
+
+
+def checkpoint_of(train_dir: Path) -> Path:
+    return train_dir / "checkpoints" / "last" / "pretrained_model"
+
+
+def loss_history(train_dir: Path) -> list[dict[str, float]]:
+    """Per-epoch train and held-out MSE written by the fast trainer (``loss_curve.csv``)."""
+    path = train_dir / "loss_curve.csv"
+    if not path.is_file():
+        return []
+    with open(path) as f:
+        return [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
+
+
+@dataclass
+class Episodes:
+    """The training episodes of a dataset, as the lookup table needs them."""
+
+    index: np.ndarray  # (E,) episode indices
+    first_env_state: np.ndarray  # (E, D) observation.environment_state at the first frame
+    actions: list[np.ndarray]  # E arrays (T_e, action_dim)
+
+
+def load_train_episodes(dataset_root: Path, split: str = "train", limit: int | None = None) -> Episodes:
+    """Episodes of ``split`` (meta/info.json ``splits``; all episodes if absent), read with LeRobot's dataset.
+
+    ``limit`` keeps the first ``limit`` episodes of the split (the data-efficiency study).
+    """
+    import pyarrow.compute as pc
+    import pyarrow.dataset as pads
+
+    info = json.loads((dataset_root / "meta" / "info.json").read_text())
+    # the data files of a LeRobotDataset v3 are plain parquet: read the four columns needed, in one go
+    # (LeRobotDataset's row access takes minutes for this; the columns take well under a second)
+    files = sorted((dataset_root / "data").rglob("*.parquet"))
+    if not files:
+        raise DatasetError(f"{dataset_root}: no data/*.parquet files")
+    table = pads.dataset([str(f) for f in files], format="parquet").to_table(
+        columns=["episode_index", "frame_index", "observation.environment_state", "action"]
+    )
+    ep = table["episode_index"].to_numpy()
+    frame = table["frame_index"].to_numpy()
+
+    def matrix(name: str) -> np.ndarray:
+        col = pc.list_flatten(table[name]).to_numpy()
+        return col.reshape(len(table), -1).astype(np.float32)
+
+    env_state, action = matrix("observation.environment_state"), matrix("action")
+    spec = (info.get("splits") or {}).get(split)
+    if spec:
+        a, b = (int(v) for v in str(spec).split(":"))
+        wanted = np.arange(a, b)
+    elif split == "train":
+        wanted = np.unique(ep)
+    else:
+        raise DatasetError(f"{dataset_root}: no {split!r} split in meta/info.json")
+    if limit is not None:
+        wanted = wanted[:limit]
+    order = np.lexsort((frame, ep))  # rows by episode, then frame
+    ep, env_state, action = ep[order], env_state[order], action[order]
+    starts = np.searchsorted(ep, wanted, side="left")
+    stops = np.searchsorted(ep, wanted, side="right")
+    firsts, actions = [], []
+    for a, b in zip(starts, stops, strict=True):
+        if b > a:
+            firsts.append(env_state[a])
+            actions.append(action[a:b])
+    if not actions:
+        raise DatasetError(f"{dataset_root}: split {split!r} has no episodes")
+    return Episodes(np.asarray(wanted), np.stack(firsts), actions)

@@ -1,0 +1,117 @@
+"""What the study compares. A method is a small spec: how it is built from the training data and how it
+is evaluated. New methods (the recovering planner, DAgger rounds, ACT) plug in by adding a ``Method``.
+
+* ``expert``: the scripted FSM (upper bound; privileged, reads the simulator), its own loop.
+* ``lookup_table``: open-loop nearest-neighbour replay of the training episodes (``baselines.py``); no
+  training seed (deterministic given the data).
+* ``clocked_lstm``: the paper's planner, two LSTMs (PICK, PLACE) on a fixed 10-step clock.
+* ``shared_lstm``: one LSTM for both subtasks with a subtask one-hot input.
+* ``memoryless``: the clocked two-network model with the hidden state reset every step (same weights and
+  inputs; no memory). Only the input-to-hidden weights are used, so it is not capacity-matched (issue 11's
+  fair controls will be added as methods of their own).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from lerobot_pnp.env_config import BaxterPnPEnvConfig
+from lerobot_pnp.errors import ConfigError
+from lerobot_pnp.report import adapters
+from lerobot_pnp.report.evaluation import EpisodeRecord, eval_expert, eval_lerobot_policy, load_checkpoint
+
+
+@dataclass
+class TrainContext:
+    """Where a method finds its data and puts its training output."""
+
+    dataset_root: Path
+    train_dir: Path  # this method + training seed
+    seed: int
+    epochs: int
+    n_demos: int | None = None  # keep only the first n training episodes (data efficiency); None = all
+
+
+@dataclass(frozen=True)
+class Method:
+    """A compared method: ``train`` builds its artefact (None if nothing to train), ``evaluate`` runs it."""
+
+    name: str
+    label: str
+    description: str
+    learned: bool  # trained with several seeds
+    train: Callable[[TrainContext], Path | None]
+    evaluate: Callable[[Path | None, TrainContext, BaxterPnPEnvConfig, int, int, int], list[EpisodeRecord]]
+    policy_overrides: dict = field(default_factory=dict)
+
+
+# ------------------------------------------------------------------------------------------------ builders
+def _no_training(ctx: TrainContext) -> None:
+    return None
+
+
+def _expert_eval(artifact, ctx, env_cfg, n, start_seed, batch_size):
+    return eval_expert(env_cfg, n, start_seed)
+
+
+_EPISODES: dict[tuple[str, int | None], adapters.Episodes] = {}
+
+
+def _lookup_eval(artifact, ctx, env_cfg, n, start_seed, batch_size):
+    from lerobot_pnp.report.baselines import LookupTablePolicy, identity_processors
+
+    key = (str(ctx.dataset_root), ctx.n_demos)
+    if key not in _EPISODES:  # one read per dataset and subset, not one per suite
+        _EPISODES[key] = adapters.load_train_episodes(ctx.dataset_root, limit=ctx.n_demos)
+    episodes = _EPISODES[key]
+    pre, post = identity_processors()
+    return eval_lerobot_policy(LookupTablePolicy(episodes), pre, post, env_cfg, n, start_seed, batch_size)
+
+
+def _pnp_lstm_trainer(overrides: dict) -> Callable[[TrainContext], Path]:
+    def train(ctx: TrainContext) -> Path:
+        ckpt = adapters.checkpoint_of(ctx.train_dir)
+        if (ckpt / "model.safetensors").is_file() and (ctx.train_dir / "test_keyframe_error.json").is_file():
+            return ckpt  # finished earlier: reused
+        return adapters.train_pnp_lstm(
+            ctx.dataset_root, ctx.train_dir, ctx.seed, ctx.epochs, overrides, n_demos=ctx.n_demos
+        )
+
+    return train
+
+
+def _checkpoint_eval(artifact, ctx, env_cfg, n, start_seed, batch_size):
+    policy, pre, post = load_checkpoint(artifact, env_cfg)
+    return eval_lerobot_policy(policy, pre, post, env_cfg, n, start_seed, batch_size)
+
+
+def pnp_lstm_method(name: str, label: str, description: str, **overrides) -> Method:
+    return Method(name, label, description, True, _pnp_lstm_trainer(overrides), _checkpoint_eval, overrides)
+
+
+METHODS: dict[str, Method] = {
+    m.name: m
+    for m in (
+        Method("expert", "expert (FSM)", "scripted feedback FSM; upper bound", False, _no_training, _expert_eval),
+        Method(
+            "lookup_table",
+            "lookup table",
+            "open-loop replay of the nearest training episode (same inputs, same data)",
+            False,
+            _no_training,
+            _lookup_eval,
+        ),
+        pnp_lstm_method("clocked_lstm", "clocked LSTM (paper)", "two LSTMs on a fixed 10-step clock (paper)"),
+        pnp_lstm_method("shared_lstm", "shared LSTM", "one LSTM + subtask one-hot", shared_network=True),
+        pnp_lstm_method("memoryless", "memoryless", "clocked nets, hidden state reset every step", recurrent=False),
+    )
+}
+
+
+def get_methods(names: list[str]) -> list[Method]:
+    unknown = [n for n in names if n not in METHODS]
+    if unknown:
+        raise ConfigError(f"unknown method(s) {unknown}; valid: {sorted(METHODS)}")
+    return [METHODS[n] for n in names]

@@ -1,0 +1,150 @@
+"""The study's figures (matplotlib, Agg). Each figure carries the command and config that produced it.
+
+Loss curves (the paper's Fig. 4), success over the workspace, robustness curves with 95 % Wilson intervals,
+the data-efficiency curve and failures by FSM phase and cause. Functions take plain data (no simulator).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+import matplotlib.patches
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+
+from lerobot_pnp import robot
+from lerobot_pnp.report.stats import Rate
+
+
+def _finish(fig, path: Path, provenance: str) -> Path:
+    fig.text(0.01, 0.005, provenance, fontsize=6, color="0.35", ha="left", va="bottom", wrap=True)
+    fig.tight_layout(rect=(0, 0.04, 1, 1))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def loss_curves(histories: dict[str, list[dict[str, float]]], path: Path, provenance: str) -> Path:
+    """Train and held-out MSE per epoch, one pair of lines per training seed (the paper's Fig. 4)."""
+    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    for i, (label, hist) in enumerate(histories.items()):
+        if not hist:
+            continue
+        ep = [h["epoch"] for h in hist]
+        color = f"C{i}"
+        ax.plot(ep, [h["train_mse"] for h in hist], color=color, lw=1.2, label=f"train ({label})")
+        ax.plot(ep, [h["test_mse"] for h in hist], color=color, lw=1.2, ls="--", label=f"held-out ({label})")
+    ax.set_yscale("log")
+    ax.set_xlabel("epoch")
+    ax.set_ylabel("MSE (normalised actions)")
+    ax.set_title("Clocked LSTM: train vs held-out loss (cf. paper Fig. 4)")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7, ncol=2)
+    return _finish(fig, path, provenance)
+
+
+def success_heatmap(
+    panels: dict[str, list], low, high, path: Path, provenance: str, bins: int = 6, title: str = ""
+) -> Path:
+    """Success rate per cell of the object box, one panel per method (``panels``: name -> EpisodeRecords)."""
+    n = len(panels)
+    fig, axes = plt.subplots(1, n, figsize=(3.4 * n + 1.2, 3.9), squeeze=False, layout="constrained")
+    xe = np.linspace(low[0], high[0], bins + 1)
+    ye = np.linspace(low[1], high[1], bins + 1)
+    image = None
+    for k, (ax, (name, records)) in enumerate(zip(axes[0], panels.items(), strict=True)):
+        x = np.array([r.object_x for r in records])
+        y = np.array([r.object_y for r in records])
+        s = np.array([r.success for r in records], dtype=float)
+        total, _, _ = np.histogram2d(x, y, bins=(xe, ye))
+        good, _, _ = np.histogram2d(x, y, bins=(xe, ye), weights=s)
+        rate = np.where(total > 0, good / np.maximum(total, 1), np.nan)
+        image = ax.pcolormesh(ye, xe, rate, vmin=0, vmax=1, cmap="RdYlGn")
+        for i in range(bins):
+            for j in range(bins):
+                if total[i, j]:
+                    cx, cy = (ye[j] + ye[j + 1]) / 2, (xe[i] + xe[i + 1]) / 2
+                    ax.text(cx, cy, f"{int(total[i, j])}", ha="center", va="center", fontsize=6, color="0.2")
+        ax.set_title(f"{name}\n{100 * s.mean():.0f}% of {len(s)}", fontsize=9)
+        ax.set_xlabel("object y (m)")
+        if k == 0:
+            ax.set_ylabel("object x (m)")
+        ax.invert_xaxis()  # y grows to the robot's left: seen from the robot
+        ax.set_aspect("equal")
+    fig.colorbar(image, ax=list(axes[0]), label="success rate per cell\n(number = episodes)", shrink=0.85)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.supxlabel(provenance, fontsize=6, color="0.35")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def rate_curves(
+    curves: dict[str, list[tuple[float, Rate]]], path: Path, provenance: str, x_label: str, title: str, logx=False
+) -> Path:
+    """Success rate vs a swept value, one line per method, with 95 % Wilson intervals as bars."""
+    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    xs = [p[0] for pts in curves.values() for p in pts]
+    dodge = 0.012 * (max(xs) - min(xs)) if xs and not logx else 0.0  # overlapping methods stay visible
+    for i, (name, points) in enumerate(curves.items()):
+        points = sorted(points)
+        x = np.array([p[0] for p in points]) + (i - (len(curves) - 1) / 2) * dodge
+        if logx:
+            x = x * (1.04 ** (i - (len(curves) - 1) / 2))
+        r = np.array([100 * p[1].rate for p in points])
+        lo = np.array([100 * p[1].interval[0] for p in points])
+        hi = np.array([100 * p[1].interval[1] for p in points])
+        ax.errorbar(x, r, yerr=[r - lo, hi - r], marker="o", ms=4, capsize=3, color=f"C{i}", label=name)
+    if logx:
+        ax.set_xscale("log")
+    ax.set_ylim(-3, 103)
+    ax.set_xlabel(x_label)
+    ax.set_ylabel("success (%) with 95 % Wilson interval")
+    ax.set_title(title)
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    return _finish(fig, path, provenance)
+
+
+def failures_by_phase(failures: dict[str, dict[str, dict[str, int]]], path: Path, provenance: str, title: str) -> Path:
+    """Stacked bars: for each method (panel), failed episodes per furthest FSM phase, split by cause.
+
+    ``failures``: method -> {phase name: {cause: count}}.
+    """
+    none = [name for name, per in failures.items() if not any(per.values())]
+    failures = {name: per for name, per in failures.items() if any(per.values())} or {"(no failures)": {}}
+    n = len(failures)
+    fig, axes = plt.subplots(1, n, figsize=(4.2 * n + 1.4, 3.8), squeeze=False, sharey=True)
+    causes = sorted({c for per in failures.values() for counts in per.values() for c in counts})
+    phases = list(robot.PHASE_NAMES)
+    top = 1.0
+    for ax, (name, per_phase) in zip(axes[0], failures.items(), strict=True):
+        bottom = np.zeros(len(phases))
+        for k, cause in enumerate(causes):
+            h = np.array([per_phase.get(p, {}).get(cause, 0) for p in phases], dtype=float)
+            ax.bar(range(len(phases)), h, bottom=bottom, color=f"C{k}")
+            bottom += h
+        top = max(top, bottom.max())
+        ax.set_xticks(range(len(phases)), [p.replace("/", "\n") for p in phases], fontsize=6)
+        ax.set_title(f"{name} ({int(bottom.sum())} failures)", fontsize=9)
+        ax.set_xlabel("furthest phase reached")
+    axes[0][0].set_ylabel("failed episodes")
+    axes[0][0].set_ylim(0, top * 1.12)
+    if causes:
+        handles = [matplotlib.patches.Patch(color=f"C{k}", label=c) for k, c in enumerate(causes)]
+        axes[0][-1].legend(
+            handles=handles,
+            fontsize=7,
+            title="failure cause",
+            title_fontsize=7,
+            loc="upper left",
+            bbox_to_anchor=(1.01, 1),
+        )
+    fig.suptitle(title + (f" (no failures: {', '.join(none)})" if none else ""), fontsize=10)
+    return _finish(fig, path, provenance)

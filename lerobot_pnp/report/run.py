@@ -1,0 +1,290 @@
+"""The study as stages, each cached on disk and reused when finished (an interrupted run resumes).
+
+Stages: 1. dataset (the expert's demonstrations) -> 2. training (method x training seed) -> 3. evaluation
+(method x training seed x suite, same eval seeds for every method) -> 4. report (``report.md``, figures,
+``summary.json``). A finished training is recognised by its checkpoint, a finished evaluation by its JSON
+file (written atomically), so rerunning the same command only does what is missing.
+
+Presets (``preset``): ``demo`` (the README's main command, < 15 min on 2 cores), ``quick`` (CI-sized, a few
+minutes) and ``full`` (the whole study). Fields left at None take the preset's value.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import shutil
+import sys
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+from lerobot_pnp.env_config import BaxterPnPEnvConfig, read_recorded
+from lerobot_pnp.errors import ConfigError
+from lerobot_pnp.report import adapters
+from lerobot_pnp.report.evaluation import records_from_json, records_to_json
+from lerobot_pnp.report.methods import TrainContext, get_methods
+from lerobot_pnp.report.suites import get_suites
+
+
+@dataclass
+class SuiteSpec:
+    name: str  # a suite of suites.SUITES, or a sweep group ("nudge")
+    n_episodes: int = 200
+
+
+# Episode counts: the 95 % Wilson half-width is <= 4.4 pts at n = 500, <= 7 pts at n = 200 and <= 10 pts at
+# n = 100 (worst case, p = 0.5); near 0 or 100 % it is far smaller (n = 100, 98 %: [93.0, 99.4]). A learned
+# method pools 3 training seeds (3 n episodes). The demo's headline gets 500 per seed. The full study gives
+# 300 to nominal and 100 to each other suite (3400 episodes per method and seed: ~50 min of evaluation for
+# 11 method-seeds on 2 shared cores): enough to separate 50 % from 80 %, or 100 % from 90 %, on the paired test.
+PRESETS: dict[str, dict] = {
+    "demo": {
+        "num_episodes": 1400,
+        "epochs": 300,
+        "train_seeds": [1000, 1001, 1002],
+        "methods": ["expert", "lookup_table", "clocked_lstm"],
+        "suites": [SuiteSpec("nominal", 500), SuiteSpec("nudge_0.03", 200)],
+        "data_efficiency": [],
+        "cli_check_episodes": 50,
+    },
+    "quick": {
+        "num_episodes": 300,
+        "epochs": 150,
+        "train_seeds": [1000],
+        "methods": ["lookup_table", "clocked_lstm"],
+        "suites": [SuiteSpec("nominal", 100), SuiteSpec("nudge_0.03", 100)],
+        "data_efficiency": [],
+        "cli_check_episodes": 0,
+    },
+    "full": {
+        "num_episodes": 1400,
+        "epochs": 300,
+        "train_seeds": [1000, 1001, 1002],
+        "methods": ["expert", "lookup_table", "clocked_lstm", "shared_lstm", "memoryless"],
+        "suites": [
+            SuiteSpec("nominal", 300),
+            SuiteSpec("edge_strip", 100),
+            SuiteSpec("outside_ring", 100),
+            SuiteSpec("nudge", 100),
+            SuiteSpec("obs_noise", 100),
+            SuiteSpec("latency", 100),
+            SuiteSpec("grasp_miss", 100),
+            SuiteSpec("drop", 100),
+            SuiteSpec("displace", 100),
+            SuiteSpec("random_yaw", 100),
+            SuiteSpec("random_place", 100),
+        ],
+        "data_efficiency": [10, 30, 100, 300, 1120],  # 1120 = the whole training split
+        "cli_check_episodes": 200,
+    },
+}
+
+
+@dataclass
+class StudyConfig:
+    """``lerobot-pnp demo`` / ``lerobot-pnp report``: the study (see the module doc for the presets)."""
+
+    output_dir: str = "outputs/demo"
+    preset: str = "demo"  # demo | quick | full
+    quick: bool = False  # shorthand for preset=quick
+    full: bool = False  # shorthand for preset=full
+    num_episodes: int | None = None  # demonstrations generated (80 % train / 20 % held out)
+    dataset_seed: int = 0
+    workers: int = 0  # generation processes; 0 = one per core
+    epochs: int | None = None
+    train_seeds: list[int] | None = None
+    methods: list[str] | None = None
+    suites: list[SuiteSpec] | None = None
+    data_efficiency: list[int] | None = None  # numbers of training demonstrations (clocked LSTM vs lookup)
+    # episodes of the nominal suite re-run through the real `lerobot-eval` CLI (first learned method, first
+    # seed) to show the in-process evaluation gives the same per-episode successes; 0 = skip
+    cli_check_episodes: int | None = None
+    eval_seed: int = 100_000  # first evaluation seed (disjoint from the dataset's seeds 0..)
+    eval_batch_size: int = 50  # sub-envs of the SyncVectorEnv
+    fresh: bool = False  # delete output_dir first
+    report_only: bool = False  # write the report from the finished evaluations only (train/evaluate nothing)
+
+    def __post_init__(self):
+        if self.quick and self.full:
+            raise ConfigError("pass either --quick or --full, not both")
+        self.preset = "quick" if self.quick else "full" if self.full else self.preset
+        if self.preset not in PRESETS:
+            raise ConfigError(f"preset must be one of {sorted(PRESETS)}, got {self.preset!r}")
+        for key, value in PRESETS[self.preset].items():
+            if getattr(self, key) is None:
+                setattr(self, key, value)
+        self.suites = [SuiteSpec(**s) if isinstance(s, dict) else s for s in self.suites]
+        if self.num_episodes < 10:
+            raise ConfigError(f"num_episodes must be >= 10 for an 80/20 split, got {self.num_episodes}")
+        if self.epochs < 1 or not self.train_seeds:
+            raise ConfigError("epochs must be >= 1 and train_seeds non-empty")
+        if any(s.n_episodes < 1 for s in self.suites):
+            raise ConfigError("every suite needs n_episodes >= 1")
+        get_methods(self.methods)  # unknown names fail now, not after an hour
+        get_suites([s.name for s in self.suites])
+
+
+# ---------------------------------------------------------------------------------------------------- helpers
+def _write_json(path: Path, data) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps(data, indent=1, default=str))
+    tmp.replace(path)
+
+
+def machine() -> dict:
+    """The machine the study ran on (for the report)."""
+    import importlib.metadata as md
+
+    cpu = platform.processor() or ""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    versions = {}
+    for pkg in ("lerobot", "torch", "mujoco", "gymnasium", "numpy"):
+        try:
+            versions[pkg] = md.version(pkg)
+        except md.PackageNotFoundError:
+            versions[pkg] = "?"
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    return {
+        "cpu": cpu,
+        "cores_available": cores,
+        "python": platform.python_version(),
+        "os": platform.platform(),
+        **versions,
+    }
+
+
+def _stage(text: str) -> None:
+    print(f"\n=== {text} ===", flush=True)
+
+
+# ---------------------------------------------------------------------------------------------------- stages
+def run_study(cfg: StudyConfig) -> dict:
+    """Run every stage that is not finished yet; return a short summary (the report path and headline)."""
+    from lerobot_pnp.report.writer import write_report
+
+    out = Path(cfg.output_dir)
+    if cfg.fresh and out.exists():
+        shutil.rmtree(out)
+    out.mkdir(parents=True, exist_ok=True)
+    _write_json(out / "study_config.json", asdict(cfg))
+    timings: dict[str, float] = {}
+    methods = get_methods(cfg.methods)
+
+    _stage(f"1/4 dataset: {cfg.num_episodes} expert demonstrations")
+    t = time.perf_counter()
+    root = out / "dataset"
+    generation = adapters.generate_dataset(root, cfg.num_episodes, cfg.dataset_seed, cfg.workers)
+    timings["dataset"] = time.perf_counter() - t
+    base_env = BaxterPnPEnvConfig.from_dict(read_recorded(root) or {})
+
+    _stage(f"2-3/4 train and evaluate: {', '.join(m.name for m in methods)} (learned: seeds {cfg.train_seeds})")
+    print("evaluation: stock LeRobot eval_policy, in process; the same seeds for every method", flush=True)
+    artifacts: dict[tuple[str, str], Path | None] = {}
+    results: dict[str, dict[str, dict[str, list]]] = {}  # method -> tag -> suite -> records
+    jobs = [(m, str(s), None) for m in methods for s in (cfg.train_seeds if m.learned else ["-"])]
+    jobs += [(m, f"n{n}", n) for n in cfg.data_efficiency for m in get_methods(["lookup_table", "clocked_lstm"])]
+    for method, tag, n_demos in jobs:  # each job trains, then evaluates: the first results come early
+        seed = int(cfg.train_seeds[0] if not tag.isdigit() else tag)
+        ctx = TrainContext(root, out / "train" / method.name / f"seed{tag}", seed, cfg.epochs, n_demos)
+        for suite, n_episodes in _suites_for(cfg, n_demos):
+            path = out / "evals" / method.name / f"seed{tag}" / f"{suite.name}.json"
+            if path.is_file():
+                data = json.loads(path.read_text())
+            elif cfg.report_only:
+                continue
+            else:
+                if (method.name, tag) not in artifacts:
+                    t = time.perf_counter()
+                    artifacts[(method.name, tag)] = method.train(ctx)
+                    if method.learned:
+                        timings[f"train/{method.name}/{tag}"] = time.perf_counter() - t
+                        print(f"  trained {method.name} seed {tag}: {time.perf_counter() - t:.0f} s", flush=True)
+                data = _evaluate(method, artifacts[(method.name, tag)], ctx, suite, n_episodes, base_env, cfg)
+                _write_json(path, data)
+                ok = sum(e["success"] for e in data["episodes"])
+                print(
+                    f"  {method.name:<13} {tag:>5} {suite.name:<16} {ok}/{len(data['episodes'])} ({data['wall_s']:.0f} s)",
+                    flush=True,
+                )
+            timings[f"eval/{method.name}/{tag}/{suite.name}"] = data["wall_s"]
+            results.setdefault(method.name, {}).setdefault(tag, {})[suite.name] = records_from_json(data)
+
+    cli_check = _cli_check(cfg, methods, results, out, timings)
+
+    _stage("4/4 report")
+    summary = write_report(out, cfg, methods, results, base_env, generation, timings, machine(), _command(), cli_check)
+    print(f"\nreport: {out / 'report.md'}")
+    return summary
+
+
+def _evaluate(method, artifact, ctx, suite, n_episodes: int, base_env, cfg: StudyConfig) -> dict:
+    """One suite (all its parts, consecutive seed blocks from ``cfg.eval_seed``) for one trained method."""
+    t = time.perf_counter()
+    records, start = [], cfg.eval_seed
+    env_cfgs = suite.env_configs(base_env)
+    for env_cfg, n in zip(env_cfgs, suite.part_episodes(n_episodes), strict=True):
+        if n:
+            records += method.evaluate(artifact, ctx, env_cfg, n, start, cfg.eval_batch_size)
+        start += n
+    data = records_to_json(records, time.perf_counter() - t)
+    data["env_parts"] = [c.to_dict() for c in env_cfgs]
+    return data
+
+
+def _cli_check(cfg: StudyConfig, methods, results, out: Path, timings: dict) -> dict | None:
+    """The first seeds of the nominal suite through the `lerobot-eval` CLI, compared episode by episode."""
+    from lerobot_pnp.report.cli_eval import EvalSpec, run_eval
+
+    learned = [m for m in methods if m.learned]
+    if (
+        not cfg.cli_check_episodes
+        or not learned
+        or "nominal" not in results.get(learned[0].name, {}).get(tag := str(cfg.train_seeds[0]), {})
+    ):
+        return None
+    n = min(cfg.cli_check_episodes, len(results[learned[0].name][tag]["nominal"]))
+    cli_dir = out / "lerobot_eval_cli" / "nominal"
+    if cfg.report_only and not (cli_dir / "eval_info.json").is_file():
+        return None
+    _stage(f"3b cross-check: {n} nominal episodes of {learned[0].name} seed {tag} through the lerobot-eval CLI")
+    t = time.perf_counter()
+    cli = run_eval(
+        adapters.checkpoint_of(out / "train" / learned[0].name / f"seed{tag}"),
+        cli_dir,
+        EvalSpec("nominal", n),
+        cfg.eval_seed,
+        cfg.eval_batch_size,
+    )
+    timings["cli_check"] = time.perf_counter() - t
+    ours = {r.seed: r.success for r in results[learned[0].name][tag]["nominal"] if r.seed < cfg.eval_seed + n}
+    theirs = cli["per_episode"]
+    agree = sum(ours.get(s) == v for s, v in theirs.items())
+    return {
+        "method": learned[0].name,
+        "seed": tag,
+        "n": len(theirs),
+        "agree": agree,
+        "cli_pc_success": cli["pc_success"],
+        "in_process_successes": sum(ours.values()),
+        "eval_info": cli["eval_info"],
+    }
+
+
+def _suites_for(cfg: StudyConfig, n_demos: int | None):
+    """(suite, episodes) pairs evaluated for a job; data-efficiency runs are evaluated on nominal only."""
+    specs = [SuiteSpec("nominal", 200)] if n_demos is not None else cfg.suites
+    return [(s, spec.n_episodes) for spec in specs for s in get_suites([spec.name])]
+
+
+def _command() -> str:
+    args = " ".join(sys.argv[1:]) if sys.argv and Path(sys.argv[0]).name.startswith("lerobot-pnp") else ""
+    return f"lerobot-pnp {args}".strip() if args else "lerobot_pnp.report.run.run_study (library call)"

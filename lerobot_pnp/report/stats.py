@@ -1,0 +1,95 @@
+"""Success rates with 95 % Wilson intervals and paired comparisons of two methods on the same seeds.
+
+Every method is evaluated on the same seeded episodes, so two methods can be compared episode by episode:
+only the discordant pairs (one succeeds where the other fails) carry information, and under "no difference"
+each discordant pair goes either way with probability 1/2 (exact McNemar = two-sided sign test). This is far
+more sensitive than checking whether two independent intervals overlap.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+Z95 = 1.959963984540054
+
+
+def wilson_interval(successes: int, n: int, z: float = Z95) -> tuple[float, float]:
+    """The Wilson score interval for a binomial proportion (good at 0 % and 100 %, unlike the normal one)."""
+    if n <= 0:
+        raise ValueError(f"wilson_interval needs n >= 1 trials, got {n}")
+    if not 0 <= successes <= n:
+        raise ValueError(f"successes must be in [0, {n}], got {successes}")
+    p = successes / n
+    denom = 1 + z * z / n
+    centre = (p + z * z / (2 * n)) / denom
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / denom
+    lo = 0.0 if successes == 0 else max(0.0, centre - half)
+    hi = 1.0 if successes == n else min(1.0, centre + half)
+    return lo, hi
+
+
+@dataclass(frozen=True)
+class Rate:
+    """``successes`` out of ``n`` with its 95 % Wilson interval."""
+
+    successes: int
+    n: int
+
+    @property
+    def rate(self) -> float:
+        return self.successes / self.n
+
+    @property
+    def interval(self) -> tuple[float, float]:
+        return wilson_interval(self.successes, self.n)
+
+    def __str__(self) -> str:
+        lo, hi = self.interval
+        return f"{100 * self.rate:.1f}% [{100 * lo:.1f}, {100 * hi:.1f}]"
+
+
+def rate(outcomes: Sequence[bool]) -> Rate:
+    return Rate(int(sum(bool(o) for o in outcomes)), len(outcomes))
+
+
+def sign_test_p(wins: int, losses: int) -> float:
+    """Two-sided exact binomial test of ``wins`` vs ``losses`` under p = 1/2 (ties already removed)."""
+    n = wins + losses
+    if n == 0:
+        return 1.0
+    k = min(wins, losses)
+    tail = sum(math.comb(n, i) for i in range(k + 1)) / 2**n
+    return min(1.0, 2 * tail)
+
+
+@dataclass(frozen=True)
+class PairedComparison:
+    """Method A vs method B on the same seeds: discordant counts and the exact McNemar p-value."""
+
+    n: int  # paired episodes
+    a_only: int  # A succeeded, B failed
+    b_only: int  # B succeeded, A failed
+    p_value: float
+
+    @property
+    def difference(self) -> float:
+        """Success rate of A minus that of B."""
+        return (self.a_only - self.b_only) / self.n
+
+    def significant(self, alpha: float = 0.05) -> bool:
+        return self.p_value < alpha
+
+    def __str__(self) -> str:
+        return f"{100 * self.difference:+.1f} pts ({self.a_only} vs {self.b_only} discordant, p={self.p_value:.2g})"
+
+
+def paired_comparison(a: dict[int, bool], b: dict[int, bool]) -> PairedComparison:
+    """Compare two methods episode by episode on the seeds both were evaluated on (``{seed: success}``)."""
+    seeds = sorted(set(a) & set(b))
+    if not seeds:
+        raise ValueError("paired_comparison: the two methods share no evaluation seed")
+    a_only = sum(1 for s in seeds if a[s] and not b[s])
+    b_only = sum(1 for s in seeds if b[s] and not a[s])
+    return PairedComparison(len(seeds), a_only, b_only, sign_test_p(a_only, b_only))
