@@ -322,7 +322,10 @@ class BaxterPnPEnvConfig(EnvConfig):
         return cls(**data)
 
     def with_changes(self, **changes) -> BaxterPnPEnvConfig:
-        """A copy with some fields changed (re-validated)."""
+        """A copy with some fields changed (re-validated). A derived episode length follows a changed budget,
+        control mode or rate unless ``episode_length`` is among the changes."""
+        if {"keyframe_budget", "control_mode", "fps"} & set(changes) and "episode_length" not in changes:
+            changes = {**changes, "episode_length": None}
         return type(self).from_dict(self.to_dict(), **changes)
 
 

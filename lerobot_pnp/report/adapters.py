@@ -1,7 +1,6 @@
-"""The study's only calls into the dataset generator and the fast trainer (both being restructured).
+"""The study's only calls into the dataset generator and the fast trainer.
 
-Kept in one place on purpose: when ``GenerateConfig`` takes an ``env`` field, or the trainer's config moves,
-only this module changes. Everything else in ``lerobot_pnp.report`` talks to these three functions and to
+Kept in one place on purpose: when the generator's or the trainer's config changes, only this module changes. Everything else in ``lerobot_pnp.report`` talks to these three functions and to
 LeRobot's own dataset/policy APIs.
 """
 
@@ -23,9 +22,8 @@ BATCH_SIZE = 64  # episodes per batch (the fast trainer's default)
 def generate_dataset(root: Path, num_episodes: int, seed: int, workers: int = 0, preset: str = "paper") -> dict:
     """Generate (or finish, or reuse) an expert dataset of ``num_episodes`` in ``root``; returns its summary."""
     from lerobot_pnp.dataset import GenerateConfig, generate, validate_dataset
+    from lerobot_pnp.env_config import BaxterPnPEnvConfig
 
-    if preset != "paper":
-        raise PnPError(f"the dataset generator on this branch only generates the 'paper' task, not {preset!r}")
     if root.exists() and (root / "meta" / "info.json").exists():
         try:
             validate_dataset(root)
@@ -40,6 +38,7 @@ def generate_dataset(root: Path, num_episodes: int, seed: int, workers: int = 0,
         workers=workers,
         resume=root.exists(),
         progress=True,
+        env=BaxterPnPEnvConfig(preset=preset),
     )
     return generate(cfg)
 
