@@ -326,6 +326,8 @@ class BaxterPnPEnvConfig(EnvConfig):
         control mode or rate unless ``episode_length`` is among the changes."""
         if {"keyframe_budget", "control_mode", "fps"} & set(changes) and "episode_length" not in changes:
             changes = {**changes, "episode_length": None}
+        if "control_mode" in changes and "fps" not in changes:
+            changes = {**changes, "fps": None}  # the new mode's default rate
         return type(self).from_dict(self.to_dict(), **changes)
 
 
