@@ -86,15 +86,22 @@ def resolve_checkpoint(path: str | Path) -> Path:
     )
 
 
-def check_policy_features(config: Any) -> None:
-    """Raise ``IncompatiblePolicyError`` unless the policy's features are those of this env."""
+# environment_state widths a task can give: object xyz [+ (sin 4 yaw, cos 4 yaw)] [+ goal xy]
+ENV_STATE_WIDTHS = (robot.OBJECT_DIM, robot.OBJECT_DIM + 2, robot.OBJECT_DIM + 4)
+
+
+def check_policy_features(config: Any, env_state_dim: int | None = None) -> None:
+    """Raise ``IncompatiblePolicyError`` unless the policy's features are those of this env (with an
+    ``environment_state`` of ``env_state_dim``, or of any width a task can give when None)."""
     inputs = dict(config.input_features or {})
     outputs = dict(config.output_features or {})
-    expected_in = {OBS_STATE: (robot.STATE_DIM,), OBS_ENV: (robot.OBJECT_DIM,)}
+    expected_in = {OBS_STATE: (robot.STATE_DIM,), OBS_ENV: (env_state_dim or robot.OBJECT_DIM,)}
     problems = []
     for key, shape in expected_in.items():
         if key not in inputs:
             problems.append(f"missing input feature '{key}' (shape {shape})")
+        elif key == OBS_ENV and env_state_dim is None and tuple(inputs[key].shape) in {(w,) for w in ENV_STATE_WIDTHS}:
+            continue
         elif tuple(inputs[key].shape) != shape:
             problems.append(f"input '{key}' has shape {tuple(inputs[key].shape)}, this env gives {shape}")
     extra = sorted(set(inputs) - set(expected_in))

@@ -43,10 +43,11 @@ def visualize(cfg: VizConfig) -> dict:
         replay_cfg = replay_config(ds)
     loaded, policy_cfg = None, None
     if cfg.policy_path is not None:
-        from lerobot_pnp.rollout import load_policy
+        from lerobot_pnp.rollout import check_policy_features, load_policy
 
         loaded = load_policy(cfg.policy_path, device=cfg.device)
         policy_cfg = rollout_config(str(loaded.path), cfg.task_source, cfg.control_mode)
+        check_policy_features(loaded.policy.config, len(policy_cfg.environment_state_names))  # fits this task
     seeds = [cfg.seed + i for i in range(cfg.n_rollouts)] if loaded is not None else []
 
     runs = [replay_episode(ep, replay_cfg, cfg.log_hz) for ep in episodes]

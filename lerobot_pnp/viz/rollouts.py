@@ -17,7 +17,6 @@ from lerobot_pnp.env_config import BaxterPnPEnvConfig, make_env, read_recorded
 from lerobot_pnp.errors import PnPError
 from lerobot_pnp.viz.sampling import Frames, Run, Sampler
 from lerobot_pnp.viz.scene import SceneModel
-from lerobot_pnp.viz.sources import MOTION_FIELDS
 
 logger = logging.getLogger(__name__)
 
@@ -29,12 +28,11 @@ def rollout_config(checkpoint: str, task_source: str | None, control_mode: str |
     if recorded is None:
         logger.warning("viz: %s records no task (no dataset env config found): rollouts use the paper's task", source)
         return BaxterPnPEnvConfig(preset="paper", control_mode=control_mode or "keyframe", cameras=[])
-    motion = {k: recorded[k] for k in MOTION_FIELDS if recorded.get(k) is not None}
-    if control_mode is not None and control_mode != motion.get("control_mode", control_mode):
-        motion = {"control_mode": control_mode}  # another mode: its own fps
-    elif control_mode is not None:
-        motion["control_mode"] = control_mode
-    return BaxterPnPEnvConfig(task_source=str(source), cameras=[], **motion)
+    changes: dict = {"cameras": []}
+    if control_mode is not None and control_mode != recorded.get("control_mode"):
+        # a deliberate look at the policy in another control mode: that mode's own rate and episode length
+        changes |= {"control_mode": control_mode, "fps": None, "episode_length": None}
+    return BaxterPnPEnvConfig.from_dict(recorded, **changes)
 
 
 def rollout_with_expert(

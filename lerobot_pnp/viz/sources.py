@@ -24,6 +24,7 @@ from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_STATE
 from lerobot_pnp import robot
 from lerobot_pnp.env_config import BaxterPnPEnvConfig, make_env, read_recorded
 from lerobot_pnp.errors import DatasetError
+from lerobot_pnp.rollout import ENV_STATE_WIDTHS
 from lerobot_pnp.viz.sampling import Frames, Run, Sampler
 from lerobot_pnp.viz.scene import SceneModel
 
@@ -98,7 +99,9 @@ def replay_config(ds) -> BaxterPnPEnvConfig:
 
 def _check_features(ds) -> None:
     features = ds.meta.features
-    for key, dim in ((OBS_STATE, robot.STATE_DIM), (ACTION, robot.ACTION_DIM), (OBS_ENV_STATE, robot.OBJECT_DIM)):
+    env_dim = (*features.get(OBS_ENV_STATE, {}).get("shape", (0,)),)[0]
+    env_dim = env_dim if env_dim in ENV_STATE_WIDTHS else robot.OBJECT_DIM  # object xyz [+ yaw] [+ goal]
+    for key, dim in ((OBS_STATE, robot.STATE_DIM), (ACTION, robot.ACTION_DIM), (OBS_ENV_STATE, env_dim)):
         if key not in features:
             raise IncompatibleDatasetError(
                 f"dataset {ds.repo_id!r} has no {key!r} feature (has {sorted(features)}): not a Baxter pnp dataset"
@@ -139,7 +142,7 @@ def load_episode(ds, episode_index: int) -> EpisodeData:
         frame_index=col("frame_index", dtype=np.int64, default=np.arange(n)),
         timestamp=col("timestamp", dtype=np.float64, default=np.arange(n) / ds.fps),
         state=col(OBS_STATE, robot.STATE_DIM),
-        object=col(OBS_ENV_STATE, robot.OBJECT_DIM),
+        object=col(OBS_ENV_STATE, ds.meta.features[OBS_ENV_STATE]["shape"][0])[:, : robot.OBJECT_DIM],  # xyz
         action=col(ACTION, robot.ACTION_DIM),
         phase=col(PHASE_INDEX, dtype=np.int64, default=np.full(n, -1)),
         success=col(SUCCESS, dtype=np.float64, default=np.zeros(n)),
@@ -165,7 +168,7 @@ def replay_episode(ep: EpisodeData, config: BaxterPnPEnvConfig, hz: float) -> Ru
             replayed = []
             for k in range(n):
                 frame_samples.append(sampler.sample())
-                replayed.append(np.concatenate([obs["agent_pos"], obs["environment_state"]]))
+                replayed.append(np.concatenate([obs["agent_pos"], obs["environment_state"][: robot.OBJECT_DIM]]))
                 if k < n - 1:
                     obs, *_ = env.step(ep.action[k])
             physics.on_control_tick = None
