@@ -61,3 +61,33 @@ def test_interrupt_is_one_line_and_exit_2(sig, tmp_path):
     err = (seen + rest).decode(errors="replace")
     assert proc.returncode == 2, err
     assert "interrupted" in err and "Traceback" not in err, err
+
+
+def test_viz_of_a_dataset_with_nan_is_one_line_naming_episode_and_frame(tmp_path, capsys):
+    """Issue 9 item 4: the viewer used to exit 0 and print NaN."""
+    from keyframe_synth import REPO_ID, make_keyframe_dataset
+
+    root = tmp_path / "nan"
+    make_keyframe_dataset(root, n_episodes=3, nan_at=(1, 3))
+    rrd = tmp_path / "ep.rrd"
+    capsys.readouterr()  # the writer's own progress while making the test data
+    rc = cli.main(["viz", "--repo_id", REPO_ID, "--root", str(root), "--episode_index", "1", "--save", str(rrd)])
+    err = capsys.readouterr().err
+    assert rc == 2 and "non-finite" in err and "episode 1, frame 3" in err, err
+    assert len(err.strip().splitlines()) == 1 and not rrd.exists()
+
+
+def test_lerobot_eval_rejects_bad_env_flags_before_loading_the_policy(tmp_path):
+    """Issue 9 items 7 and 11 through the real lerobot-eval: the env config fails first, naming the flag."""
+    exe = BIN / "lerobot-eval"
+    if not exe.exists():
+        pytest.skip(f"lerobot-eval is not installed next to {sys.executable}")
+    policy = tmp_path / "no_such_checkpoint"  # never reached: the env config is parsed first
+    for flag, message in (("--env.nudge_max=-1", "env.nudge_max must be in [0, 1)"),
+                          ("--env.preset=hard", "env.preset must be one of")):  # fmt: skip
+        proc = subprocess.run(
+            [str(exe), f"--policy.path={policy}", "--env.type=baxter_pnp", flag, f"--output_dir={tmp_path / 'o'}"],
+            cwd=tmp_path, env=ENV, capture_output=True, text=True, timeout=120,
+        )  # fmt: skip
+        assert proc.returncode != 0 and message in proc.stderr, proc.stderr[-2000:]
+        assert not (tmp_path / "o" / "eval_info.json").exists()
