@@ -226,6 +226,10 @@ def test_end_to_end_real_clis(tmp_path):
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert json.loads((out / "eval_info.json").read_text())["overall"]["pc_success"] == 0.0
 
+    # Issue 9 item 7: a keyframe checkpoint in dense control would fail every episode silently: a clear error.
+    proc = _run([*_eval_cmd(ckpt, tmp_path / "eval_dense"), "--env.control_mode=dense"], tmp_path)
+    assert proc.returncode != 0 and "contradicts the recorded task ('keyframe'" in proc.stderr, proc.stderr[-2000:]
+
     # A checkpoint trained for other features must not run, and must not write results.
     bad = tmp_path / "bad_ckpt"
     _write_mismatched_checkpoint(bad)
