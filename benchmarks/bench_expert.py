@@ -30,6 +30,7 @@ SUITES: dict[str, dict] = {
     "random yaw": {"yaw_range": (-math.pi, math.pi), "observe_yaw": True},
     "random place target": {"place_low": (0.50, -0.20), "place_high": (0.70, -0.05), "observe_goal": True},
     "mass/friction": {"mass_range": (0.3, 0.8), "friction_range": (0.7, 1.2)},
+    "cube size 4.5-5.5 cm": {"size_range": (0.045, 0.055)},
 }
 
 

@@ -57,6 +57,7 @@ PAPER_TASK: dict[str, Any] = {
     "start_high": (0.75, 0.45, 0.25),
     "hover_height": 0.15,  # the paper's h: approach / retract height above the object
     "success_xy_tol": 0.02,  # object within this distance (xy) of the target counts as placed
+    "size_range": (0.05, 0.05),  # cube edge length (m), drawn per episode
     "mass_range": (0.5, 0.5),  # object mass (kg), drawn per episode
     "friction_range": (1.0, 1.0),  # object sliding friction coefficient, drawn per episode
     "observe_yaw": False,  # environment_state gains (sin 4 yaw, cos 4 yaw): the cube's 90-degree symmetry
@@ -79,6 +80,7 @@ FULL_TASK: dict[str, Any] = {
     "yaw_range": (-3.141592653589793, 3.141592653589793),
     "place_low": (0.50, -0.20),
     "place_high": (0.70, -0.05),
+    "size_range": (0.045, 0.055),
     "mass_range": (0.3, 0.8),
     "friction_range": (0.7, 1.2),
     "observe_yaw": True,
@@ -96,7 +98,7 @@ FULL_TASK: dict[str, Any] = {
 PRESETS: dict[str, dict[str, Any]] = {"paper": PAPER_TASK, "full": FULL_TASK}
 TASK_FIELDS = tuple(PAPER_TASK)
 _PAIRS = (("object_low", "object_high"), ("place_low", "place_high"), ("start_low", "start_high"))
-_RANGES = ("yaw_range", "mass_range", "friction_range")
+_RANGES = ("yaw_range", "size_range", "mass_range", "friction_range")
 
 
 @EnvConfig.register_subclass(ENV_TYPE)
@@ -128,6 +130,7 @@ class BaxterPnPEnvConfig(EnvConfig):
     start_high: tuple[float, float, float] | None = None
     hover_height: float | None = None
     success_xy_tol: float | None = None
+    size_range: tuple[float, float] | None = None
     mass_range: tuple[float, float] | None = None
     friction_range: tuple[float, float] | None = None
     observe_yaw: bool | None = None
@@ -265,6 +268,10 @@ class BaxterPnPEnvConfig(EnvConfig):
         for name in ("observe_yaw", "observe_goal"):
             if not isinstance(getattr(self, name), bool):
                 raise ConfigError(f"env.{name} must be true or false, got {getattr(self, name)!r}")
+        if not (self.size_range[0] >= 0.045 and self.size_range[1] <= 0.06):
+            raise ConfigError(
+                f"env.size_range must lie in [0.045, 0.06] m (the jaw closes to 36 mm), got {list(self.size_range)}"
+            )
         if not (self.mass_range[0] >= 0.05 and self.mass_range[1] <= 2.0):
             raise ConfigError(
                 f"env.mass_range must lie in [0.05, 2.0] kg (the gripper's payload), got {list(self.mass_range)}"

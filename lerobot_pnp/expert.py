@@ -159,7 +159,7 @@ class FSMExpert:
         q_prev, grip = self._cmd[:7], self._cmd[7]
         cube, cube_yaw = physics.object_pose()
         ee, _ = physics.ee_pose()
-        place = np.array([*self.place_xy(), robot.CUBE_REST_Z])
+        place = np.array([*self.place_xy(), physics.object_rest_z()])
         if p == 0:  # -> pick/approach: above the object
             self._yaw = grasp_yaw(cube_yaw)
             q, grip = ik.solve(cube + [0, 0, self.hover], self._yaw, q_prev), robot.GRIPPER_OPEN

@@ -161,6 +161,22 @@ class BaxterPhysics:
         self.model.geom_friction[self._object_geom][0] = friction
         mujoco.mj_setConst(self.model, self.data)  # derived quantities (constraint scaling) from the new mass
 
+    @property
+    def object_size(self) -> float:
+        """Edge length of the cube (m)."""
+        return float(2 * self.model.geom_size[self._object_geom][0])
+
+    def object_rest_z(self) -> float:
+        """Height of the cube's centre when it rests on the table."""
+        return robot.TABLE_TOP_Z + self.object_size / 2
+
+    def set_object_size(self, size: float) -> None:
+        """Cube edge length (m); the mass is kept, the inertia follows the new size."""
+        self.model.geom_size[self._object_geom][:] = size / 2
+        self.model.geom_rbound[self._object_geom] = np.sqrt(3) * size / 2
+        self.model.body_inertia[self._object_body] = self.model.body_mass[self._object_body] * size**2 / 6
+        mujoco.mj_setConst(self.model, self.data)
+
     def object_properties(self) -> tuple[float, float]:
         return float(self.model.body_mass[self._object_body]), float(self.model.geom_friction[self._object_geom][0])
 

@@ -56,7 +56,7 @@ class PickPlaceTask:
         for what, (x, y), yaw in checks:
             seed = robot.NEUTRAL_Q
             try:
-                for z in (robot.CUBE_REST_Z + c.hover_height, robot.CUBE_REST_Z):
+                for z in (robot.CUBE_REST_Z + c.hover_height, robot.TABLE_TOP_Z + c.size_range[0] / 2):
                     seed = physics.ik.solve(np.array([x, y, z]), _grasp_yaw(yaw), seed)
             except UnreachableError as err:
                 raise ConfigError(
@@ -77,10 +77,9 @@ class PickPlaceTask:
         c = self.config
         xy = rng.uniform(c.object_low, c.object_high)
         yaw = float(rng.uniform(*c.yaw_range)) if c.yaw_range[1] > c.yaw_range[0] else c.yaw_range[0]
-        object_pos = np.array([xy[0], xy[1], robot.CUBE_REST_Z])
+        object_pos = np.array([xy[0], xy[1], 0.0])
         if "object_pos" in options:
             object_pos = _vector_option(options, "object_pos", 3)
-            object_pos[2] = robot.CUBE_REST_Z
         if "object_yaw" in options:
             yaw = float(_vector_option(options, "object_yaw", 1)[0])
         if "arm_qpos" in options:
@@ -97,6 +96,10 @@ class PickPlaceTask:
         mass, friction = _uniform(rng, *c.mass_range), _uniform(rng, *c.friction_range)
         if (mass, friction) != physics.object_properties():
             physics.set_object_properties(float(mass), float(friction))
+        size = float(_uniform(rng, *c.size_range))
+        if size != physics.object_size:
+            physics.set_object_size(size)
+        object_pos[2] = physics.object_rest_z()
         self._armed = {
             name for name in ("grasp_miss", "drop", "displace") if _bernoulli(rng, getattr(c, f"{name}_prob"))
         }
@@ -110,7 +113,7 @@ class PickPlaceTask:
 
     def _check_object_option(self, physics: BaxterPhysics, pos: np.ndarray) -> None:
         c = self.config
-        if np.linalg.norm(pos[:2] - self.place_xy) <= c.success_xy_tol + robot.CUBE_SIZE / 2:
+        if np.linalg.norm(pos[:2] - self.place_xy) <= c.success_xy_tol + physics.object_size / 2:
             raise ResetOptionError(
                 f"reset option 'object_pos' {np.round(pos[:2], 3).tolist()} is on the place target "
                 f"{np.round(self.place_xy, 3).tolist()}: the episode would start solved"
@@ -155,12 +158,12 @@ class PickPlaceTask:
         ee, rot = physics.ee_pose()
         near = np.linalg.norm(ee[:2] - obj[:2]) < 0.02
         open_at_object = (
-            near and physics.gripper_opening() > 0.5 and physics.pad_bottom_z() < obj[2] + robot.CUBE_SIZE / 2
+            near and physics.gripper_opening() > 0.5 and physics.pad_bottom_z() < obj[2] + physics.object_size / 2
         )
         if "grasp_miss" in self._armed and open_at_object and not physics.object_in_grasp():
             self._shift_object(physics, rng, rot[:, 0], _GRASP_MISS_SHIFT, "grasp_miss")
             return
-        if "drop" in self._armed and physics.object_in_grasp() and obj[2] > robot.CUBE_REST_Z + 0.08:
+        if "drop" in self._armed and physics.object_in_grasp() and obj[2] > physics.object_rest_z() + 0.08:
             self._shift_object(physics, rng, rot[:, 0], _DROP_SHIFT, "drop")
             physics.wait(0.8)  # it falls and comes to rest on the table
             return
@@ -223,13 +226,14 @@ class PickPlaceTask:
         """The object rests on the table within tolerance of the target."""
         pos, _ = physics.object_pose()
         on_target = np.linalg.norm(pos[:2] - self.place_xy) <= self.config.success_xy_tol
-        return bool(on_target and abs(pos[2] - robot.CUBE_REST_Z) < 0.005 and physics.object_speed() < 0.02)
+        resting = abs(pos[2] - physics.object_rest_z()) < 0.005
+        return bool(on_target and resting and physics.object_speed() < 0.02)
 
     @staticmethod
     def gripper_released(physics: BaxterPhysics) -> bool:
         """Fingers off the object, gripper open, and the pads clear above the object's top."""
         pos, _ = physics.object_pose()
-        object_top = pos[2] + robot.CUBE_SIZE / 2
+        object_top = pos[2] + physics.object_size / 2
         return bool(
             not physics.gripper_touches_object()
             and physics.gripper_opening() > 0.5
@@ -248,13 +252,13 @@ class PickPlaceTask:
         at_target = np.linalg.norm(obj[:2] - self.place_xy) <= self.config.success_xy_tol
         if held:
             self._was_grasped = True
-            if obj[2] < robot.CUBE_REST_Z + 0.01:
+            if obj[2] < physics.object_rest_z() + 0.01:
                 return 7 if at_target else 3  # place/descend (at the target) or pick/close
             return 6 if np.linalg.norm(obj[:2] - self.place_xy) < 0.03 else 4  # place/approach or pick/retract
         if self.object_placed(physics):
             return 9 if self.gripper_released(physics) else 8  # place/retract or place/open
         if np.linalg.norm(ee[:2] - obj[:2]) < 0.02:
-            return 2 if physics.pad_bottom_z() < obj[2] + robot.CUBE_SIZE / 2 else 1  # pick/grasp or approach
+            return 2 if physics.pad_bottom_z() < obj[2] + physics.object_size / 2 else 1  # pick/grasp or approach
         return 0
 
     def step_info(self, physics: BaxterPhysics, success: bool, truncated: bool) -> dict:

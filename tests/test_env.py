@@ -134,6 +134,7 @@ def test_invalid_actions_raise(keyframe_env):
         ({"preset": "hard"}, "preset must be one of"),
         ({"yaw_range": (0.1, float("nan"))}, "finite"),
         ({"bogus_field": 1}, "unknown baxter_pnp env field"),
+        ({"size_range": (0.03, 0.05)}, "size_range must lie in"),
     ],
 )
 def test_bad_configs_raise_clear_errors(kwargs, message):

@@ -193,3 +193,15 @@ def test_expert_labels_any_state_and_following_its_labels_succeeds():
             if terminated or truncated:
                 break
         assert terminated, f"seed {seed}: following the labels did not finish the task"
+
+
+@pytest.mark.parametrize("size", [0.045, 0.06])
+def test_object_size_is_simulated_and_handled_by_the_expert(size):
+    from lerobot_pnp.env_config import make_env
+
+    env = make_env(render_mode=None, size_range=(size, size))
+    obs, _ = env.reset(seed=1)
+    physics = env.unwrapped.physics
+    assert physics.object_size == pytest.approx(size)
+    assert obs["environment_state"][2] == pytest.approx(robot.TABLE_TOP_Z + size / 2, abs=2e-3)  # resting on the table
+    assert all(run_expert_episode(env, s).success for s in range(3))
