@@ -180,8 +180,12 @@ class BaxterPnPEnvConfig(EnvConfig):
             source = self.task_source or _source_from_command_line()
             if source:
                 recorded = read_recorded(source) or {}
-        base = dict(PRESETS[self.preset or recorded.get("preset") or "paper"])
-        base.update({k: v for k, v in recorded.items() if k in TASK_FIELDS})
+        if recorded:
+            # A recorded task is complete for the fields that existed when it was recorded; a field added since
+            # had no effect then, which is its paper value (every paper value means "feature off").
+            base = {**PAPER_TASK, **{k: v for k, v in recorded.items() if k in TASK_FIELDS}}
+        else:
+            base = dict(PRESETS[self.preset or "paper"])
         for name in TASK_FIELDS:
             if getattr(self, name) is None:
                 setattr(self, name, base[name])
