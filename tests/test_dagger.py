@@ -128,3 +128,26 @@ def test_rounds_run_and_resume(tmp_path):
     assert (ckpt / "model.safetensors").stat().st_mtime_ns == stamp
     assert second["table"] == first["table"]
     assert json.loads((out / "round_00" / "eval.json").read_text())["nominal"]["n"] == 2
+
+
+def test_a_state_the_expert_cannot_reach_ends_the_labelled_episode(full_cfg, monkeypatch):
+    from lerobot_pnp.errors import UnreachableError
+    from lerobot_pnp.expert import FSMExpert
+
+    env = suite_env(full_cfg, "nominal")
+    label = FSMExpert.label
+    calls = {"n": 0}
+
+    def flaky(self):
+        calls["n"] += 1
+        if calls["n"] > 6:  # the 7th state: the policy pushed the object out of reach
+            raise UnreachableError("IK did not converge")
+        return label(self)
+
+    follower = _Follower(env)  # labels through the real expert (its own instances are not patched)
+    follower.expert_cls = type("Expert", (), {"__init__": lambda s, e: setattr(s, "e", FSMExpert(e)),
+                                               "label": lambda s: label(s.e)})  # fmt: skip
+    monkeypatch.setattr(FSMExpert, "label", flaky)
+    ep = labelled_rollout(env, follower, seed=2)
+    env.close()
+    assert len(ep.actions) == 6 and not ep.success and ep.info["stopped"] == "unreachable"

@@ -115,16 +115,25 @@ def expert_episode(env, seed: int, suite: str = "") -> LabelledEpisode | None:
 
 def labelled_rollout(env, policy: Policy, seed: int, suite: str = "") -> LabelledEpisode:
     """Run ``policy`` from ``env.reset(seed)`` until the env ends the episode; label every visited state
-    (including the last) with the expert's next keyframe and phase. The policy's actions are executed."""
+    (including the last) with the expert's next keyframe and phase. The policy's actions are executed.
+
+    When the policy has pushed the object where the expert has no IK solution (``UnreachableError``), the
+    episode ends there: the states before it keep their labels (``info["stopped"] = "unreachable"``)."""
     from lerobot_pnp.expert import FSMExpert
 
     policy.reset()
     obs, info = env.reset(seed=seed)
     expert = FSMExpert(env)
     states, env_states, labels, phases = [], [], [], []
-    done = False
+    done, stopped = False, None
     while True:
-        keyframe, phase = expert.label()
+        try:
+            keyframe, phase = expert.label()
+        except UnreachableError:
+            if not labels:
+                raise
+            stopped, info = "unreachable", {**info, "is_success": False}
+            break
         states.append(np.asarray(obs["agent_pos"], np.float32))
         env_states.append(np.asarray(obs["environment_state"], np.float32))
         labels.append(keyframe)
@@ -141,7 +150,7 @@ def labelled_rollout(env, policy: Policy, seed: int, suite: str = "") -> Labelle
         np.asarray(phases, np.int64),
         bool(info.get("is_success", False)),
         suite,
-        {"failure_cause": info.get("failure_cause"), "furthest_phase": info.get("furthest_phase")},
+        {"failure_cause": info.get("failure_cause"), "furthest_phase": info.get("furthest_phase"), "stopped": stopped},
     )
 
 
