@@ -127,11 +127,14 @@ def main() -> None:
     ap.add_argument("--config", default="configs/dagger.json")
     ap.add_argument("--output_dir", default="outputs/bench_planner")
     ap.add_argument("--sections", default="dagger,clocked,memoryless,latency")
+    ap.add_argument("--rounds", type=int, default=None, help="override the config's DAgger rounds")
     args = ap.parse_args()
     sections = set(args.sections.split(","))
     out = Path(args.output_dir)
     out.mkdir(parents=True, exist_ok=True)
     cfg = load_config(args.config, str(out / "dagger"))
+    if args.rounds is not None:
+        cfg.rounds = args.rounds
     env_cfg = _base_env_cfg(cfg)
     results: dict = {}
     rows: list[tuple[str, dict]] = []

@@ -25,20 +25,20 @@ def test_wilson_interval():
 
 
 class _Follower:
-    """A 'policy' that executes the expert's label (the ideal DAgger learner), or holds still."""
+    """A 'policy' that executes the teacher's label (the ideal DAgger learner), or holds still."""
 
     def __init__(self, env, hold: bool = False):
-        from lerobot_pnp.expert import FSMExpert
+        from lerobot_pnp.dagger.rollouts import Teacher
 
-        self.env, self.hold, self.expert_cls = env, hold, FSMExpert
+        self.env, self.hold, self.teacher = env, hold, Teacher(env)
 
     def reset(self):
-        pass
+        self.teacher.prev = None
 
     def act(self, obs):
         if self.hold:
             return np.append(self.env.unwrapped.physics.arm_command(), 1.0).astype(np.float32)
-        return self.expert_cls(self.env).label()[0]
+        return self.teacher.label()[0]
 
 
 @pytest.fixture(scope="module")
@@ -131,23 +131,43 @@ def test_rounds_run_and_resume(tmp_path):
 
 
 def test_a_state_the_expert_cannot_reach_ends_the_labelled_episode(full_cfg, monkeypatch):
+    from lerobot_pnp.dagger.rollouts import Teacher
     from lerobot_pnp.errors import UnreachableError
-    from lerobot_pnp.expert import FSMExpert
 
     env = suite_env(full_cfg, "nominal")
-    label = FSMExpert.label
+    label = Teacher.label
     calls = {"n": 0}
 
+    follower = _Follower(env)
+
     def flaky(self):
+        if self is follower.teacher:  # the follower's own copy acts normally
+            return label(self)
         calls["n"] += 1
         if calls["n"] > 6:  # the 7th state: the policy pushed the object out of reach
             raise UnreachableError("IK did not converge")
         return label(self)
 
-    follower = _Follower(env)  # labels through the real expert (its own instances are not patched)
-    follower.expert_cls = type("Expert", (), {"__init__": lambda s, e: setattr(s, "e", FSMExpert(e)),
-                                               "label": lambda s: label(s.e)})  # fmt: skip
-    monkeypatch.setattr(FSMExpert, "label", flaky)
+    monkeypatch.setattr(Teacher, "label", flaky)
     ep = labelled_rollout(env, follower, seed=2)
     env.close()
     assert len(ep.actions) == 6 and not ep.success and ep.info["stopped"] == "unreachable"
+
+
+@pytest.mark.parametrize("suite", ["nominal", "grasp_miss", "drop"])
+def test_teacher_labels_equal_the_demonstrations_along_an_expert_trajectory(full_cfg, suite):
+    """DAgger labels and demonstrations must not contradict each other on the states both visit."""
+    from lerobot_pnp.dagger.rollouts import Teacher
+    from lerobot_pnp.expert import run_expert_episode
+
+    env = suite_env(full_cfg, suite)
+    ep = run_expert_episode(env, 4)
+    env.reset(seed=4)
+    teacher = Teacher(env)
+    for k, action in enumerate(ep.actions[:-1]):
+        keyframe, phase = teacher.label()
+        assert phase == ep.phases[k], (k, ep.phases.tolist())
+        np.testing.assert_allclose(keyframe, action, atol=1e-2)
+        env.step(action)
+    env.close()
+    assert suite == "nominal" or len(ep.actions) > 11  # the perturbation made the expert recover

@@ -113,17 +113,54 @@ def expert_episode(env, seed: int, suite: str = "") -> LabelledEpisode | None:
     return LabelledEpisode(seed, ep.states, ep.object_positions, ep.actions, ep.phases, True, suite)
 
 
+class Teacher:
+    """The expert's FSM continued along a trajectory, so its labels match the expert's demonstrations.
+
+    ``FSMExpert.label()`` plans from the physical state alone. On expert trajectories that differs from the
+    demonstrating FSM in three states (every other label equals the demonstrated keyframe):
+
+    * after the pick retract the FSM holds once (place/start, the paper's state 4); ``label()`` goes straight
+      to the place approach;
+    * after the place descent the FSM opens the gripper; ``label()`` plans the descent again (the object is
+      still a clearance above the table, so its inferred progress has not advanced);
+    * when the object slid away during the grasp descent the FSM closes, finds the gripper empty, lifts with
+      it open and re-approaches; ``label()`` re-approaches at once.
+
+    Mixing both teachers gives contradictory targets for the same state (a DAgger round trained on both lost
+    half its success). So: when the previous label was followed (the arm's setpoints are at its target), the
+    teacher plans from the next FSM state as the demonstrating expert does (with the expert's own checks for
+    a miss, a drop or a displacement); otherwise, and at the first step, it is ``label()``.
+    """
+
+    def __init__(self, env):
+        from lerobot_pnp.expert import FSMExpert
+
+        self.expert = FSMExpert(env)
+        self.physics = env.unwrapped.physics
+        self.prev: tuple[int, np.ndarray] | None = None
+
+    def label(self) -> tuple[np.ndarray, int]:
+        prev = self.prev
+        command = np.asarray(self.physics.arm_command(), np.float32)
+        if prev is not None and np.allclose(command, prev[1][: robot.N_JOINTS], atol=1e-2):
+            self.expert.sync_to_state()
+            self.expert.phase = min(prev[0] + 1, robot.N_KEYFRAMES - 1)
+            keyframe, phase = self.expert.next_keyframe(), self.expert.last_phase
+        else:
+            keyframe, phase = self.expert.label()
+        self.prev = (phase, keyframe)
+        return keyframe, phase
+
+
 def labelled_rollout(env, policy: Policy, seed: int, suite: str = "") -> LabelledEpisode:
     """Run ``policy`` from ``env.reset(seed)`` until the env ends the episode; label every visited state
     (including the last) with the expert's next keyframe and phase. The policy's actions are executed.
 
     When the policy has pushed the object where the expert has no IK solution (``UnreachableError``), the
     episode ends there: the states before it keep their labels (``info["stopped"] = "unreachable"``)."""
-    from lerobot_pnp.expert import FSMExpert
-
     policy.reset()
     obs, info = env.reset(seed=seed)
-    expert = FSMExpert(env)
+    expert = Teacher(env)
     states, env_states, labels, phases = [], [], [], []
     done, stopped = False, None
     while True:
