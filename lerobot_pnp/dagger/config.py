@@ -9,7 +9,10 @@ from lerobot_pnp.policy import PnpLstmConfig
 
 from .rollouts import SUITES
 
-DEFAULT_ROLLOUT_SUITES = ["full", "grasp_miss", "drop", "nudge", "displace", "noise_latency"]
+# Rollouts under one-step observation latency are left out by default: their stale inputs with labels from
+# the true state contradict the undelayed data on the same observations (measured: round 1 with them 93 %
+# nominal, without them 98.5 %), and no round learned latency anyway (0-3.5 % either way).
+DEFAULT_ROLLOUT_SUITES = ["full", "grasp_miss", "drop", "nudge", "displace"]
 DEFAULT_EVAL_SUITES = ["nominal", "grasp_miss", "drop", "nudge", "displace", "noise_latency"]
 
 
@@ -48,7 +51,7 @@ class DaggerConfig:
     base_repo_id: str = "local/baxter_pnp_full"
     num_demos: int = 600
     test_fraction: float = 0.1
-    rounds: int = 2
+    rounds: int = 1
     rollouts_per_round: int = 300
     rollout_suites: list[str] = field(default_factory=lambda: list(DEFAULT_ROLLOUT_SUITES))
     eval_suites: list[str] = field(default_factory=lambda: list(DEFAULT_EVAL_SUITES))
