@@ -37,6 +37,11 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
         "lerobot_pnp.expert_eval:evaluate_expert",
         "run the scripted expert on seeded episodes and report success and failures by cause",
     ),
+    "dagger": (
+        "lerobot_pnp.dagger:DaggerConfig",
+        "lerobot_pnp.dagger:run_dagger",
+        "DAgger rounds with the expert as teacher",
+    ),
     "demo": (
         "lerobot_pnp.demo:DemoConfig",
         "lerobot_pnp.demo:run_demo",

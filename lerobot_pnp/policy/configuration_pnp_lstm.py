@@ -34,6 +34,7 @@ from lerobot_pnp.errors import ConfigError, PolicyError
 logger = logging.getLogger(__name__)
 
 LR_SCHEDULERS = ("none", "cosine")
+MODES = ("clocked", "recovering")
 
 
 @PreTrainedConfig.register_subclass("pnp_lstm")
@@ -79,6 +80,20 @@ class PnpLstmConfig(PreTrainedConfig):
         optimizer_lr / optimizer_weight_decay / optimizer_grad_clip_norm: Adam preset.
         lr_scheduler: ``"none"`` or ``"cosine"`` (linear warm-up, then cosine annealing to zero over the run).
         scheduler_warmup_steps: Warm-up steps of the cosine schedule.
+        mode: ``"clocked"`` (default; the paper: steps 0-4 PICK net, 5-9 PLACE net, fixed 10-frame episodes) or
+            ``"recovering"`` (``recovering.RecoveringNet``: one trunk over the whole variable-length episode,
+            no clock, state carried across the switch, PICK/PLACE heads mixed by a learned subtask classifier;
+            runs until the env ends the episode). In recovering mode ``recurrent=False`` is the memoryless
+            control with an MLP trunk of about the LSTM trunk's parameter count; ``shared_network``,
+            ``carry_hidden_across_subtasks``, ``num_layers`` and the subtask structure fields are not used.
+        max_episode_length: Recovering mode: the longest episode a training window holds (the env's keyframe
+            budget + the final observed state: 41 in the ``full`` task). Windows are ``-(L-1) .. L-1`` around any frame, so each holds its
+            whole episode; every frame is sampled (no ``drop_n_last_frames``), which weights episodes by length.
+        subtask_loss_weight / phase_loss_weight: Recovering mode: weights of the cross-entropy of the subtask
+            switch (``phase.subtask``) and of the auxiliary phase classifier (``phase.index``) next to the
+            action MSE; used when the batch carries per-frame labels (the fast path and DAgger; stock
+            ``lerobot-train`` windows only observations and actions, so there the switch learns from the action
+            loss alone).
     """
 
     n_obs_steps: int = 1
@@ -120,6 +135,12 @@ class PnpLstmConfig(PreTrainedConfig):
     lr_scheduler: str = "none"
     scheduler_warmup_steps: int = 0
 
+    # Recovering mode (see recovering.py).
+    mode: str = "clocked"
+    max_episode_length: int = 41
+    subtask_loss_weight: float = 0.1
+    phase_loss_weight: float = 0.1
+
     def __post_init__(self) -> None:
         super().__post_init__()
         checks = [
@@ -151,6 +172,12 @@ class PnpLstmConfig(PreTrainedConfig):
                 self.n_obs_steps == 1,
                 f"pnp_lstm keeps its own history in the LSTM state; n_obs_steps must be 1, got {self.n_obs_steps}",
             ),
+            (self.mode in MODES, f"mode must be one of {MODES}, got {self.mode!r}"),
+            (self.max_episode_length >= 1, f"max_episode_length must be >= 1, got {self.max_episode_length}"),
+            (
+                self.subtask_loss_weight >= 0.0 and self.phase_loss_weight >= 0.0,
+                "subtask_loss_weight and phase_loss_weight must be >= 0",
+            ),
             (
                 self.dataset_fps is None or self.dataset_fps >= 1,
                 f"dataset_fps must be >= 1 or None, got {self.dataset_fps}",
@@ -166,6 +193,15 @@ class PnpLstmConfig(PreTrainedConfig):
     def episode_length(self) -> int:
         """Frames per keyframe episode (10 in the paper)."""
         return self.n_subtasks * self.steps_per_subtask
+
+    @property
+    def recovering(self) -> bool:
+        return self.mode == "recovering"
+
+    @property
+    def window_length(self) -> int:
+        """Frames of the longest episode a training window holds: 10 clocked, ``max_episode_length`` recovering."""
+        return self.max_episode_length if self.recovering else self.episode_length
 
     def check_env_fps(self, env_fps: int | float | None) -> None:
         """Raise ``PolicyError`` when an env's control rate differs from the training dataset's.
@@ -187,7 +223,7 @@ class PnpLstmConfig(PreTrainedConfig):
     def observation_delta_indices(self) -> list[int]:
         # Every window holds its whole episode, wherever the sampled frame lies in it; LeRobot pads the frames
         # outside the episode (`<key>_is_pad`). With drop_n_last_frames the sampler picks frame 0 only.
-        return list(range(-(self.episode_length - 1), self.episode_length))
+        return list(range(-(self.window_length - 1), self.window_length))
 
     @property
     def action_delta_indices(self) -> list[int]:
@@ -199,8 +235,9 @@ class PnpLstmConfig(PreTrainedConfig):
 
     @property
     def drop_n_last_frames(self) -> int:
-        """Read by ``lerobot-train`` for its ``EpisodeAwareSampler``: sample each episode's first frame only."""
-        return self.episode_length - 1
+        """Read by ``lerobot-train`` for its ``EpisodeAwareSampler``: clocked, sample each episode's first frame
+        only; recovering (variable lengths), every frame (its window holds the whole episode too)."""
+        return 0 if self.recovering else self.episode_length - 1
 
     def get_optimizer_preset(self) -> AdamConfig:
         return AdamConfig(

@@ -17,6 +17,9 @@ Inference (``select_action``): one ``(B, D)`` observation per environment step, 
 batch at the same step (LeRobot resets the whole batch at once), so one scalar step counter does. Steps
 ``0..4`` run the PICK net, ``5..9`` the PLACE net (its hidden state zeroed at step 5); afterwards the policy
 keeps returning the last action it predicted (the hold of the place-retract state). ``reset()`` clears it.
+
+``--policy.mode=recovering`` replaces the clocked pair by ``recovering.RecoveringNet`` (no clock, one state
+for the whole episode, a learned PICK/PLACE switch); the policy API, processors and checkpoints are the same.
 """
 
 from __future__ import annotations
@@ -34,6 +37,11 @@ from torch import Tensor, nn
 from lerobot_pnp.errors import ConfigError, DatasetError, PolicyError
 
 from .configuration_pnp_lstm import PnpLstmConfig
+from .recovering import RecoveringNet, recovering_loss
+
+# Per-frame labels the recovering mode learns from when a batch carries them (fast path, DAgger).
+SUBTASK_KEY = "phase.subtask"
+PHASE_KEY = "phase.index"
 
 logger = logging.getLogger(__name__)
 
@@ -158,13 +166,18 @@ class PnpLstmPolicy(PreTrainedPolicy):
         ):
             torch.set_num_threads(config.torch_num_threads)
         if dataset_meta is not None:
-            _check_keyframe_episodes(dataset_meta, config.episode_length)
+            _check_keyframe_episodes(
+                dataset_meta, config.episode_length, exact=not config.recovering, max_length=config.window_length
+            )
             config.dataset_fps = int(dataset_meta.fps)
 
         self.input_keys: list[str] = config.model_input_keys
         input_dim = sum(int(config.input_features[k].shape[0]) for k in self.input_keys)
         self.action_dim = int(config.output_features[ACTION].shape[0])
-        self.model = PnpLstm(config, input_dim, self.action_dim)
+        if config.recovering:
+            self.model = RecoveringNet(input_dim, config.hidden_size, self.action_dim, config.recurrent, config.dropout)
+        else:
+            self.model = PnpLstm(config, input_dim, self.action_dim)
         self.reset()
 
     @property
@@ -242,9 +255,19 @@ class PnpLstmPolicy(PreTrainedPolicy):
             raise ConfigError(f"reduction must be 'mean' or 'none', got {reduction!r}")
         x = torch.cat([batch[k] for k in self.input_keys], dim=-1)
         y = batch[ACTION]
-        x, y, valid = self._episodes_of(batch, x, y)
+        labels = [batch.get(k) for k in (SUBTASK_KEY, PHASE_KEY)]
+        labels = [v if _is_window(v, x) else None for v in labels]
+        x, y, valid, labels = self._episodes_of(batch, x, y, labels)
         if self.training and self.config.input_noise_std > 0:
             x = x + self.config.input_noise_std * torch.randn_like(x)
+
+        if self.config.recovering:
+            cfg = self.config
+            out = self.model(x)
+            loss, per_sample, info = recovering_loss(
+                out, y, valid, *labels, cfg.subtask_loss_weight, cfg.phase_loss_weight
+            )
+            return (per_sample, info) if reduction == "none" else (loss, info)
 
         pred = self.model(x)
         err = F.mse_loss(pred, y, reduction="none").mean(dim=-1)  # (B, T)
@@ -267,6 +290,8 @@ class PnpLstmPolicy(PreTrainedPolicy):
     def select_action(self, batch: dict[str, Tensor], **kwargs: Any) -> Tensor:
         """One normalised action per environment, ``(B, action_dim)``; advances the step counter."""
         cfg = self.config
+        if cfg.recovering:
+            return self._recovering_step(batch)
         step = self._step
         self._step = step + 1
         if step >= cfg.episode_length:
@@ -286,6 +311,18 @@ class PnpLstmPolicy(PreTrainedPolicy):
         self._last_action = action
         return action
 
+    def _recovering_step(self, batch: dict[str, Tensor]) -> Tensor:
+        """No clock: one trunk step with the state carried since ``reset()``, until the env ends the episode."""
+        x = torch.cat([batch[k] for k in self.input_keys], dim=-1)
+        state = self._state
+        if state is not None and state[0].shape[0] != x.shape[0]:
+            raise PolicyError(_BATCH_CHANGED)
+        out, self._state = self.model.step(x, state)
+        self._step += 1
+        self.last_subtask_prob = out["subtask_logits"].softmax(dim=-1)[:, 1]  # P(place), for viewers / logs
+        self.last_phase = out["phase_logits"].argmax(dim=-1)
+        return out["action"]
+
     def predict_action_chunk(self, batch: dict[str, Tensor], **kwargs: Any) -> Tensor:
         """``select_action`` with a time dimension, ``(B, 1, action_dim)``. Advances the step counter."""
         return self.select_action(batch, **kwargs).unsqueeze(1)
@@ -297,19 +334,23 @@ class PnpLstmPolicy(PreTrainedPolicy):
 
         Stateless (does not touch the inference state); used for evaluation on a dataset.
         """
-        return self.model(torch.cat([batch[k] for k in self.input_keys], dim=-1))
+        out = self.model(torch.cat([batch[k] for k in self.input_keys], dim=-1))
+        return out["action"] if self.config.recovering else out
 
-    def _episodes_of(self, batch: dict[str, Tensor], x: Tensor, y: Tensor) -> tuple[Tensor, Tensor, Tensor]:
+    def _episodes_of(
+        self, batch: dict[str, Tensor], x: Tensor, y: Tensor, labels: list[Tensor | None] | None = None
+    ) -> tuple[Tensor, Tensor, Tensor, list[Tensor | None]]:
         """Each sample's episode as ``(B, T, ·)`` from frame 0, and the mask of its real frames ``(B, T)``.
 
         A window's unpadded frames are its episode (the window covers the whole episode); the fast path's
         batches are whole episodes already.
         """
-        t_ep = self.config.episode_length
+        t_ep = min(self.config.window_length, x.shape[1])
+        labels = list(labels or [])
         pads = [batch[f"{k}_is_pad"] for k in (*self.input_keys, ACTION) if f"{k}_is_pad" in batch]
         if not pads:
             bsz, length = x.shape[:2]
-            return x, y, torch.ones(bsz, length, dtype=torch.bool, device=x.device)
+            return x, y, torch.ones(bsz, length, dtype=torch.bool, device=x.device), labels
         pad = pads[0].to(device=x.device, dtype=torch.bool)
         real = ~pad
         n_real = real.sum(dim=1)
@@ -318,13 +359,19 @@ class PnpLstmPolicy(PreTrainedPolicy):
         idx = (first.unsqueeze(1) + pos).clamp(max=x.shape[1] - 1)  # (B, T)
         x = x.gather(1, idx.unsqueeze(-1).expand(-1, -1, x.shape[-1]))
         y = y.gather(1, idx.unsqueeze(-1).expand(-1, -1, y.shape[-1]))
-        return x, y, pos.unsqueeze(0) < n_real.unsqueeze(1)
+        labels = [None if v is None else v.to(x.device).gather(1, idx) for v in labels]
+        return x, y, pos.unsqueeze(0) < n_real.unsqueeze(1), labels
 
 
 _BATCH_CHANGED = (
     "the batch size changed within an episode; call policy.reset() when the environments are reset "
     "(LeRobot's rollout does)"
 )
+
+
+def _is_window(labels: Tensor | None, x: Tensor) -> bool:
+    """Per-frame labels ``(B, L)`` aligned with the inputs (lerobot-train's batches carry one label per sample)."""
+    return isinstance(labels, Tensor) and labels.ndim == 2 and tuple(labels.shape) == tuple(x.shape[:2])
 
 
 def _batch_size(batch: dict[str, Tensor], keys: list[str]) -> int:
@@ -363,11 +410,24 @@ def _subtask_names(n: int) -> list[str]:
     return ["pick", "place"] if n == 2 else [f"subtask{i}" for i in range(n)]
 
 
-def _check_keyframe_episodes(dataset_meta: Any, episode_length: int) -> None:
-    """Fail early (at policy construction in ``lerobot-train``) on a dataset that is not a keyframe dataset."""
+def _check_keyframe_episodes(
+    dataset_meta: Any, episode_length: int, exact: bool = True, max_length: int | None = None
+) -> None:
+    """Fail early (at policy construction in ``lerobot-train``) on a dataset that is not a keyframe dataset.
+
+    Clocked: every episode has exactly ``episode_length`` frames. Recovering: at most ``max_length`` frames
+    (a longer episode would not fit its training window)."""
     try:
         lengths = list(dataset_meta.episodes["length"])
     except (AttributeError, KeyError, TypeError):
+        return
+    if not exact:
+        longer = sorted({int(n) for n in lengths if int(n) > int(max_length or 0)})
+        if longer:
+            raise DatasetError(
+                f"episodes of {longer[:5]} frames do not fit policy.max_episode_length={max_length}: "
+                f"raise it to at least {longer[-1]}"
+            )
         return
     bad = sorted({int(n) for n in lengths if int(n) != episode_length})
     if bad:

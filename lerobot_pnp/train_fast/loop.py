@@ -132,7 +132,8 @@ def train_fast(cfg: TrainFastConfig) -> TrainFastResult:
     out_dir = Path(cfg.output_dir)
     _seed_everything(cfg.seed)
 
-    ds, data = load_keyframe_data(cfg.dataset_repo_id, cfg.dataset_root, cfg.test_episodes)
+    max_length = cfg.policy.max_episode_length if cfg.policy.recovering else None
+    ds, data = load_keyframe_data(cfg.dataset_repo_id, cfg.dataset_root, cfg.test_episodes, max_length)
     logger.info(
         "Keyframe dataset %s: %d train / %d test episodes (%s)",
         cfg.dataset_repo_id,
@@ -153,7 +154,8 @@ def train_fast(cfg: TrainFastConfig) -> TrainFastResult:
         if not len(rows):
             return None
         out = preprocessor(data.batch(rows))
-        return {k: out[k].to(device) for k in (OBS_STATE, OBS_ENV_STATE, ACTION)}
+        out = {k: out[k].to(device) for k in (OBS_STATE, OBS_ENV_STATE, ACTION)}
+        return {**out, **{k: v.to(device) for k, v in data.extras(rows).items()}}
 
     train_all = prep(data.train_idx)
     test_all = prep(data.test_idx)
@@ -231,7 +233,8 @@ def train_fast(cfg: TrainFastConfig) -> TrainFastResult:
     final_train = _mse(policy, train_all)
     final_test = _mse(policy, test_all)
     if test_all is not None:
-        err = keyframe_error(policy, postprocessor, test_all, data.action[data.test_idx], action_names(ds.meta))
+        pad = data.pad[data.test_idx] if cfg.policy.recovering else None
+        err = keyframe_error(policy, postprocessor, test_all, data.action[data.test_idx], action_names(ds.meta), pad)
     else:
         err = {"n_episodes": 0}
     err.update(

@@ -31,24 +31,32 @@ def keyframe_error(
     norm_batch: dict[str, torch.Tensor],
     raw_action: torch.Tensor,
     names: list[str],
+    pad: torch.Tensor | None = None,
 ) -> dict[str, Any]:
-    """Held-out error of the predicted next keyframe (teacher forcing: dataset states as inputs)."""
+    """Held-out error of the predicted next keyframe (teacher forcing: dataset states as inputs).
+
+    ``pad`` ``(E, T)``: padded frames of variable-length episodes, left out of every statistic."""
     policy.eval()
     pred = postprocessor(policy.predict_sequence(norm_batch)).to(torch.float32).cpu()
     err = pred - raw_action.cpu()
+    n_episodes = int(raw_action.shape[0])
+    if pad is not None:
+        err = err[~pad.cpu()].unsqueeze(1)  # (frames, 1, A): the real frames only
     nj = robot.N_JOINTS
     deg = err[..., :nj].abs() * (180.0 / math.pi)  # (E, T, 7)
     rmse = (err[..., :nj].pow(2).mean(dim=(0, 1)).sqrt()) * (180.0 / math.pi)
     gripper = err[..., nj:].abs()
     out: dict[str, Any] = {
-        "n_episodes": int(raw_action.shape[0]),
+        "n_episodes": n_episodes,
         "mean_joint_mae_deg": float(deg.mean()),
         "per_joint_mae_deg": {names[j]: float(deg[..., j].mean()) for j in range(nj)},
         "per_joint_rmse_deg": {names[j]: float(rmse[j]) for j in range(nj)},
         "per_joint_max_deg": {names[j]: float(deg[..., j].max()) for j in range(nj)},
         "per_keyframe_mean_joint_mae_deg": {
             robot.PHASE_NAMES[k]: float(deg[:, k].mean()) for k in range(min(deg.shape[1], robot.N_KEYFRAMES))
-        },
+        }
+        if pad is None
+        else None,
         "gripper_mae": float(gripper.mean()) if gripper.numel() else None,
         "note": "input at keyframe k = dataset state k; target = keyframe k+1 joint targets (action k)",
     }

@@ -1,0 +1,200 @@
+"""The recovering planner and DAgger, measured side by side on the same evaluation seeds.
+
+    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_planner.py [--config configs/dagger.json]
+        [--sections dagger,clocked,memoryless,latency] [--output_dir outputs/bench_planner]
+
+dagger      ``lerobot-pnp dagger`` with the config (expert demos of the ``full`` task, round 0, N DAgger
+            rounds), timed: demos, each round's rollouts + aggregation, each round's training. Prints the
+            success table (Wilson 95 % intervals) per round and suite.
+clocked     The paper's clocked two-LSTM on the same task: trained (fast path, same epochs) on the
+            demonstrations that needed no recovery (exactly 10 frames: it cannot represent longer episodes),
+            evaluated on the same suites and seeds.
+memoryless  ``recurrent=False`` (the MLP trunk of matched parameter count), trained on the final DAgger
+            aggregate with the same recipe, same evaluation.
+latency     ``select_action`` at batch 1, median over 2000 calls, recovering vs clocked (one torch thread).
+
+Evaluation is in-process (``lerobot_pnp.dagger.evaluate``: env from ``make_env``, LeRobot's
+``preprocess_observation`` -> pre-processor -> ``select_action`` -> post-processor -> ``env.step``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import json
+import os
+import statistics
+import time
+from pathlib import Path
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("HF_HUB_OFFLINE", "1")
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+import draccus
+import numpy as np
+import torch
+
+torch.set_num_threads(1)
+
+import lerobot_pnp  # noqa: E402,F401
+from lerobot_pnp.dagger import DaggerConfig, evaluate_checkpoint, run_dagger, write_table  # noqa: E402
+from lerobot_pnp.dagger.loop import _base_env_cfg  # noqa: E402
+from lerobot_pnp.dagger.writer import LabelledEpisode, write_episodes  # noqa: E402
+
+
+def log(msg: str) -> None:
+    print(f"[bench_planner {time.strftime('%H:%M:%S')}] {msg}", flush=True)
+
+
+def load_config(path: str, output_dir: str) -> DaggerConfig:
+    with draccus.config_type("json"):
+        cfg = draccus.parse(DaggerConfig, path, args=[f"--output_dir={output_dir}", "--progress=false"])
+    return cfg
+
+
+def ten_frame_demos(cfg: DaggerConfig, out: Path) -> tuple[Path, str, str]:
+    """The demonstrations without a recovery (exactly 10 frames), rewritten as their own dataset."""
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    root = out / "clocked_demos"
+    demos = Path(cfg.output_dir) / "demos"
+    ds = LeRobotDataset(f"{cfg.base_repo_id}_demos", root=demos)
+    t = ds.hf_dataset.with_format("numpy")[:]
+    eps = t["episode_index"].reshape(-1)
+    episodes = []
+    for e in np.unique(eps):
+        rows = np.flatnonzero(eps == e)
+        rows = rows[np.argsort(t["frame_index"].reshape(-1)[rows])]
+        if len(rows) != 10:
+            continue
+        episodes.append(
+            LabelledEpisode(
+                int(t["episode.seed"].reshape(-1)[rows[0]]),
+                t["observation.state"][rows],
+                t["observation.environment_state"][rows],
+                t["action"][rows],
+                t["phase.index"].reshape(-1)[rows],
+            )
+        )
+    n = len(episodes)
+    test = f"{n - max(1, n // 10)}:{n}"
+    if not root.is_dir():
+        write_episodes(root, "local/clocked_demos", _base_env_cfg(cfg), episodes, {"test": test})
+    return root, "local/clocked_demos", test
+
+
+def train(root: Path, repo: str, test: str, policy, cfg: DaggerConfig, out_dir: Path) -> tuple[Path, float]:
+    from lerobot_pnp.train_fast import TrainFastConfig, train_fast
+
+    done = out_dir / "done.json"
+    if done.is_file():
+        d = json.loads(done.read_text())
+        return Path(d["checkpoint"]), d["train_s"]
+    t0 = time.perf_counter()
+    result = train_fast(
+        TrainFastConfig(
+            dataset_repo_id=repo, dataset_root=str(root), policy=policy, epochs=cfg.epochs,
+            batch_size=cfg.batch_size, seed=cfg.seed, output_dir=str(out_dir), overwrite=True,
+            test_episodes=test, progress=False,
+        )
+    )  # fmt: skip
+    train_s = time.perf_counter() - t0
+    done.write_text(json.dumps({"checkpoint": str(result.checkpoint_dir), "train_s": train_s}))
+    return result.checkpoint_dir, train_s
+
+
+def latency(ckpt: Path, calls: int = 2000) -> float:
+    from lerobot_pnp.dagger import load_checkpoint
+
+    p = load_checkpoint(ckpt).policy
+    feats = p.config.input_features
+    batch = {k: torch.zeros(1, ft.shape[0]) for k, ft in feats.items()}
+    times = []
+    with torch.inference_mode():
+        p.reset()
+        for i in range(calls):
+            if i % 10 == 0:
+                p.reset()
+            t0 = time.perf_counter()
+            p.select_action(batch)
+            times.append(time.perf_counter() - t0)
+    return statistics.median(times) * 1e3
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--config", default="configs/dagger.json")
+    ap.add_argument("--output_dir", default="outputs/bench_planner")
+    ap.add_argument("--sections", default="dagger,clocked,memoryless,latency")
+    ap.add_argument("--rounds", type=int, default=None, help="override the config's DAgger rounds")
+    args = ap.parse_args()
+    sections = set(args.sections.split(","))
+    out = Path(args.output_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    cfg = load_config(args.config, str(out / "dagger"))
+    if args.rounds is not None:
+        cfg.rounds = args.rounds
+    env_cfg = _base_env_cfg(cfg)
+    results: dict = {}
+    rows: list[tuple[str, dict]] = []
+
+    if "dagger" in sections:
+        t0 = time.perf_counter()
+        summary = run_dagger(cfg)
+        results["dagger"] = summary
+        timings = summary["timings_s"]
+        train_total = sum(v for k, v in timings.items() if k != "demos_s")
+        log(f"dagger timings (s): {timings}")
+        log(f"recovering policy, training incl. {cfg.rounds} DAgger rounds (rollouts, labels, aggregation, "
+            f"retraining; demos and evaluation excluded): {train_total / 60:.1f} min; whole run incl. evaluation "
+            f"{(time.perf_counter() - t0) / 60:.1f} min")  # fmt: skip
+        for rnd in range(cfg.rounds + 1):
+            f = out / "dagger" / f"round_{rnd:02d}" / "eval.json"
+            if f.is_file():
+                rows.append(
+                    (f"recovering, round {rnd}" + (" (no DAgger)" if rnd == 0 else ""), json.loads(f.read_text()))
+                )
+
+    if "clocked" in sections:
+        root, repo, test = ten_frame_demos(cfg, out)
+        policy = copy.deepcopy(cfg.policy)
+        policy.mode, policy.subtask_loss_weight, policy.phase_loss_weight = "clocked", 0.0, 0.0
+        ckpt, train_s = train(root, repo, test, policy, cfg, out / "clocked")
+        log(f"clocked: trained in {train_s:.0f} s")
+        res = evaluate_checkpoint(cfg, ckpt, env_cfg, out / "clocked" / "eval.json")
+        rows.insert(0, ("clocked (paper), 10-frame demos", res))
+        results["clocked_checkpoint"] = str(ckpt)
+
+    if "memoryless" in sections:
+        last = out / "dagger" / f"round_{cfg.rounds:02d}"
+        data = last / "data" if cfg.rounds > 0 else out / "dagger" / "demos"
+        repo = f"{cfg.base_repo_id}_aggregate{cfg.rounds:02d}" if cfg.rounds > 0 else f"{cfg.base_repo_id}_demos"
+        n_demos = cfg.num_demos
+        test = f"{n_demos - max(1, round(cfg.test_fraction * n_demos))}:{n_demos}"
+        policy = copy.deepcopy(cfg.policy)
+        policy.recurrent = False
+        ckpt, train_s = train(data, repo, test, policy, cfg, out / "memoryless")
+        res = evaluate_checkpoint(cfg, ckpt, env_cfg, out / "memoryless" / "eval.json")
+        rows.append((f"memoryless (matched MLP), round-{cfg.rounds} data", res))
+
+    if "latency" in sections:
+        lat = {}
+        for name, ckpt in (
+            ("recovering", results.get("dagger", {}).get("final_checkpoint")),
+            ("clocked", results.get("clocked_checkpoint")),
+        ):
+            if ckpt:
+                lat[name] = latency(Path(ckpt))
+                log(f"select_action batch 1, {name}: median {lat[name]:.3f} ms")
+        results["select_action_ms"] = lat
+
+    if rows:
+        table = write_table(rows, cfg.eval_suites, out)
+        print(table)
+        results["table"] = table
+    (out / "bench_planner.json").write_text(json.dumps(results, indent=2, default=str))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,24 @@
+"""``lerobot-pnp dagger``: DAgger for the pnp_lstm planner with the scripted expert as a free, perfect teacher.
+
+Modules: ``config`` (DaggerConfig), ``rollouts`` (suites, expert demos, expert-labelled policy rollouts,
+evaluation), ``writer`` (LeRobotDataset writing and aggregation), ``loop`` (the rounds and the table),
+``stats`` (Wilson intervals).
+"""
+
+from .config import DaggerConfig
+from .loop import evaluate_checkpoint, run_dagger, write_table
+from .rollouts import NOMINAL, SUITES, evaluate, labelled_rollout, load_checkpoint
+from .stats import wilson
+
+__all__ = [
+    "NOMINAL",
+    "SUITES",
+    "DaggerConfig",
+    "evaluate",
+    "evaluate_checkpoint",
+    "labelled_rollout",
+    "load_checkpoint",
+    "run_dagger",
+    "wilson",
+    "write_table",
+]

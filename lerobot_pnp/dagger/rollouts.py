@@ -1,0 +1,220 @@
+"""Episodes in the simulator: expert demonstrations, policy rollouts labelled by the expert, evaluation.
+
+``FSMExpert(env).label()`` plans the expert's next keyframe from the current physical state without side
+effects, so every state the *policy* visits gets the keyframe a perfect teacher would command there (DAgger).
+The env is always built with ``make_env`` from an env config (the dataset's recorded task + suite changes).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from lerobot_pnp import robot
+from lerobot_pnp.errors import ExpertFailure, UnreachableError
+
+from .writer import LabelledEpisode
+
+# Evaluation / rollout suites: changes applied to the `full` task. "nominal" is the full task (random
+# object pose and yaw, random place target, mass and friction ranges) with every perturbation off: no
+# events (nudge, missed grasp, drop, displacement) and exact, current observations.
+NOMINAL: dict[str, Any] = {
+    "nudge_max": 0.0,
+    "grasp_miss_prob": 0.0,
+    "drop_prob": 0.0,
+    "displace_prob": 0.0,
+    "obs_noise_object": 0.0,
+    "obs_noise_joints": 0.0,
+    "obs_bias_object": 0.0,
+    "obs_latency": 0,
+}
+SUITES: dict[str, dict[str, Any]] = {
+    "nominal": NOMINAL,
+    "grasp_miss": {**NOMINAL, "grasp_miss_prob": 1.0},
+    "drop": {**NOMINAL, "drop_prob": 1.0},
+    "nudge": {**NOMINAL, "nudge_max": 0.03},
+    "displace": {**NOMINAL, "displace_prob": 1.0},
+    "noise_latency": {
+        **NOMINAL,
+        "obs_noise_object": 0.003,
+        "obs_noise_joints": 0.005,
+        "obs_bias_object": 0.003,
+        "obs_latency": 1,
+    },
+    "full": {},  # the full preset as recorded (every perturbation at its preset probability)
+}
+
+
+def suite_env(base_cfg, suite: str):
+    """The env for ``suite``: the base task config with the suite's changes, built by ``make_env``."""
+    from lerobot_pnp.env_config import make_env
+
+    return make_env(base_cfg.with_changes(**SUITES[suite]))
+
+
+@dataclass
+class Policy:
+    """A loaded checkpoint with its processors (any env-state size: the checkpoint's features decide)."""
+
+    policy: Any
+    preprocessor: Any
+    postprocessor: Any
+
+    def reset(self) -> None:
+        self.policy.reset()
+        self.preprocessor.reset()
+        self.postprocessor.reset()
+
+    def act(self, obs: dict) -> np.ndarray:
+        import torch
+        from lerobot.envs.utils import preprocess_observation
+
+        batch = preprocess_observation({k: v for k, v in obs.items() if k != "pixels"})
+        batch["task"] = [robot.TASK]
+        batch = self.preprocessor(batch)
+        with torch.inference_mode():
+            action = self.policy.select_action(batch)
+        return self.postprocessor(action).reshape(-1).numpy().astype(np.float32)
+
+
+def load_checkpoint(path: str | Path) -> Policy:
+    """Load a pretrained_model folder (lerobot-train / fast-path layout) with its processors, on CPU."""
+    from lerobot.configs import PreTrainedConfig
+    from lerobot.policies.factory import get_policy_class, make_pre_post_processors
+
+    import lerobot_pnp  # noqa: F401  (registers pnp_lstm)
+
+    path = Path(path)
+    config = PreTrainedConfig.from_pretrained(path)
+    config.pretrained_path = path
+    config.device = "cpu"
+    policy = get_policy_class(config.type).from_pretrained(path, config=config)
+    pre, post = make_pre_post_processors(
+        config,
+        pretrained_path=str(path),
+        preprocessor_overrides={"device_processor": {"device": "cpu"}},
+        postprocessor_overrides={"device_processor": {"device": "cpu"}},
+    )
+    policy.eval()
+    return Policy(policy, pre, post)
+
+
+def expert_episode(env, seed: int, suite: str = "") -> LabelledEpisode | None:
+    """The expert's demonstration for ``seed`` (None if the expert fails on it: the caller takes another)."""
+    from lerobot_pnp.expert import run_expert_episode
+
+    try:
+        ep = run_expert_episode(env, seed)
+    except (UnreachableError, ExpertFailure):
+        return None
+    return LabelledEpisode(seed, ep.states, ep.object_positions, ep.actions, ep.phases, True, suite)
+
+
+# A policy "followed" the last label when every joint setpoint is within this of it (rad): learned keyframes
+# are ~0.3 deg off on average, a different keyframe is tens of degrees away.
+FOLLOW_TOL = 0.05
+
+
+class Teacher:
+    """The expert's FSM continued along a trajectory, so its labels match the expert's demonstrations.
+
+    ``FSMExpert.label()`` plans from the physical state alone. On expert trajectories that differs from the
+    demonstrating FSM in three states (every other label equals the demonstrated keyframe):
+
+    * after the pick retract the FSM holds once (place/start, the paper's state 4); ``label()`` goes straight
+      to the place approach;
+    * after the place descent the FSM opens the gripper; ``label()`` plans the descent again (the object is
+      still a clearance above the table, so its inferred progress has not advanced);
+    * when the object slid away during the grasp descent the FSM closes, finds the gripper empty, lifts with
+      it open and re-approaches; ``label()`` re-approaches at once.
+
+    Mixing both teachers gives contradictory targets for the same state (a DAgger round trained on both lost
+    half its success). So: when the previous label was followed (the arm's setpoints are at its target), the
+    teacher plans from the next FSM state as the demonstrating expert does (with the expert's own checks for
+    a miss, a drop or a displacement); otherwise, and at the first step, it is ``label()``.
+    """
+
+    def __init__(self, env):
+        from lerobot_pnp.expert import FSMExpert
+
+        self.expert = FSMExpert(env)
+        self.physics = env.unwrapped.physics
+        self.prev: tuple[int, np.ndarray] | None = None
+
+    def label(self) -> tuple[np.ndarray, int]:
+        prev = self.prev
+        command = np.asarray(self.physics.arm_command(), np.float32)
+        if prev is not None and np.abs(command - prev[1][: robot.N_JOINTS]).max() < FOLLOW_TOL:
+            self.expert.sync_to_state()
+            self.expert.phase = min(prev[0] + 1, robot.N_KEYFRAMES - 1)
+            keyframe, phase = self.expert.next_keyframe(), self.expert.last_phase
+        else:
+            keyframe, phase = self.expert.label()
+        self.prev = (phase, keyframe)
+        return keyframe, phase
+
+
+def labelled_rollout(env, policy: Policy, seed: int, suite: str = "") -> LabelledEpisode:
+    """Run ``policy`` from ``env.reset(seed)`` until the env ends the episode; label every visited state
+    (including the last) with the expert's next keyframe and phase. The policy's actions are executed.
+
+    When the policy has pushed the object where the expert has no IK solution (``UnreachableError``), the
+    episode ends there: the states before it keep their labels (``info["stopped"] = "unreachable"``)."""
+    policy.reset()
+    obs, info = env.reset(seed=seed)
+    expert = Teacher(env)
+    states, env_states, labels, phases = [], [], [], []
+    done, stopped = False, None
+    while True:
+        try:
+            keyframe, phase = expert.label()
+        except UnreachableError:
+            if not labels:
+                raise
+            stopped, info = "unreachable", {**info, "is_success": False}
+            break
+        states.append(np.asarray(obs["agent_pos"], np.float32))
+        env_states.append(np.asarray(obs["environment_state"], np.float32))
+        labels.append(keyframe)
+        phases.append(phase)
+        if done:
+            break
+        obs, _, terminated, truncated, info = env.step(policy.act(obs))
+        done = terminated or truncated
+    return LabelledEpisode(
+        seed,
+        np.stack(states),
+        np.stack(env_states),
+        np.stack(labels).astype(np.float32),
+        np.asarray(phases, np.int64),
+        bool(info.get("is_success", False)),
+        suite,
+        {"failure_cause": info.get("failure_cause"), "furthest_phase": info.get("furthest_phase"), "stopped": stopped},
+    )
+
+
+def evaluate(policy: Policy, base_cfg, suite: str, seeds: list[int], progress=None) -> dict:
+    """Success of ``policy`` on ``suite`` over ``seeds`` (one env, seeded resets), with failures by cause."""
+    env = suite_env(base_cfg, suite)
+    successes, causes = 0, {}
+    try:
+        for seed in seeds:
+            policy.reset()
+            obs, info = env.reset(seed=seed)
+            while True:
+                obs, _, terminated, truncated, info = env.step(policy.act(obs))
+                if terminated or truncated:
+                    break
+            if info.get("is_success"):
+                successes += 1
+            else:
+                cause = str(info.get("failure_cause") or "unknown")
+                causes[cause] = causes.get(cause, 0) + 1
+            if progress is not None:
+                progress.update(1)
+    finally:
+        env.close()
+    return {"suite": suite, "n": len(seeds), "successes": successes, "failures": causes}

@@ -1,0 +1,173 @@
+"""Tests of ``lerobot-pnp dagger``: expert labels on policy rollouts, datasets, aggregation, rounds, resume."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from lerobot_pnp.dagger import SUITES, DaggerConfig, labelled_rollout, run_dagger, wilson
+from lerobot_pnp.dagger.rollouts import suite_env
+from lerobot_pnp.dagger.writer import aggregate, features_for, write_episodes
+from lerobot_pnp.env_config import BaxterPnPEnvConfig
+from lerobot_pnp.errors import ConfigError
+
+
+def test_wilson_interval():
+    lo, hi = wilson(10, 10)
+    assert hi == pytest.approx(1.0) and lo == pytest.approx(0.7225, abs=1e-4)
+    lo, hi = wilson(0, 10)
+    assert lo == pytest.approx(0.0) and hi == pytest.approx(0.2775, abs=1e-4)
+    lo, hi = wilson(196, 200)
+    assert lo == pytest.approx(0.9497, abs=2e-4) and hi == pytest.approx(0.9923, abs=2e-4)
+
+
+class _Follower:
+    """A 'policy' that executes the teacher's label (the ideal DAgger learner), or holds still."""
+
+    def __init__(self, env, hold: bool = False):
+        from lerobot_pnp.dagger.rollouts import Teacher
+
+        self.env, self.hold, self.teacher = env, hold, Teacher(env)
+
+    def reset(self):
+        self.teacher.prev = None
+
+    def act(self, obs):
+        if self.hold:
+            return np.append(self.env.unwrapped.physics.arm_command(), 1.0).astype(np.float32)
+        return self.teacher.label()[0]
+
+
+@pytest.fixture(scope="module")
+def full_cfg():
+    return BaxterPnPEnvConfig(preset="full")
+
+
+def test_labels_of_a_policy_that_follows_them_recover_from_a_drop(full_cfg):
+    env = suite_env(full_cfg, "drop")
+    ep = labelled_rollout(env, _Follower(env), seed=3, suite="drop")
+    again = labelled_rollout(env, _Follower(env), seed=3, suite="drop")
+    env.close()
+    assert ep.success and len(ep.actions) > 11  # the drop forced a re-grasp: more than the paper's 10 states
+    phases = ep.phases.tolist()
+    first_return = next(i for i in range(1, len(phases)) if phases[i] < phases[i - 1])
+    assert phases[0] == 0 and phases[first_return] == 0 and phases[-1] == 9  # labelled: approach again
+    assert ep.env_states.shape == (len(ep.actions), 7)  # yaw features and goal observed
+    np.testing.assert_array_equal(ep.actions, again.actions)  # deterministic per seed
+    np.testing.assert_array_equal(ep.env_states, again.env_states)
+
+
+def test_a_stuck_policy_is_labelled_with_the_way_forward(full_cfg):
+    env = suite_env(full_cfg, "nominal")
+    ep = labelled_rollout(env, _Follower(env, hold=True), seed=5)
+    env.close()
+    assert not ep.success and len(ep.actions) == full_cfg.keyframe_budget + 1
+    assert set(ep.phases.tolist()) == {0}  # never started: every label is "approach the object"
+    assert not np.allclose(ep.actions[:, :7], ep.states[:, :7], atol=1e-2)
+
+
+def test_written_datasets_load_and_aggregate(full_cfg, tmp_path):
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    from lerobot_pnp.env_config import read_recorded
+
+    env = suite_env(full_cfg, "grasp_miss")
+    eps = [labelled_rollout(env, _Follower(env), seed=s) for s in (1, 2)]
+    env.close()
+    a = write_episodes(tmp_path / "a", "local/a", full_cfg, eps[:1], {"test": "0:1"})
+    b = write_episodes(tmp_path / "b", "local/b", full_cfg, eps[1:])
+    agg = aggregate([a, b], ["local/a", "local/b"], tmp_path / "ab", "local/ab", full_cfg, {"test": "0:1"})
+    ds = LeRobotDataset("local/ab", root=agg)
+    assert ds.meta.total_episodes == 2 and ds.meta.total_frames == sum(len(e.actions) for e in eps)
+    assert (
+        ds.meta.features["observation.environment_state"]["shape"]
+        == features_for(full_cfg)["observation.environment_state"]["shape"]
+        == (7,)
+    )
+    assert ds.meta.info.splits == {"test": "0:1"}
+    assert read_recorded(agg)["preset"] == "full"
+    frames = ds.hf_dataset.with_format("numpy")[:]
+    np.testing.assert_allclose(frames["action"][: len(eps[0].actions)], eps[0].actions)
+    np.testing.assert_array_equal(frames["phase.subtask"].reshape(-1), frames["phase.index"].reshape(-1) // 5)
+    assert not (tmp_path / "ab.tmp").exists()
+
+
+def test_config_rejects_unknown_suites():
+    with pytest.raises(ConfigError, match="unknown suites"):
+        DaggerConfig(eval_suites=["nominal", "earthquake"])
+    assert set(SUITES["noise_latency"]) == set(SUITES["nominal"]) and SUITES["noise_latency"]["obs_latency"] == 1
+
+
+def test_rounds_run_and_resume(tmp_path):
+    cfg = dict(
+        output_dir=str(tmp_path / "dg"),
+        num_demos=6,
+        rounds=1,
+        rollouts_per_round=2,
+        rollout_suites=["drop", "grasp_miss"],
+        eval_suites=["nominal"],
+        eval_episodes=2,
+        epochs=2,
+        progress=False,
+    )
+    first = run_dagger(DaggerConfig(**cfg))
+    out = Path(first["output_dir"])
+    assert first["rollouts"][1]["episodes"] == 2
+    table = (out / "table.md").read_text()
+    assert "| round 0 |" in table and "| round 1 |" in table
+    ckpt = Path(first["final_checkpoint"])
+    stamp = (ckpt / "model.safetensors").stat().st_mtime_ns
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    merged = LeRobotDataset("x", root=out / "round_01" / "data")
+    assert merged.meta.total_episodes == 8  # 6 demos + 2 labelled rollouts
+    second = run_dagger(DaggerConfig(**cfg))  # everything finished is reused
+    assert (ckpt / "model.safetensors").stat().st_mtime_ns == stamp
+    assert second["table"] == first["table"]
+    assert json.loads((out / "round_00" / "eval.json").read_text())["nominal"]["n"] == 2
+
+
+def test_a_state_the_expert_cannot_reach_ends_the_labelled_episode(full_cfg, monkeypatch):
+    from lerobot_pnp.dagger.rollouts import Teacher
+    from lerobot_pnp.errors import UnreachableError
+
+    env = suite_env(full_cfg, "nominal")
+    label = Teacher.label
+    calls = {"n": 0}
+
+    follower = _Follower(env)
+
+    def flaky(self):
+        if self is follower.teacher:  # the follower's own copy acts normally
+            return label(self)
+        calls["n"] += 1
+        if calls["n"] > 6:  # the 7th state: the policy pushed the object out of reach
+            raise UnreachableError("IK did not converge")
+        return label(self)
+
+    monkeypatch.setattr(Teacher, "label", flaky)
+    ep = labelled_rollout(env, follower, seed=2)
+    env.close()
+    assert len(ep.actions) == 6 and not ep.success and ep.info["stopped"] == "unreachable"
+
+
+@pytest.mark.parametrize("suite", ["nominal", "grasp_miss", "drop"])
+def test_teacher_labels_equal_the_demonstrations_along_an_expert_trajectory(full_cfg, suite):
+    """DAgger labels and demonstrations must not contradict each other on the states both visit."""
+    from lerobot_pnp.dagger.rollouts import Teacher
+    from lerobot_pnp.expert import run_expert_episode
+
+    env = suite_env(full_cfg, suite)
+    ep = run_expert_episode(env, 4)
+    env.reset(seed=4)
+    teacher = Teacher(env)
+    for k, action in enumerate(ep.actions[:-1]):
+        keyframe, phase = teacher.label()
+        assert phase == ep.phases[k], (k, ep.phases.tolist())
+        np.testing.assert_allclose(keyframe, action, atol=1e-2)
+        env.step(action)
+    env.close()
+    assert suite == "nominal" or len(ep.actions) > 11  # the perturbation made the expert recover

@@ -1,0 +1,187 @@
+"""Tests of ``pnp_lstm --policy.mode=recovering``: no clock, variable-length episodes, the learned switch."""
+
+from __future__ import annotations
+
+import pytest
+import torch
+
+torch.set_num_threads(1)
+
+from lerobot.configs import FeatureType, PolicyFeature  # noqa: E402
+from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_STATE  # noqa: E402
+
+from lerobot_pnp.errors import ConfigError, DatasetError  # noqa: E402
+from lerobot_pnp.policy import PnpLstmConfig, PnpLstmPolicy  # noqa: E402
+from lerobot_pnp.policy.modeling_pnp_lstm import PHASE_KEY, SUBTASK_KEY  # noqa: E402
+from lerobot_pnp.policy.recovering import lstm_trunk_params  # noqa: E402
+
+ENV_DIM = 7  # the `full` task: object xyz + (sin 4 yaw, cos 4 yaw) + goal xy
+LMAX = 24
+
+
+def _policy(**kw) -> PnpLstmPolicy:
+    cfg = PnpLstmConfig(mode="recovering", hidden_size=kw.pop("hidden_size", 16), max_episode_length=LMAX, **kw)
+    cfg.input_features = {
+        OBS_STATE: PolicyFeature(FeatureType.STATE, (8,)),
+        OBS_ENV_STATE: PolicyFeature(FeatureType.ENV, (ENV_DIM,)),
+    }
+    cfg.output_features = {ACTION: PolicyFeature(FeatureType.ACTION, (8,))}
+    torch.manual_seed(0)
+    policy = PnpLstmPolicy(cfg)
+    policy.eval()
+    return policy
+
+
+def _episodes(lengths: list[int], seed: int = 0) -> tuple[dict[str, torch.Tensor], torch.Tensor]:
+    """Episodes padded at the end to the longest; padding holds garbage that must not matter."""
+    g = torch.Generator().manual_seed(seed)
+    n, t = len(lengths), max(lengths)
+    pad = torch.arange(t)[None, :] >= torch.tensor(lengths)[:, None]
+    batch = {
+        OBS_STATE: torch.randn(n, t, 8, generator=g),
+        OBS_ENV_STATE: torch.randn(n, t, ENV_DIM, generator=g),
+        ACTION: torch.randn(n, t, 8, generator=g),
+        SUBTASK_KEY: (torch.arange(t)[None, :] >= 5).long().expand(n, t).clone(),
+        PHASE_KEY: (torch.arange(t)[None, :] % 10).long().expand(n, t).clone(),
+        f"{ACTION}_is_pad": pad,
+    }
+    return batch, pad
+
+
+def test_config():
+    with pytest.raises(ConfigError, match="mode"):
+        PnpLstmConfig(mode="clockwork")
+    cfg = PnpLstmConfig(mode="recovering", max_episode_length=41)
+    assert cfg.observation_delta_indices == list(range(-40, 41))  # any frame's window holds its whole episode
+    assert cfg.drop_n_last_frames == 0  # variable lengths: every frame is sampled
+    clocked = PnpLstmConfig()
+    assert clocked.mode == "clocked" and clocked.drop_n_last_frames == 9  # the paper's default is untouched
+    assert clocked.observation_delta_indices == list(range(-9, 10))
+
+
+def test_padding_is_masked_out_of_the_loss():
+    policy = _policy()
+    batch, pad = _episodes([10, 14, 19])
+    loss, info = policy.forward(batch)
+    garbage = {k: (v.masked_fill(pad[..., None], 1e3) if v.ndim == 3 else v) for k, v in batch.items()}
+    loss2, _ = policy.forward(garbage)
+    torch.testing.assert_close(loss, loss2)
+    assert {"mse_action", "ce_subtask", "acc_subtask", "ce_phase", "acc_phase"} <= info.keys()
+    # The same episode alone gives its own loss; the mean weights episodes by their real frames.
+    per_sample, _ = policy.forward(batch, reduction="none")
+    alone, _ = policy.forward({k: v[1:2, :14] for k, v in batch.items()})
+    torch.testing.assert_close(per_sample[1], alone)
+    torch.testing.assert_close(loss, (per_sample * torch.tensor([10.0, 14, 19])).sum() / 43)
+
+
+def test_labels_are_used_only_when_per_frame():
+    policy = _policy()
+    batch, _ = _episodes([12, 12])
+    with_labels, _ = policy.forward(batch)
+    # lerobot-train batches carry one label per sample (phase.* are not windowed): action loss only.
+    batch[SUBTASK_KEY], batch[PHASE_KEY] = batch[SUBTASK_KEY][:, 0], batch[PHASE_KEY][:, 0]
+    without, info = policy.forward(batch)
+    assert "ce_subtask" not in info and float(without.detach()) < float(with_labels.detach())
+
+
+def test_lerobot_window_equals_the_episode():
+    """A stock lerobot-train window (-(L-1)..L-1 around any frame, `_is_pad` outside the episode)."""
+    policy = _policy()
+    batch, _ = _episodes([13])
+    ep = {k: batch[k] for k in (OBS_STATE, OBS_ENV_STATE, ACTION)}
+    ref, _ = policy.forward(ep)
+    length = 2 * LMAX - 1
+    for sampled in (0, 6, 12):
+        start = LMAX - 1 - sampled
+        pad = torch.ones(1, length, dtype=torch.bool)
+        pad[:, start : start + 13] = False
+        win = {f"{k}_is_pad": pad for k in ep}
+        for k, v in ep.items():
+            w = torch.full((1, length, v.shape[-1]), -7.0)
+            w[:, start : start + 13] = v
+            win[k] = w
+        loss, _ = policy.forward(win)
+        torch.testing.assert_close(loss, ref)
+
+
+def test_select_action_carries_state_without_a_clock():
+    """Step-by-step inference equals the teacher-forced sequence for 30 steps: no reset at step 5, no hold
+    after step 10, and the state depends on the whole history."""
+    policy = _policy()
+    batch, _ = _episodes([30, 30])
+    seq = policy.predict_sequence(batch)
+    policy.reset()
+    steps = torch.stack(
+        [
+            policy.select_action({OBS_STATE: batch[OBS_STATE][:, k], OBS_ENV_STATE: batch[OBS_ENV_STATE][:, k]})
+            for k in range(30)
+        ],
+        dim=1,
+    )
+    torch.testing.assert_close(steps, seq, rtol=1e-5, atol=1e-5)
+    assert not torch.allclose(steps[:, 12], steps[:, 11])  # still acting after the paper's 10 steps
+    assert policy.last_subtask_prob.shape == (2,)
+    # History matters: changing frame 2 changes the action at frame 20.
+    other = {k: v.clone() for k, v in batch.items()}
+    other[OBS_ENV_STATE][:, 2] += 1.0
+    assert not torch.allclose(policy.predict_sequence(other)[:, 20], seq[:, 20])
+    torch.testing.assert_close(policy.predict_sequence(other)[:, :2], seq[:, :2])  # causal
+
+
+def test_memoryless_control_uses_a_matched_budget_and_no_history():
+    lstm = _policy(hidden_size=128)
+    mlp = _policy(hidden_size=128, recurrent=False)
+    d = 8 + ENV_DIM
+    assert lstm.model.trunk_parameters() == lstm_trunk_params(d, 128)
+    assert abs(mlp.model.trunk_parameters() - lstm_trunk_params(d, 128)) / lstm_trunk_params(d, 128) < 0.02
+    batch, _ = _episodes([20])
+    other = {k: v.clone() for k, v in batch.items()}
+    other[OBS_ENV_STATE][:, 2] += 1.0
+    a, b = mlp.predict_sequence(batch), mlp.predict_sequence(other)
+    torch.testing.assert_close(a[:, 3:], b[:, 3:])  # only frame 2's own output changes
+    assert not torch.allclose(a[:, 2], b[:, 2])
+
+
+def test_learns_a_switch_that_depends_on_what_it_observed():
+    """The subtask is 'has the gripper ever closed' (a flag seen once, then gone): only memory can tell."""
+    g = torch.Generator().manual_seed(1)
+    n, t = 64, 16
+    close_at = torch.randint(2, 12, (n,), generator=g)
+    state = torch.randn(n, t, 8, generator=g) * 0.1
+    state[torch.arange(n), close_at, 7] = 3.0  # the event, visible at one frame only
+    subtask = (torch.arange(t)[None, :] > close_at[:, None]).long()
+    action = torch.where(subtask[..., None].bool(), 1.0, -1.0).expand(n, t, 8).clone()
+    batch = {
+        OBS_STATE: state,
+        OBS_ENV_STATE: torch.zeros(n, t, ENV_DIM),
+        ACTION: action,
+        SUBTASK_KEY: subtask,
+        PHASE_KEY: subtask * 5,
+    }
+    results = {}
+    for recurrent in (True, False):
+        policy = _policy(hidden_size=32, recurrent=recurrent)
+        policy.train()
+        opt = torch.optim.Adam(policy.parameters(), lr=1e-2)
+        for _ in range(150):
+            loss, info = policy.forward(batch)
+            opt.zero_grad()
+            loss.backward()
+            opt.step()
+        results[recurrent] = info
+    assert results[True]["acc_subtask"] > 0.97 and results[True]["mse_action"] < 0.05
+    assert results[False]["acc_subtask"] < 0.9  # a memoryless net cannot know the flag was seen
+
+
+def test_policy_construction_checks_episode_lengths():
+    from types import SimpleNamespace
+
+    cfg = PnpLstmConfig(mode="recovering", max_episode_length=20, hidden_size=8)
+    cfg.input_features = {
+        OBS_STATE: PolicyFeature(FeatureType.STATE, (8,)),
+        OBS_ENV_STATE: PolicyFeature(FeatureType.ENV, (3,)),
+    }
+    cfg.output_features = {ACTION: PolicyFeature(FeatureType.ACTION, (8,))}
+    PnpLstmPolicy(cfg, dataset_meta=SimpleNamespace(episodes={"length": [10, 14, 20]}, fps=1))
+    with pytest.raises(DatasetError, match="max_episode_length=20"):
+        PnpLstmPolicy(cfg, dataset_meta=SimpleNamespace(episodes={"length": [10, 27]}, fps=1))
