@@ -37,6 +37,10 @@ def small_args(name: str, out: Path, dataset: Path) -> list[str] | None:
             "--quick", "--dataset_root", str(dataset), "--workdir", str(out / "bench_policy_work"),
             "--out", str(out / "bench_policy.json"),
         ],
+        "bench_planner": [
+            "--config", "configs/dagger_small.json", "--sections", "dagger,latency",
+            "--output_dir", str(out / "bench_planner"),
+        ],
     }.get(name)  # fmt: skip
 
 
