@@ -18,6 +18,7 @@ import numpy as np
 from lerobot_pnp import robot
 from lerobot_pnp.errors import ConfigError, ExpertFailure, UnreachableError
 from lerobot_pnp.interpolation import joint_trajectory
+from lerobot_pnp.task import grasp_yaw
 
 
 @dataclass
@@ -64,11 +65,6 @@ def failure_cause(err: Exception) -> str:
     if isinstance(err, UnreachableError):
         return "unreachable"
     return getattr(err, "cause", type(err).__name__)
-
-
-def grasp_yaw(cube_yaw: float) -> float:
-    """The gripper yaw closest to 0 that aligns the fingers with the cube's faces (90 deg symmetry)."""
-    return (cube_yaw + math.pi / 4) % (math.pi / 2) - math.pi / 4
 
 
 class FSMExpert:

@@ -166,9 +166,9 @@ class BaxterPhysics:
         """Edge length of the cube (m)."""
         return float(2 * self.model.geom_size[self._object_geom][0])
 
-    def object_rest_z(self) -> float:
-        """Height of the cube's centre when it rests on the table."""
-        return robot.TABLE_TOP_Z + self.object_size / 2
+    def object_rest_z(self, size: float | None = None) -> float:
+        """Height of the cube's centre when it rests on the table (for the current size, or ``size``)."""
+        return robot.TABLE_TOP_Z + (self.object_size if size is None else size) / 2
 
     def set_object_size(self, size: float) -> None:
         """Cube edge length (m); the mass is kept, the inertia follows the new size."""

@@ -8,6 +8,8 @@ except through the physics' primitives, and it draws every random number from th
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from lerobot_pnp import robot
@@ -57,7 +59,7 @@ class PickPlaceTask:
             seed = robot.NEUTRAL_Q
             try:
                 for z in (robot.CUBE_REST_Z + c.hover_height, robot.TABLE_TOP_Z + c.size_range[0] / 2):
-                    seed = physics.ik.solve(np.array([x, y, z]), _grasp_yaw(yaw), seed)
+                    seed = physics.ik.solve(np.array([x, y, z]), grasp_yaw(yaw), seed)
             except UnreachableError as err:
                 raise ConfigError(
                     f"env: {what} ({x:.3f}, {y:.3f}) with hover {c.hover_height} m is out of the arm's reach: {err}"
@@ -91,15 +93,15 @@ class PickPlaceTask:
         else:
             q = self._sample_start_q(physics, rng)
         self.place_xy = _uniform(rng, c.place_low, c.place_high)
-        if "object_pos" in options:
-            self._check_object_option(physics, object_pos)
         mass, friction = _uniform(rng, *c.mass_range), _uniform(rng, *c.friction_range)
+        size = float(_uniform(rng, *c.size_range))
+        object_pos[2] = physics.object_rest_z(size)
+        if "object_pos" in options:  # checked before anything in the model changes
+            self._check_object_option(physics, object_pos, size)
         if (mass, friction) != physics.object_properties():
             physics.set_object_properties(float(mass), float(friction))
-        size = float(_uniform(rng, *c.size_range))
         if size != physics.object_size:
             physics.set_object_size(size)
-        object_pos[2] = physics.object_rest_z()
         self._armed = {
             name for name in ("grasp_miss", "drop", "displace") if _bernoulli(rng, getattr(c, f"{name}_prob"))
         }
@@ -111,9 +113,9 @@ class PickPlaceTask:
         physics.set_place_target(self.place_xy)
         physics.reset(q, object_pos, yaw)
 
-    def _check_object_option(self, physics: BaxterPhysics, pos: np.ndarray) -> None:
+    def _check_object_option(self, physics: BaxterPhysics, pos: np.ndarray, size: float) -> None:
         c = self.config
-        if np.linalg.norm(pos[:2] - self.place_xy) <= c.success_xy_tol + physics.object_size / 2:
+        if np.linalg.norm(pos[:2] - self.place_xy) <= c.success_xy_tol + size / 2:
             raise ResetOptionError(
                 f"reset option 'object_pos' {np.round(pos[:2], 3).tolist()} is on the place target "
                 f"{np.round(self.place_xy, 3).tolist()}: the episode would start solved"
@@ -299,8 +301,9 @@ def _bernoulli(rng: np.random.Generator, p: float) -> bool:
     return True if p >= 1 else bool(rng.uniform() < p)
 
 
-def _grasp_yaw(yaw: float) -> float:
-    return (yaw + np.pi / 4) % (np.pi / 2) - np.pi / 4
+def grasp_yaw(object_yaw: float) -> float:
+    """The gripper yaw closest to 0 that aligns the fingers with the cube's faces (90 deg symmetry)."""
+    return (object_yaw + math.pi / 4) % (math.pi / 2) - math.pi / 4
 
 
 def _vector_option(options: dict, key: str, size: int) -> np.ndarray:
