@@ -117,6 +117,17 @@ def breakdown(control_mode: str, episodes: int, out: Path) -> dict:
     }
 
 
+def _print_ratio(episodes: int, a: tuple[str, dict], b: tuple[str, dict], note: str) -> None:
+    """One line comparing two generation runs measured side by side (wall time ratio, load before each)."""
+    (name_a, ra), (name_b, rb) = a, b
+    print(
+        f"\n{episodes} keyframe episodes: {name_a} {ra['wall_s']} s vs {name_b} {rb['wall_s']} s "
+        f"({name_a}/{name_b} = {ra['wall_s'] / rb['wall_s']:.2f}; load before: {ra['load_before']} / "
+        f"{rb['load_before']}); {note}",
+        flush=True,
+    )
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--episodes", type=int, default=1400)
@@ -137,23 +148,12 @@ def main(argv=None) -> int:
     if args.old_tree:
         results["old"] = cli_run(args.old_tree, out / "old", args.episodes, args.workers)
         print(json.dumps(results["old"]), flush=True)
-        new, old = results["new"], results["old"]
-        print(
-            f"\n{args.episodes} keyframe episodes: new {new['wall_s']} s vs old {old['wall_s']} s "
-            f"(new/old = {new['wall_s'] / old['wall_s']:.2f}; load before: {new['load_before']} / "
-            f"{old['load_before']}); same content hash: {new['hash'] == old['hash']}",
-            flush=True,
-        )
+        same = results["new"]["hash"] == results["old"]["hash"]
+        _print_ratio(args.episodes, ("new", results["new"]), ("old", results["old"]), f"same content hash: {same}")
     if args.full_vs_paper:
         results["full"] = cli_run(HERE, out / "full", args.episodes, args.workers, preset="full")
         print(json.dumps(results["full"]), flush=True)
-        full, paper = results["full"], results["new"]
-        print(
-            f"\n{args.episodes} keyframe episodes: full {full['wall_s']} s vs paper {paper['wall_s']} s "
-            f"(full/paper = {full['wall_s'] / paper['wall_s']:.2f}, target <= 2; load before: "
-            f"{full['load_before']} / {paper['load_before']})",
-            flush=True,
-        )
+        _print_ratio(args.episodes, ("full", results["full"]), ("paper", results["new"]), "target <= 2")
     if args.dense_episodes:
         results["dense"] = cli_run(HERE, out / "dense", args.dense_episodes, args.workers, dense=True)
         print(json.dumps(results["dense"]), flush=True)

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import json
 import math
-import sys
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
@@ -397,10 +396,6 @@ def _read_json(path: Path) -> dict:
 
 def _source_from_command_line() -> str | None:
     """``--dataset.root`` (lerobot-train) or ``--policy.path`` (lerobot-eval) from this process's arguments."""
-    for key in ("dataset.root", "policy.path"):
-        for i, arg in enumerate(sys.argv[1:], start=1):
-            if arg.startswith(f"--{key}="):
-                return arg.split("=", 1)[1]
-            if arg == f"--{key}" and i + 1 < len(sys.argv):
-                return sys.argv[i + 1]
-    return None
+    from lerobot.configs.parser import parse_arg
+
+    return parse_arg("dataset.root") or parse_arg("policy.path")

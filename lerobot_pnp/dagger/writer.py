@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lerobot_pnp import robot
+from lerobot_pnp.dataset.episodes import frames_from_arrays
 
 
 @dataclass
@@ -32,24 +32,20 @@ class LabelledEpisode:
 
 
 def features_for(env_cfg) -> dict:
-    """``dataset_features`` with the environment state of ``env_cfg`` (e.g. 7 dims in the ``full`` task)."""
+    """``dataset_features`` of ``env_cfg`` (e.g. a 7-dim environment state in the ``full`` task), without
+    camera images: labelled episodes are state-only."""
     from lerobot_pnp.dataset import dataset_features
 
-    features = dataset_features(None)
-    names = list(env_cfg.environment_state_names)
-    features["observation.environment_state"] = {"dtype": "float32", "shape": (len(names),), "names": names}
-    return features
+    return {k: v for k, v in dataset_features(env_cfg).items() if not k.startswith("observation.images.")}
 
 
 def write_episodes(
     root: Path, repo_id: str, env_cfg, episodes: list[LabelledEpisode], splits: dict | None = None
 ) -> Path:
     """Write ``episodes`` as a finalized LeRobotDataset at ``root`` (replaced atomically if it exists)."""
-    from lerobot.datasets.io_utils import load_info, write_info
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
     from lerobot_pnp.dataset.schema import ROBOT_TYPE
-    from lerobot_pnp.env_config import write_recorded
 
     root = Path(root)
     tmp = root.with_name(root.name + ".tmp")
@@ -65,52 +61,37 @@ def write_episodes(
         metadata_buffer_size=max(10, len(episodes)),
     )
     for ep in episodes:
-        n = len(ep.actions)
-        for i in range(n):
-            last = i == n - 1
-            ds.add_frame(
-                {
-                    "observation.state": ep.states[i].astype(np.float32),
-                    "observation.environment_state": ep.env_states[i].astype(np.float32),
-                    "action": ep.actions[i].astype(np.float32),
-                    "next.done": np.array([last]),
-                    "next.success": np.array([last and ep.success]),
-                    "phase.index": np.array([ep.phases[i]], dtype=np.int64),
-                    "phase.subtask": np.array([ep.phases[i] // robot.N_PHASES_PER_SUBTASK], dtype=np.int64),
-                    "episode.seed": np.array([ep.seed], dtype=np.int64),
-                    "task": robot.TASK,
-                }
-            )
+        for frame in frames_from_arrays(ep.states, ep.env_states, ep.actions, ep.phases, ep.seed, ep.success):
+            ds.add_frame(frame)
         ds.save_episode()
     ds.finalize()
-    if splits:
-        info = load_info(tmp)
-        info.splits = dict(splits)
-        write_info(info, tmp)
-    write_recorded(env_cfg, tmp)
-    if root.exists():
-        shutil.rmtree(root)
-    tmp.rename(root)
-    return root
+    return _commit(tmp, root, env_cfg, dict(splits) if splits else None)
 
 
 def aggregate(roots: list[Path], repo_ids: list[str], out_root: Path, repo_id: str, env_cfg, splits: dict) -> Path:
     """Merge datasets with LeRobot's ``aggregate_datasets`` into ``out_root`` (replaced atomically)."""
     from lerobot.datasets.aggregate import aggregate_datasets
-    from lerobot.datasets.io_utils import load_info, write_info
-
-    from lerobot_pnp.env_config import write_recorded
 
     out_root = Path(out_root)
     tmp = out_root.with_name(out_root.name + ".tmp")
     if tmp.exists():
         shutil.rmtree(tmp)
     aggregate_datasets(repo_ids=repo_ids, aggr_repo_id=repo_id, roots=[Path(r) for r in roots], aggr_root=tmp)
-    info = load_info(tmp)
-    info.splits = dict(splits)
-    write_info(info, tmp)
+    return _commit(tmp, out_root, env_cfg, dict(splits))
+
+
+def _commit(tmp: Path, root: Path, env_cfg, splits: dict | None) -> Path:
+    """Finish a dataset written in ``tmp`` (the split, the recorded env config) and move it to ``root``."""
+    from lerobot.datasets.io_utils import load_info, write_info
+
+    from lerobot_pnp.env_config import write_recorded
+
+    if splits is not None:
+        info = load_info(tmp)
+        info.splits = splits
+        write_info(info, tmp)
     write_recorded(env_cfg, tmp)
-    if out_root.exists():
-        shutil.rmtree(out_root)
-    tmp.rename(out_root)
-    return out_root
+    if root.exists():
+        shutil.rmtree(root)
+    tmp.rename(root)
+    return root

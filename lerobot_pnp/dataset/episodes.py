@@ -74,24 +74,33 @@ def simulate_slot(env, base_seed: int, num_episodes: int, slot: int, max_retries
 
 def episode_frames(ep, pixels=None, cameras=()) -> list[dict]:
     """The LeRobot frames (``add_frame`` dicts) of one expert episode, in the layout of ``dataset_features``."""
-    T = ep.num_frames
-    if cameras and len(pixels) != T:
-        raise DatasetError(f"seed {ep.seed}: {len(pixels)} camera frames for {T} states (bug)")
-    frames = []
-    for i in range(T):
-        last = i == T - 1
-        frame = {
-            "observation.state": ep.states[i].astype(np.float32),
-            "observation.environment_state": ep.object_positions[i].astype(np.float32),
-            "action": ep.actions[i].astype(np.float32),
-            "next.done": np.array([last]),
-            "next.success": np.array([last and ep.success]),
-            "phase.index": np.array([ep.phases[i]], dtype=np.int64),
-            "phase.subtask": np.array([ep.phases[i] // robot.N_PHASES_PER_SUBTASK], dtype=np.int64),
-            "episode.seed": np.array([ep.seed], dtype=np.int64),
+    if cameras and len(pixels) != ep.num_frames:
+        raise DatasetError(f"seed {ep.seed}: {len(pixels)} camera frames for {ep.num_frames} states (bug)")
+    frames = frames_from_arrays(ep.states, ep.object_positions, ep.actions, ep.phases, ep.seed, ep.success)
+    for frame, images in zip(frames, pixels if cameras else [], strict=False):
+        for cam in cameras:
+            frame[f"observation.images.{cam}"] = images[cam]
+    return frames
+
+
+def frames_from_arrays(states, env_states, actions, phases, seed: int, success: bool) -> list[dict]:
+    """``add_frame`` dicts of one episode from its per-frame arrays (expert demonstrations, DAgger episodes).
+
+    The last frame carries ``next.done`` (and ``next.success`` when the episode succeeded); ``phase.subtask``
+    is derived from the phase (0 pick, 1 place).
+    """
+    n = len(actions)
+    return [
+        {
+            "observation.state": states[i].astype(np.float32),
+            "observation.environment_state": env_states[i].astype(np.float32),
+            "action": actions[i].astype(np.float32),
+            "next.done": np.array([i == n - 1]),
+            "next.success": np.array([i == n - 1 and success]),
+            "phase.index": np.array([phases[i]], dtype=np.int64),
+            "phase.subtask": np.array([phases[i] // robot.N_PHASES_PER_SUBTASK], dtype=np.int64),
+            "episode.seed": np.array([seed], dtype=np.int64),
             "task": robot.TASK,
         }
-        for cam in cameras:
-            frame[f"observation.images.{cam}"] = pixels[i][cam]
-        frames.append(frame)
-    return frames
+        for i in range(n)
+    ]

@@ -97,10 +97,16 @@ def replay_config(ds) -> BaxterPnPEnvConfig:
     return BaxterPnPEnvConfig(preset="paper", control_mode=mode, fps=None if mode == "keyframe" else fps, cameras=[])
 
 
+def _env_state_dim(features: dict) -> int:
+    """Width of the recorded environment state: object xyz [+ yaw features] [+ goal]; anything else is checked
+    (and rejected) as the paper's 3."""
+    shape = tuple(features.get(OBS_ENV_STATE, {}).get("shape", ()))
+    return shape[0] if len(shape) == 1 and shape[0] in ENV_STATE_WIDTHS else robot.OBJECT_DIM
+
+
 def _check_features(ds) -> None:
     features = ds.meta.features
-    env_dim = (*features.get(OBS_ENV_STATE, {}).get("shape", (0,)),)[0]
-    env_dim = env_dim if env_dim in ENV_STATE_WIDTHS else robot.OBJECT_DIM  # object xyz [+ yaw] [+ goal]
+    env_dim = _env_state_dim(features)
     for key, dim in ((OBS_STATE, robot.STATE_DIM), (ACTION, robot.ACTION_DIM), (OBS_ENV_STATE, env_dim)):
         if key not in features:
             raise IncompatibleDatasetError(
@@ -142,7 +148,7 @@ def load_episode(ds, episode_index: int) -> EpisodeData:
         frame_index=col("frame_index", dtype=np.int64, default=np.arange(n)),
         timestamp=col("timestamp", dtype=np.float64, default=np.arange(n) / ds.fps),
         state=col(OBS_STATE, robot.STATE_DIM),
-        object=col(OBS_ENV_STATE, ds.meta.features[OBS_ENV_STATE]["shape"][0])[:, : robot.OBJECT_DIM],  # xyz
+        object=col(OBS_ENV_STATE, _env_state_dim(ds.meta.features))[:, : robot.OBJECT_DIM],  # xyz
         action=col(ACTION, robot.ACTION_DIM),
         phase=col(PHASE_INDEX, dtype=np.int64, default=np.full(n, -1)),
         success=col(SUCCESS, dtype=np.float64, default=np.zeros(n)),
