@@ -105,9 +105,9 @@ def train(root: Path, repo: str, test: str, policy, cfg: DaggerConfig, out_dir: 
 
 
 def latency(ckpt: Path, calls: int = 2000) -> float:
-    from lerobot_pnp.dagger import load_checkpoint
+    from lerobot_pnp.rollout import load_policy
 
-    p = load_checkpoint(ckpt).policy
+    p = load_policy(ckpt).policy
     feats = p.config.input_features
     batch = {k: torch.zeros(1, ft.shape[0]) for k, ft in feats.items()}
     times = []

@@ -52,6 +52,10 @@ class LoadedPolicy:
             if callable(reset):
                 reset()
 
+    def act(self, obs: dict, task: str = robot.TASK) -> np.ndarray:
+        """One step on a single gym observation (``policy_action``)."""
+        return policy_action(self, obs, task)
+
 
 @dataclass
 class PolicyEpisode:

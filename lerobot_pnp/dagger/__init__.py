@@ -7,7 +7,7 @@ evaluation), ``writer`` (LeRobotDataset writing and aggregation), ``loop`` (the 
 
 from .config import DaggerConfig
 from .loop import evaluate_checkpoint, run_dagger, write_table
-from .rollouts import NOMINAL, SUITES, evaluate, labelled_rollout, load_checkpoint
+from .rollouts import NOMINAL, SUITES, evaluate, labelled_rollout
 from .stats import wilson
 
 __all__ = [
@@ -17,7 +17,6 @@ __all__ = [
     "evaluate",
     "evaluate_checkpoint",
     "labelled_rollout",
-    "load_checkpoint",
     "run_dagger",
     "wilson",
     "write_table",

@@ -23,8 +23,10 @@ import logging
 import time
 from pathlib import Path
 
+from lerobot_pnp.rollout import load_policy
+
 from .config import DaggerConfig
-from .rollouts import evaluate, expert_episode, labelled_rollout, load_checkpoint, suite_env
+from .rollouts import evaluate, expert_episode, labelled_rollout, suite_env
 from .stats import rate_cell, wilson
 from .writer import aggregate, write_episodes
 
@@ -78,7 +80,7 @@ def _rollouts(cfg: DaggerConfig, rnd: int, ckpt: Path, out: Path, env_cfg) -> tu
     summary_file = root.parent / "rollouts.json"
     if root.is_dir() and summary_file.is_file():
         return root, repo_id, json.loads(summary_file.read_text())
-    policy = load_checkpoint(ckpt)
+    policy = load_policy(ckpt)
     envs = {s: suite_env(env_cfg, s) for s in cfg.rollout_suites}
     episodes = []
     with _tqdm(cfg.rollouts_per_round, f"round {rnd} rollouts", cfg.progress) as bar:
@@ -128,7 +130,7 @@ def evaluate_checkpoint(cfg: DaggerConfig, ckpt: Path, env_cfg, out_file: Path) 
     """Success per eval suite on seeds ``eval_seed + i`` (the same for every round); cached in ``out_file``."""
     if out_file.is_file():
         return json.loads(out_file.read_text())
-    policy = load_checkpoint(ckpt)
+    policy = load_policy(ckpt)
     seeds = [cfg.eval_seed + i for i in range(cfg.eval_episodes)]
     results = {}
     with _tqdm(len(seeds) * len(cfg.eval_suites), f"eval {out_file.parent.name}", cfg.progress) as bar:

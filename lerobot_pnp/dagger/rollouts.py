@@ -7,14 +7,13 @@ The env is always built with ``make_env`` from an env config (the dataset's reco
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from lerobot_pnp import robot
 from lerobot_pnp.errors import ExpertFailure, UnreachableError
+from lerobot_pnp.rollout import LoadedPolicy
 
 from .writer import LabelledEpisode
 
@@ -53,53 +52,6 @@ def suite_env(base_cfg, suite: str):
     from lerobot_pnp.env_config import make_env
 
     return make_env(base_cfg.with_changes(**SUITES[suite]))
-
-
-@dataclass
-class Policy:
-    """A loaded checkpoint with its processors (any env-state size: the checkpoint's features decide)."""
-
-    policy: Any
-    preprocessor: Any
-    postprocessor: Any
-
-    def reset(self) -> None:
-        self.policy.reset()
-        self.preprocessor.reset()
-        self.postprocessor.reset()
-
-    def act(self, obs: dict) -> np.ndarray:
-        import torch
-        from lerobot.envs.utils import preprocess_observation
-
-        batch = preprocess_observation({k: v for k, v in obs.items() if k != "pixels"})
-        batch["task"] = [robot.TASK]
-        batch = self.preprocessor(batch)
-        with torch.inference_mode():
-            action = self.policy.select_action(batch)
-        return self.postprocessor(action).reshape(-1).numpy().astype(np.float32)
-
-
-def load_checkpoint(path: str | Path) -> Policy:
-    """Load a pretrained_model folder (lerobot-train / fast-path layout) with its processors, on CPU."""
-    from lerobot.configs import PreTrainedConfig
-    from lerobot.policies.factory import get_policy_class, make_pre_post_processors
-
-    import lerobot_pnp  # noqa: F401  (registers pnp_lstm)
-
-    path = Path(path)
-    config = PreTrainedConfig.from_pretrained(path)
-    config.pretrained_path = path
-    config.device = "cpu"
-    policy = get_policy_class(config.type).from_pretrained(path, config=config)
-    pre, post = make_pre_post_processors(
-        config,
-        pretrained_path=str(path),
-        preprocessor_overrides={"device_processor": {"device": "cpu"}},
-        postprocessor_overrides={"device_processor": {"device": "cpu"}},
-    )
-    policy.eval()
-    return Policy(policy, pre, post)
 
 
 def expert_episode(env, seed: int, suite: str = "") -> LabelledEpisode | None:
@@ -157,7 +109,7 @@ class Teacher:
         return keyframe, phase
 
 
-def labelled_rollout(env, policy: Policy, seed: int, suite: str = "") -> LabelledEpisode:
+def labelled_rollout(env, policy: LoadedPolicy, seed: int, suite: str = "") -> LabelledEpisode:
     """Run ``policy`` from ``env.reset(seed)`` until the env ends the episode; label every visited state
     (including the last) with the expert's next keyframe and phase. The policy's actions are executed.
 
@@ -196,7 +148,7 @@ def labelled_rollout(env, policy: Policy, seed: int, suite: str = "") -> Labelle
     )
 
 
-def evaluate(policy: Policy, base_cfg, suite: str, seeds: list[int], progress=None) -> dict:
+def evaluate(policy: LoadedPolicy, base_cfg, suite: str, seeds: list[int], progress=None) -> dict:
     """Success of ``policy`` on ``suite`` over ``seeds`` (one env, seeded resets), with failures by cause."""
     env = suite_env(base_cfg, suite)
     successes, causes = 0, {}
