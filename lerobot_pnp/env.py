@@ -65,7 +65,7 @@ class BaxterPnPEnv(gym.Env):
                 np.append(robot.JOINT_UPPER + 0.5, 1.5).astype(np.float32),
                 dtype=np.float32,
             ),
-            # object xyz [+ (sin 4 yaw, cos 4 yaw)] [+ goal xy], see config.environment_state_names
+            # object xyz [+ (sin 4 yaw, cos 4 yaw)] [+ goal xy] [+ phase one-hot], see config.environment_state_names
             "environment_state": spaces.Box(-3.0, 3.0, (len(config.environment_state_names),), np.float32),
         }
         if config.cameras:

@@ -61,6 +61,9 @@ PAPER_TASK: dict[str, Any] = {
     "friction_range": (1.0, 1.0),  # object sliding friction coefficient, drawn per episode
     "observe_yaw": False,  # environment_state gains (sin 4 yaw, cos 4 yaw): the cube's 90-degree symmetry
     "observe_goal": False,  # environment_state gains the place target xy (the goal)
+    # environment_state gains a one-hot of the task phase inferred from the simulator state (PickPlaceTask.
+    # progress): privileged information, for the "told the phase" controls of the memory study
+    "observe_phase": False,
     "keyframe_budget": 10,  # keyframe steps per episode (dense: 3 s of control per keyframe)
     # Perturbations (each named, seeded, usable alone; see task.PickPlaceTask.after_step).
     "nudge_max": 0.0,  # object pushed by up to this (m, xy) after `nudge_at_step` steps, before the grasp
@@ -134,6 +137,7 @@ class BaxterPnPEnvConfig(EnvConfig):
     friction_range: tuple[float, float] | None = None
     observe_yaw: bool | None = None
     observe_goal: bool | None = None
+    observe_phase: bool | None = None
     keyframe_budget: int | None = None
     nudge_max: float | None = None
     nudge_at_step: int | None = None
@@ -268,7 +272,7 @@ class BaxterPnPEnvConfig(EnvConfig):
             value = getattr(self, name)
             if not (isinstance(value, int) and not isinstance(value, bool) and low <= value <= 10_000):
                 raise ConfigError(f"env.{name} must be an integer in [{low}, 10000], got {value!r}")
-        for name in ("observe_yaw", "observe_goal"):
+        for name in ("observe_yaw", "observe_goal", "observe_phase"):
             if not isinstance(getattr(self, name), bool):
                 raise ConfigError(f"env.{name} must be true or false, got {getattr(self, name)!r}")
         if not (self.size_range[0] >= 0.045 and self.size_range[1] <= 0.06):
@@ -295,6 +299,8 @@ class BaxterPnPEnvConfig(EnvConfig):
             names += list(robot.OBJECT_YAW_NAMES)
         if self.observe_goal:
             names += list(robot.GOAL_NAMES)
+        if self.observe_phase:
+            names += [f"phase={name}" for name in robot.PHASE_NAMES]
         return names
 
     # ------------------------------------------------------------------ LeRobot EnvConfig API

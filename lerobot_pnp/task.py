@@ -203,7 +203,7 @@ class PickPlaceTask:
     # ------------------------------------------------------------------ observations
     def observe(self, physics: BaxterPhysics, rng: np.random.Generator) -> dict[str, np.ndarray]:
         """The policy's view: ``agent_pos`` (joints + gripper) and ``environment_state`` (object xyz [+ yaw
-        features] [+ goal xy]), with the configured noise, bias and latency."""
+        features] [+ goal xy] [+ phase one-hot]), with the configured noise, bias and latency."""
         c = self.config
         state = physics.state_vector()
         object_pos, yaw = physics.object_pose()
@@ -216,6 +216,8 @@ class PickPlaceTask:
             env_state.append([np.sin(4 * yaw), np.cos(4 * yaw)])
         if c.observe_goal:
             env_state.append(self.place_xy)
+        if c.observe_phase:  # privileged: from the true state, never noisy (latency still applies)
+            env_state.append(np.eye(robot.N_KEYFRAMES)[self.progress(physics)])
         obs = {"agent_pos": state, "environment_state": np.concatenate(env_state).astype(np.float32)}
         if c.obs_latency <= 0:
             return obs

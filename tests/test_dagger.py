@@ -99,6 +99,8 @@ def test_config_rejects_unknown_suites():
     with pytest.raises(ConfigError, match="unknown suites"):
         DaggerConfig(eval_suites=["nominal", "earthquake"])
     assert set(SUITES["noise_latency"]) == set(SUITES["nominal"]) and SUITES["noise_latency"]["obs_latency"] == 1
+    with pytest.raises(ConfigError, match="unknown task fields"):
+        DaggerConfig(env_changes={"observe_phaze": True})
 
 
 def test_rounds_run_and_resume(tmp_path):

@@ -244,3 +244,28 @@ def test_lerobot_rollout_signal_is_accepted(keyframe_env):
     a, _ = keyframe_env.reset(seed=4, options={NEW_ROLLOUT_OPTION: True})  # what lerobot-eval passes
     b, _ = keyframe_env.reset(seed=4)
     np.testing.assert_array_equal(a["environment_state"], b["environment_state"])
+
+
+def test_observe_phase_appends_the_inferred_phase_one_hot():
+    """The phase-told controls' observation: a one-hot of the phase the env reports in ``info``, after the
+    object features; everything else of the observation is unchanged (same seed, same draws)."""
+    from lerobot_pnp.expert import FSMExpert
+
+    plain, told = make_env(BaxterPnPEnvConfig()), make_env(BaxterPnPEnvConfig(observe_phase=True))
+    assert told.unwrapped.config.environment_state_names[3:] == [f"phase={n}" for n in robot.PHASE_NAMES]
+    obs_p, _ = plain.reset(seed=3)
+    obs_t, info = told.reset(seed=3)
+    seen = set()
+    expert = FSMExpert(told)
+    for _ in range(10):
+        np.testing.assert_array_equal(obs_t["environment_state"][:3], obs_p["environment_state"])
+        one_hot = obs_t["environment_state"][3:]
+        assert one_hot.sum() == 1 and int(one_hot.argmax()) == info["phase"]
+        seen.add(info["phase"])
+        action = expert.next_keyframe()
+        obs_p, *_ = plain.step(action)
+        obs_t, _, terminated, _, info = told.step(action)
+        if terminated:
+            break
+    assert len(seen) >= 5  # the one-hot follows the task through its phases
+    assert told.observation_space["environment_state"].shape == (3 + robot.N_KEYFRAMES,)

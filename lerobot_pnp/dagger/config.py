@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
+from lerobot_pnp.env_config import TASK_FIELDS
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.policy import PnpLstmConfig
 
@@ -34,6 +36,8 @@ class DaggerConfig:
     Args:
         output_dir: Where the datasets, checkpoints, evaluations and ``table.md`` go.
         preset: Task preset of the demonstrations (``full``); ignored with ``base_root``.
+        env_changes: Task fields set on top of the preset (or of ``base_root``'s recorded task), e.g.
+            ``{"observe_phase": true}`` for the phase-told memoryless control; validated by the env config.
         base_root / base_repo_id: An existing keyframe dataset (its recorded task defines the env) used as the
             round-0 data instead of generating ``num_demos`` demonstrations.
         num_demos: Expert demonstrations written for round 0 (``full`` task as recorded: every perturbation
@@ -47,6 +51,7 @@ class DaggerConfig:
 
     output_dir: str = "outputs/dagger"
     preset: str = "full"
+    env_changes: dict[str, Any] = field(default_factory=dict)
     base_root: str | None = None
     base_repo_id: str = "local/baxter_pnp_full"
     num_demos: int = 600
@@ -74,6 +79,10 @@ class DaggerConfig:
             (self.eval_episodes >= 0, f"eval_episodes must be >= 0, got {self.eval_episodes}"),
             (self.epochs >= 1 and self.batch_size >= 1, "epochs and batch_size must be >= 1"),
             (bool(self.rollout_suites), "rollout_suites must not be empty"),
+            (
+                not (bad := sorted(set(self.env_changes) - set(TASK_FIELDS))),
+                f"env_changes has unknown task fields {bad}; valid: {sorted(TASK_FIELDS)}",
+            ),
         ]
         for ok, message in checks:
             if not ok:

@@ -44,8 +44,8 @@ def _base_env_cfg(cfg: DaggerConfig):
     from lerobot_pnp.env_config import BaxterPnPEnvConfig
 
     if cfg.base_root:
-        return BaxterPnPEnvConfig(task_source=cfg.base_root)
-    return BaxterPnPEnvConfig(preset=cfg.preset)
+        return BaxterPnPEnvConfig(task_source=cfg.base_root, **cfg.env_changes)
+    return BaxterPnPEnvConfig(preset=cfg.preset, **cfg.env_changes)
 
 
 def _demos(cfg: DaggerConfig, out: Path, env_cfg) -> tuple[Path, str, str]:

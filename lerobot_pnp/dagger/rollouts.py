@@ -43,6 +43,10 @@ SUITES: dict[str, dict[str, Any]] = {
         "obs_bias_object": 0.003,
         "obs_latency": 1,
     },
+    # noise_latency's parts, one at a time (to tell which one a policy fails on)
+    "noise": {**NOMINAL, "obs_noise_object": 0.003, "obs_noise_joints": 0.005},
+    "bias": {**NOMINAL, "obs_bias_object": 0.003},
+    "latency": {**NOMINAL, "obs_latency": 1},
     "full": {},  # the full preset as recorded (every perturbation at its preset probability)
 }
 

@@ -66,6 +66,13 @@ class PnpLstmConfig(PreTrainedConfig):
         recurrent: ``False`` gives the memoryless ablation: the same layers, but the hidden state is reset
             to zero before every step (same parameter count, no memory).
         input_noise_std: Std of Gaussian noise added to the normalised inputs during training only.
+        latency_augment_prob: Training only: the probability that a training episode's observations are
+            shown one step late (frame ``t`` gets the observation of frame ``t-1``, frame 0 its own), with
+            the actions unchanged. A policy trained on current observations only loses sync with its own
+            history when they arrive a step late (the recovering LSTM: 1 % under ``obs_latency=1``); with
+            both kinds of episode it learns to tell them apart from the first two frames (a delayed episode
+            shows the start pose twice) and to act on stale observations. Works for the fast path and for
+            ``lerobot-train`` (it acts on the whole-episode windows).
         balance_window_loss: Ignored; kept so that configs and checkpoints written before every training
             window became a whole episode still load. (It weighted the frames of windows that ended at a
             uniformly drawn frame.)
@@ -89,6 +96,10 @@ class PnpLstmConfig(PreTrainedConfig):
         max_episode_length: Recovering mode: the longest episode a training window holds (the env's keyframe
             budget + the final observed state: 41 in the ``full`` task). Windows are ``-(L-1) .. L-1`` around any frame, so each holds its
             whole episode; every frame is sampled (no ``drop_n_last_frames``), which weights episodes by length.
+        feed_last_action: Recovering mode: the trunk also receives the action it commanded one step before
+            (normalised; zeros at the first step; the demonstrated action in training, teacher forcing).
+            A keyframe controller reaches what it commands, so the last command says where the arm is even
+            when the observation is a step old, and a mismatch between the two shows that it is.
         subtask_loss_weight / phase_loss_weight: Recovering mode: weights of the cross-entropy of the subtask
             switch (``phase.subtask``) and of the auxiliary phase classifier (``phase.index``) next to the
             action MSE; used when the batch carries per-frame labels (the fast path and DAgger; stock
@@ -122,6 +133,7 @@ class PnpLstmConfig(PreTrainedConfig):
 
     # Training.
     input_noise_std: float = 0.0
+    latency_augment_prob: float = 0.0
     balance_window_loss: bool = True
     torch_num_threads: int | None = 1
 
@@ -138,6 +150,7 @@ class PnpLstmConfig(PreTrainedConfig):
     # Recovering mode (see recovering.py).
     mode: str = "clocked"
     max_episode_length: int = 41
+    feed_last_action: bool = False
     subtask_loss_weight: float = 0.1
     phase_loss_weight: float = 0.1
 
@@ -150,6 +163,10 @@ class PnpLstmConfig(PreTrainedConfig):
             (self.hidden_size >= 1, f"hidden_size must be >= 1, got {self.hidden_size}"),
             (0.0 <= self.dropout < 1.0, f"dropout must be in [0, 1), got {self.dropout}"),
             (self.input_noise_std >= 0.0, f"input_noise_std must be >= 0, got {self.input_noise_std}"),
+            (
+                0.0 <= self.latency_augment_prob <= 1.0,
+                f"latency_augment_prob must be in [0, 1], got {self.latency_augment_prob}",
+            ),
             (self.optimizer_lr > 0.0, f"optimizer_lr must be > 0, got {self.optimizer_lr}"),
             (
                 self.optimizer_weight_decay >= 0.0,
@@ -174,6 +191,10 @@ class PnpLstmConfig(PreTrainedConfig):
             ),
             (self.mode in MODES, f"mode must be one of {MODES}, got {self.mode!r}"),
             (self.max_episode_length >= 1, f"max_episode_length must be >= 1, got {self.max_episode_length}"),
+            (
+                not (self.feed_last_action and self.mode != "recovering"),
+                "feed_last_action needs mode='recovering' (the clocked mode is the paper's, unchanged)",
+            ),
             (
                 self.subtask_loss_weight >= 0.0 and self.phase_loss_weight >= 0.0,
                 "subtask_loss_weight and phase_loss_weight must be >= 0",

@@ -175,7 +175,10 @@ class PnpLstmPolicy(PreTrainedPolicy):
         input_dim = sum(int(config.input_features[k].shape[0]) for k in self.input_keys)
         self.action_dim = int(config.output_features[ACTION].shape[0])
         if config.recovering:
-            self.model = RecoveringNet(input_dim, config.hidden_size, self.action_dim, config.recurrent, config.dropout)
+            extra = self.action_dim if config.feed_last_action else 0
+            self.model = RecoveringNet(
+                input_dim + extra, config.hidden_size, self.action_dim, config.recurrent, config.dropout
+            )
         else:
             self.model = PnpLstm(config, input_dim, self.action_dim)
         self.reset()
@@ -258,12 +261,14 @@ class PnpLstmPolicy(PreTrainedPolicy):
         labels = [batch.get(k) for k in (SUBTASK_KEY, PHASE_KEY)]
         labels = [v if _is_window(v, x) else None for v in labels]
         x, y, valid, labels = self._episodes_of(batch, x, y, labels)
+        if self.training and self.config.latency_augment_prob > 0:
+            x = delay_some_episodes(x, self.config.latency_augment_prob)
         if self.training and self.config.input_noise_std > 0:
             x = x + self.config.input_noise_std * torch.randn_like(x)
 
         if self.config.recovering:
             cfg = self.config
-            out = self.model(x)
+            out = self.model(self._with_last_action(x, y))
             loss, per_sample, info = recovering_loss(
                 out, y, valid, *labels, cfg.subtask_loss_weight, cfg.phase_loss_weight
             )
@@ -317,7 +322,12 @@ class PnpLstmPolicy(PreTrainedPolicy):
         state = self._state
         if state is not None and state[0].shape[0] != x.shape[0]:
             raise PolicyError(_BATCH_CHANGED)
+        if self.config.feed_last_action:
+            last = self._last_action if self._last_action is not None else x.new_zeros(x.shape[0], self.action_dim)
+            x = torch.cat([x, last], dim=-1)
         out, self._state = self.model.step(x, state)
+        if self.config.feed_last_action:
+            self._last_action = out["action"]
         self._step += 1
         self.last_subtask_prob = out["subtask_logits"].softmax(dim=-1)[:, 1]  # P(place), for viewers / logs
         self.last_phase = out["phase_logits"].argmax(dim=-1)
@@ -334,8 +344,18 @@ class PnpLstmPolicy(PreTrainedPolicy):
 
         Stateless (does not touch the inference state); used for evaluation on a dataset.
         """
-        out = self.model(torch.cat([batch[k] for k in self.input_keys], dim=-1))
-        return out["action"] if self.config.recovering else out
+        x = torch.cat([batch[k] for k in self.input_keys], dim=-1)
+        if not self.config.recovering:
+            return self.model(x)
+        return self.model(self._with_last_action(x, batch[ACTION] if self.config.feed_last_action else None))["action"]
+
+    def _with_last_action(self, x: Tensor, actions: Tensor | None) -> Tensor:
+        """Recovering mode with ``feed_last_action``: each frame's input gains the previous frame's action
+        (teacher forcing; zeros at frame 0, as at the first ``select_action`` after ``reset()``)."""
+        if not self.config.feed_last_action:
+            return x
+        last = torch.cat([torch.zeros_like(actions[:, :1]), actions[:, :-1]], dim=1)
+        return torch.cat([x, last], dim=-1)
 
     def _episodes_of(
         self, batch: dict[str, Tensor], x: Tensor, y: Tensor, labels: list[Tensor | None] | None = None
@@ -361,6 +381,17 @@ class PnpLstmPolicy(PreTrainedPolicy):
         y = y.gather(1, idx.unsqueeze(-1).expand(-1, -1, y.shape[-1]))
         labels = [None if v is None else v.to(x.device).gather(1, idx) for v in labels]
         return x, y, pos.unsqueeze(0) < n_real.unsqueeze(1), labels
+
+
+def delay_some_episodes(x: Tensor, prob: float) -> Tensor:
+    """Episodes ``(B, T, D)`` from frame 0, each shown one step late with probability ``prob``: frame ``t``
+    gets frame ``t-1``'s observation and frame 0 keeps its own (what an env with ``obs_latency=1`` shows).
+    Padding stays at the end, so the mask of real frames is unchanged."""
+    late = torch.rand(x.shape[0], device=x.device) < prob
+    if not bool(late.any()) or x.shape[1] < 2:
+        return x
+    shifted = torch.cat([x[:, :1], x[:, :-1]], dim=1)
+    return torch.where(late.view(-1, 1, 1), shifted, x)
 
 
 _BATCH_CHANGED = (
