@@ -11,6 +11,9 @@ clocked     The paper's clocked two-LSTM on the same task: trained (fast path, s
             evaluated on the same suites and seeds.
 memoryless  ``recurrent=False`` (the MLP trunk of matched parameter count), trained on the final DAgger
             aggregate with the same recipe, same evaluation.
+phase_told  The same matched MLP told the phase: the same demonstrations (same seeds) recorded with
+            ``observe_phase`` (a one-hot of the phase the env infers from the true simulator state, appended
+            to ``environment_state``; privileged), round 0 only (no DAgger), same recipe and evaluation.
 latency     ``select_action`` at batch 1, median over 2000 calls, recovering vs clocked (one torch thread).
 
 Evaluation is in-process (``lerobot_pnp.dagger.evaluate``: env from ``make_env``, LeRobot's
@@ -126,7 +129,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--config", default="configs/dagger.json")
     ap.add_argument("--output_dir", default="outputs/bench_planner")
-    ap.add_argument("--sections", default="dagger,clocked,memoryless,latency")
+    ap.add_argument("--sections", default="dagger,clocked,memoryless,phase_told,latency")
     ap.add_argument("--rounds", type=int, default=None, help="override the config's DAgger rounds")
     args = ap.parse_args()
     sections = set(args.sections.split(","))
@@ -177,6 +180,16 @@ def main() -> None:
         ckpt, train_s = train(data, repo, test, policy, cfg, out / "memoryless")
         res = evaluate_checkpoint(cfg, ckpt, env_cfg, out / "memoryless" / "eval.json")
         rows.append((f"memoryless (matched MLP), round-{cfg.rounds} data", res))
+
+    if "phase_told" in sections:
+        told = copy.deepcopy(cfg)
+        told.output_dir, told.rounds = str(out / "phase_told"), 0
+        told.env_changes = {**cfg.env_changes, "observe_phase": True}
+        told.policy.recurrent = False
+        summary = run_dagger(told)
+        log(f"phase-told MLP timings (s): {summary['timings_s']}")
+        res = json.loads((out / "phase_told" / "round_00" / "eval.json").read_text())
+        rows.append(("memoryless (matched MLP) told the phase, round-0 data", res))
 
     if "latency" in sections:
         lat = {}

@@ -96,6 +96,9 @@ class PnpLstmConfig(PreTrainedConfig):
         max_episode_length: Recovering mode: the longest episode a training window holds (the env's keyframe
             budget + the final observed state: 41 in the ``full`` task). Windows are ``-(L-1) .. L-1`` around any frame, so each holds its
             whole episode; every frame is sampled (no ``drop_n_last_frames``), which weights episodes by length.
+        binary_gripper: The post-processor snaps the gripper command to fully open or closed (threshold half
+            way), as every demonstration commands it (``processor_pnp_lstm.BinaryGripperStep``). Off by default:
+            the paper's planner regresses it.
         feed_last_action: Recovering mode: the trunk also receives the action it commanded one step before
             (normalised; zeros at the first step; the demonstrated action in training, teacher forcing).
             A keyframe controller reaches what it commands, so the last command says where the arm is even
@@ -150,6 +153,7 @@ class PnpLstmConfig(PreTrainedConfig):
     # Recovering mode (see recovering.py).
     mode: str = "clocked"
     max_episode_length: int = 41
+    binary_gripper: bool = False
     feed_last_action: bool = False
     subtask_loss_weight: float = 0.1
     phase_loss_weight: float = 0.1

@@ -262,7 +262,7 @@ class PnpLstmPolicy(PreTrainedPolicy):
         labels = [v if _is_window(v, x) else None for v in labels]
         x, y, valid, labels = self._episodes_of(batch, x, y, labels)
         if self.training and self.config.latency_augment_prob > 0:
-            x = delay_some_episodes(x, self.config.latency_augment_prob)
+            x, valid = delay_some_episodes(x, valid, self.config.latency_augment_prob)
         if self.training and self.config.input_noise_std > 0:
             x = x + self.config.input_noise_std * torch.randn_like(x)
 
@@ -383,15 +383,20 @@ class PnpLstmPolicy(PreTrainedPolicy):
         return x, y, pos.unsqueeze(0) < n_real.unsqueeze(1), labels
 
 
-def delay_some_episodes(x: Tensor, prob: float) -> Tensor:
+def delay_some_episodes(x: Tensor, valid: Tensor, prob: float) -> tuple[Tensor, Tensor]:
     """Episodes ``(B, T, D)`` from frame 0, each shown one step late with probability ``prob``: frame ``t``
     gets frame ``t-1``'s observation and frame 0 keeps its own (what an env with ``obs_latency=1`` shows).
-    Padding stays at the end, so the mask of real frames is unchanged."""
+
+    A late episode's last frame leaves the loss (``valid`` ``(B, T)`` is returned with it cleared): its label
+    is the hold after success, which the env never executes (it ends the episode on success), while its late
+    observation, the release, is also what a displaced object's episode shows before its re-pick."""
     late = torch.rand(x.shape[0], device=x.device) < prob
     if not bool(late.any()) or x.shape[1] < 2:
-        return x
+        return x, valid
     shifted = torch.cat([x[:, :1], x[:, :-1]], dim=1)
-    return torch.where(late.view(-1, 1, 1), shifted, x)
+    last = torch.zeros_like(valid)
+    last[torch.arange(valid.shape[0], device=valid.device), valid.sum(dim=1).clamp(min=1) - 1] = True
+    return torch.where(late.view(-1, 1, 1), shifted, x), valid & ~(last & late.view(-1, 1))
 
 
 _BATCH_CHANGED = (

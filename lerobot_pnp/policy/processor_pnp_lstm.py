@@ -1,7 +1,8 @@
 """Pre/post-processors of ``pnp_lstm``: a batch check, then LeRobot's default pipelines.
 
 Pre: check the batch against the checkpoint's features -> rename (none) -> add batch dim -> device ->
-MEAN_STD normalisation of STATE, ENV and ACTION. Post: unnormalise the action -> CPU.
+MEAN_STD normalisation of STATE, ENV and ACTION. Post: unnormalise the action -> CPU [-> snap the gripper
+command to open or closed, with ``binary_gripper``].
 
 The check is the one place that checks observations (the policy itself does not): every batch passes it,
 the env's observations in ``lerobot-eval`` and the dataset's windows in ``lerobot-train``. Without it an env
@@ -22,6 +23,7 @@ from typing import Any
 import torch
 from lerobot.configs import FeatureType
 from lerobot.processor import (
+    ActionProcessorStep,
     ObservationProcessorStep,
     PolicyAction,
     PolicyProcessorPipeline,
@@ -32,6 +34,7 @@ from lerobot.processor import (
 )
 from lerobot.utils.constants import ACTION, OBS_PREFIX
 
+from lerobot_pnp import robot
 from lerobot_pnp.errors import DatasetError, PolicyError
 
 from .configuration_pnp_lstm import PnpLstmConfig
@@ -117,6 +120,34 @@ class CheckObservationStep(ObservationProcessorStep):
         return features
 
 
+@ProcessorStepRegistry.register("pnp_lstm_binary_gripper")
+@dataclass
+class BinaryGripperStep(ActionProcessorStep):
+    """Snap the gripper command (the last action dimension) to open or closed.
+
+    Every demonstration commands the gripper fully open or fully closed. A regression head that is unsure
+    (say 25 % of similar training states opened) outputs the mean, 0.25, and a gripper a quarter open drops
+    the object; thresholding half-way turns the mean into the more likely of the two commands."""
+
+    threshold: float = 0.5 * (robot.GRIPPER_OPEN + robot.GRIPPER_CLOSED)
+
+    def action(self, action):
+        out = action.clone()
+        grip = out[..., -1]
+        out[..., -1] = torch.where(
+            grip > self.threshold,
+            torch.full_like(grip, robot.GRIPPER_OPEN),
+            torch.full_like(grip, robot.GRIPPER_CLOSED),
+        )
+        return out
+
+    def get_config(self) -> dict[str, Any]:
+        return {"threshold": self.threshold}
+
+    def transform_features(self, features):
+        return features
+
+
 def make_pnp_lstm_pre_post_processors(
     config: PnpLstmConfig,
     dataset_stats: dict[str, dict[str, torch.Tensor]] | None = None,
@@ -140,5 +171,5 @@ def make_pnp_lstm_pre_post_processors(
     )
     return make_policy_processor_pipelines(
         input_steps=[check, s.rename_observations, s.add_batch_dim, s.to_device, s.normalize],
-        output_steps=[s.unnormalize, s.to_cpu],
+        output_steps=[s.unnormalize, s.to_cpu, *([BinaryGripperStep()] if config.binary_gripper else [])],
     )
