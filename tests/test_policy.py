@@ -314,6 +314,27 @@ def test_processor_rejects_observations_that_do_not_fit():
         pre({**good, OBS_ENV: bad})
 
 
+def test_binary_gripper_snaps_only_the_gripper_and_survives_a_checkpoint(tmp_path):
+    from lerobot.processor import PolicyProcessorPipeline
+    from lerobot.processor.converters import policy_action_to_transition, transition_to_policy_action
+
+    from lerobot_pnp import robot
+
+    _, plain = make_pnp_lstm_pre_post_processors(_config(), dataset_stats=_stats())
+    _, post = make_pnp_lstm_pre_post_processors(_config(binary_gripper=True), dataset_stats=_stats())
+    action = torch.tensor([[0.1, -0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.24], [0.0] * 7 + [0.74]])
+    torch.testing.assert_close(plain(action.clone()), action)  # the paper's default regresses the gripper
+    snapped = post(action.clone())
+    torch.testing.assert_close(snapped[:, :7], action[:, :7])
+    assert snapped[:, 7].tolist() == [robot.GRIPPER_CLOSED, robot.GRIPPER_OPEN]
+    post.save_pretrained(tmp_path)
+    name = next(p.name for p in tmp_path.glob("*.json"))
+    loaded = PolicyProcessorPipeline.from_pretrained(
+        tmp_path, name, to_transition=policy_action_to_transition, to_output=transition_to_policy_action
+    )
+    assert loaded(action.clone())[:, 7].tolist() == [0.0, 1.0]
+
+
 def test_processor_names_the_episode_and_frame_of_a_nan_in_a_dataset_batch():
     cfg = _config(dataset_fps=1)
     pre, _ = make_pnp_lstm_pre_post_processors(cfg, dataset_stats=_stats())

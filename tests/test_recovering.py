@@ -191,12 +191,17 @@ def test_latency_augmentation_delays_whole_episodes_by_one_step():
     from lerobot_pnp.policy.modeling_pnp_lstm import delay_some_episodes
 
     x = torch.arange(2 * 5 * 3, dtype=torch.float32).view(2, 5, 3)
-    torch.testing.assert_close(delay_some_episodes(x, 0.0), x)
-    late = delay_some_episodes(x, 1.0)
+    valid = torch.tensor([[True] * 5, [True, True, True, False, False]])
+    same, same_valid = delay_some_episodes(x, valid, 0.0)
+    torch.testing.assert_close(same, x)
+    assert torch.equal(same_valid, valid)
+    late, late_valid = delay_some_episodes(x, valid, 1.0)
     torch.testing.assert_close(late[:, 0], x[:, 0])  # frame 0 sees its own observation (the env's latency)
     torch.testing.assert_close(late[:, 1:], x[:, :-1])  # frame t sees frame t-1
+    # the last real frame (the never-executed hold after success) leaves the loss, nothing else does
+    assert late_valid.tolist() == [[True] * 4 + [False], [True, True, False, False, False]]
     torch.manual_seed(0)
-    mixed = delay_some_episodes(torch.arange(400.0).view(200, 2, 1), 0.5)
+    mixed, _ = delay_some_episodes(torch.arange(400.0).view(200, 2, 1), torch.ones(200, 2, dtype=torch.bool), 0.5)
     n_late = int((mixed[:, 1] == mixed[:, 0]).sum())
     assert 70 < n_late < 130  # about half of the episodes, each either all late or all current
     # Training only: the augmented loss differs from the plain one, evaluation is untouched.
@@ -208,25 +213,3 @@ def test_latency_augmentation_delays_whole_episodes_by_one_step():
     policy.train()
     delayed, _ = policy.forward(batch)
     assert float(delayed.detach()) != float(plain.detach())
-
-
-def test_fed_last_action_is_the_policys_own_command_at_inference():
-    """With ``feed_last_action`` the step-by-step actions equal the sequence model fed those same actions
-    (teacher forcing with the policy's own commands), and the fed action changes the output."""
-    with pytest.raises(ConfigError, match="feed_last_action"):
-        PnpLstmConfig(feed_last_action=True)  # the paper's clocked mode stays as it is
-    policy = _policy(feed_last_action=True)
-    batch, _ = _episodes([15, 15])
-    policy.reset()
-    steps = torch.stack(
-        [
-            policy.select_action({OBS_STATE: batch[OBS_STATE][:, k], OBS_ENV_STATE: batch[OBS_ENV_STATE][:, k]})
-            for k in range(15)
-        ],
-        dim=1,
-    )
-    fed = {OBS_STATE: batch[OBS_STATE], OBS_ENV_STATE: batch[OBS_ENV_STATE], ACTION: steps}
-    torch.testing.assert_close(policy.predict_sequence(fed), steps, rtol=1e-5, atol=1e-5)
-    other = {**fed, ACTION: steps + 1.0}
-    assert not torch.allclose(policy.predict_sequence(other)[:, 1:], steps[:, 1:])
-    torch.testing.assert_close(policy.predict_sequence(other)[:, 0], steps[:, 0])  # frame 0 gets zeros

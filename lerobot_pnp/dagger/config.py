@@ -19,7 +19,11 @@ DEFAULT_EVAL_SUITES = ["nominal", "grasp_miss", "drop", "nudge", "displace", "no
 
 
 def _recovering_policy() -> PnpLstmConfig:
-    return PnpLstmConfig(mode="recovering", optimizer_lr=3e-3)
+    """The recipe of ``configs/dagger.json`` (docs/results/planner.md)."""
+    return PnpLstmConfig(
+        mode="recovering", hidden_size=256, optimizer_lr=3e-3, lr_scheduler="cosine", scheduler_warmup_steps=200,
+        latency_augment_prob=0.5, binary_gripper=True,
+    )  # fmt: skip
 
 
 @dataclass

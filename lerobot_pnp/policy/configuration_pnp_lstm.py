@@ -99,10 +99,6 @@ class PnpLstmConfig(PreTrainedConfig):
         binary_gripper: The post-processor snaps the gripper command to fully open or closed (threshold half
             way), as every demonstration commands it (``processor_pnp_lstm.BinaryGripperStep``). Off by default:
             the paper's planner regresses it.
-        feed_last_action: Recovering mode: the trunk also receives the action it commanded one step before
-            (normalised; zeros at the first step; the demonstrated action in training, teacher forcing).
-            A keyframe controller reaches what it commands, so the last command says where the arm is even
-            when the observation is a step old, and a mismatch between the two shows that it is.
         subtask_loss_weight / phase_loss_weight: Recovering mode: weights of the cross-entropy of the subtask
             switch (``phase.subtask``) and of the auxiliary phase classifier (``phase.index``) next to the
             action MSE; used when the batch carries per-frame labels (the fast path and DAgger; stock
@@ -154,7 +150,6 @@ class PnpLstmConfig(PreTrainedConfig):
     mode: str = "clocked"
     max_episode_length: int = 41
     binary_gripper: bool = False
-    feed_last_action: bool = False
     subtask_loss_weight: float = 0.1
     phase_loss_weight: float = 0.1
 
@@ -195,10 +190,6 @@ class PnpLstmConfig(PreTrainedConfig):
             ),
             (self.mode in MODES, f"mode must be one of {MODES}, got {self.mode!r}"),
             (self.max_episode_length >= 1, f"max_episode_length must be >= 1, got {self.max_episode_length}"),
-            (
-                not (self.feed_last_action and self.mode != "recovering"),
-                "feed_last_action needs mode='recovering' (the clocked mode is the paper's, unchanged)",
-            ),
             (
                 self.subtask_loss_weight >= 0.0 and self.phase_loss_weight >= 0.0,
                 "subtask_loss_weight and phase_loss_weight must be >= 0",

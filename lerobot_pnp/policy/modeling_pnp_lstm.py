@@ -175,10 +175,7 @@ class PnpLstmPolicy(PreTrainedPolicy):
         input_dim = sum(int(config.input_features[k].shape[0]) for k in self.input_keys)
         self.action_dim = int(config.output_features[ACTION].shape[0])
         if config.recovering:
-            extra = self.action_dim if config.feed_last_action else 0
-            self.model = RecoveringNet(
-                input_dim + extra, config.hidden_size, self.action_dim, config.recurrent, config.dropout
-            )
+            self.model = RecoveringNet(input_dim, config.hidden_size, self.action_dim, config.recurrent, config.dropout)
         else:
             self.model = PnpLstm(config, input_dim, self.action_dim)
         self.reset()
@@ -268,7 +265,7 @@ class PnpLstmPolicy(PreTrainedPolicy):
 
         if self.config.recovering:
             cfg = self.config
-            out = self.model(self._with_last_action(x, y))
+            out = self.model(x)
             loss, per_sample, info = recovering_loss(
                 out, y, valid, *labels, cfg.subtask_loss_weight, cfg.phase_loss_weight
             )
@@ -322,12 +319,7 @@ class PnpLstmPolicy(PreTrainedPolicy):
         state = self._state
         if state is not None and state[0].shape[0] != x.shape[0]:
             raise PolicyError(_BATCH_CHANGED)
-        if self.config.feed_last_action:
-            last = self._last_action if self._last_action is not None else x.new_zeros(x.shape[0], self.action_dim)
-            x = torch.cat([x, last], dim=-1)
         out, self._state = self.model.step(x, state)
-        if self.config.feed_last_action:
-            self._last_action = out["action"]
         self._step += 1
         self.last_subtask_prob = out["subtask_logits"].softmax(dim=-1)[:, 1]  # P(place), for viewers / logs
         self.last_phase = out["phase_logits"].argmax(dim=-1)
@@ -344,18 +336,8 @@ class PnpLstmPolicy(PreTrainedPolicy):
 
         Stateless (does not touch the inference state); used for evaluation on a dataset.
         """
-        x = torch.cat([batch[k] for k in self.input_keys], dim=-1)
-        if not self.config.recovering:
-            return self.model(x)
-        return self.model(self._with_last_action(x, batch[ACTION] if self.config.feed_last_action else None))["action"]
-
-    def _with_last_action(self, x: Tensor, actions: Tensor | None) -> Tensor:
-        """Recovering mode with ``feed_last_action``: each frame's input gains the previous frame's action
-        (teacher forcing; zeros at frame 0, as at the first ``select_action`` after ``reset()``)."""
-        if not self.config.feed_last_action:
-            return x
-        last = torch.cat([torch.zeros_like(actions[:, :1]), actions[:, :-1]], dim=1)
-        return torch.cat([x, last], dim=-1)
+        out = self.model(torch.cat([batch[k] for k in self.input_keys], dim=-1))
+        return out["action"] if self.config.recovering else out
 
     def _episodes_of(
         self, batch: dict[str, Tensor], x: Tensor, y: Tensor, labels: list[Tensor | None] | None = None

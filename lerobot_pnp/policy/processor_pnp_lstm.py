@@ -34,7 +34,6 @@ from lerobot.processor import (
 )
 from lerobot.utils.constants import ACTION, OBS_PREFIX
 
-from lerobot_pnp import robot
 from lerobot_pnp.errors import DatasetError, PolicyError
 
 from .configuration_pnp_lstm import PnpLstmConfig
@@ -120,6 +119,10 @@ class CheckObservationStep(ObservationProcessorStep):
         return features
 
 
+# The env's gripper commands (lerobot_pnp.robot; the policy package imports nothing of the simulator side).
+GRIPPER_OPEN, GRIPPER_CLOSED = 1.0, 0.0
+
+
 @ProcessorStepRegistry.register("pnp_lstm_binary_gripper")
 @dataclass
 class BinaryGripperStep(ActionProcessorStep):
@@ -129,15 +132,15 @@ class BinaryGripperStep(ActionProcessorStep):
     (say 25 % of similar training states opened) outputs the mean, 0.25, and a gripper a quarter open drops
     the object; thresholding half-way turns the mean into the more likely of the two commands."""
 
-    threshold: float = 0.5 * (robot.GRIPPER_OPEN + robot.GRIPPER_CLOSED)
+    threshold: float = 0.5 * (GRIPPER_OPEN + GRIPPER_CLOSED)
 
     def action(self, action):
         out = action.clone()
         grip = out[..., -1]
         out[..., -1] = torch.where(
             grip > self.threshold,
-            torch.full_like(grip, robot.GRIPPER_OPEN),
-            torch.full_like(grip, robot.GRIPPER_CLOSED),
+            torch.full_like(grip, GRIPPER_OPEN),
+            torch.full_like(grip, GRIPPER_CLOSED),
         )
         return out
 
