@@ -23,7 +23,7 @@ from safetensors.torch import load_file, save_file  # noqa: E402
 
 from lerobot_pnp.errors import ConfigError, DatasetError, PolicyError  # noqa: E402
 from lerobot_pnp.policy import PnpLstmConfig, PnpLstmPolicy, make_pnp_lstm_pre_post_processors  # noqa: E402
-from lerobot_pnp.policy.modeling_pnp_lstm import PnpLstm, SubtaskLSTM  # noqa: E402
+from lerobot_pnp.policy.clocked import PnpLstm, SubtaskLSTM  # noqa: E402
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 
