@@ -156,7 +156,11 @@ def test_episode_ranges_survive_the_command_line_parser():
     [
         ({"with_action": False}, DatasetError, r"no 'action' feature"),
         ({"state_dim": 7}, DatasetError, r"'observation\.state' has shape \(7,\)"),
-        ({"episode_len": 12}, DatasetError, r"not a keyframe dataset \(fps 1, episodes of \[12\] frames\)"),
+        (
+            {"episode_len": 12},
+            DatasetError,
+            r"not a keyframe dataset \(fps 1, episodes of \[12\] frames\).*--policy\.mode=recovering",
+        ),
         ({"fps": 20, "episode_len": 30}, DatasetError, r"not a keyframe dataset \(fps 20"),
         ({"nan_at": (2, 7)}, DatasetError, r"observation\.environment_state .*(NaN|non-finite).*episode 2, frame 7"),
     ],
@@ -175,7 +179,7 @@ def test_policy_rejects_non_keyframe_dataset_meta(tmp_path):
     root = tmp_path / "long"
     make_keyframe_dataset(root, n_episodes=2, episode_len=12)
     ds = LeRobotDataset(REPO_ID, root=root, video_backend="pyav")
-    with pytest.raises(DatasetError, match="not a keyframe dataset"):
+    with pytest.raises(DatasetError, match="not a keyframe dataset.*--policy.mode=recovering"):
         make_policy(PnpLstmConfig(), ds_meta=ds.meta)
 
 

@@ -352,5 +352,6 @@ def _check_keyframe_episodes(
     if bad:
         raise DatasetError(
             f"not a keyframe dataset: pnp_lstm needs every episode to have exactly {episode_length} frames "
-            f"(one per FSM state), found episode lengths {bad[:10]}"
+            f"(one per FSM state), found episode lengths {bad[:10]}; a dataset with recoveries (the `full` task) "
+            "trains with --policy.mode=recovering"
         )

@@ -107,10 +107,16 @@ def validate_keyframe_dataset(
                 f"dataset '{meta.repo_id}' has episodes of {bad[:5]} frames, longer than "
                 f"policy.max_episode_length={max_length}"
             )
+        hint = (
+            "; a keyframe dataset with recoveries (the `full` task: episodes of varying length) trains with "
+            "--policy.mode=recovering"
+            if int(meta.fps) == robot.KEYFRAME_FPS
+            else ""
+        )
         raise DatasetError(
             f"dataset '{meta.repo_id}' is not a keyframe dataset ({what}): the pnp_lstm trainer needs one frame per "
             f"FSM state ({episode_length} per episode, fps {robot.KEYFRAME_FPS}); a dense dataset (--env.control_mode "
-            "dense) cannot train it"
+            f"dense) cannot train it{hint}"
         )
 
 
