@@ -15,6 +15,9 @@ phase_told  The same matched MLP told the phase: the same demonstrations (same s
             ``observe_phase`` (a one-hot of the phase the env infers from the true simulator state, appended
             to ``environment_state``; privileged), round 0 only (no DAgger), same recipe and evaluation.
 latency     ``select_action`` at batch 1, median over 2000 calls, recovering vs clocked (one torch thread).
+lerobot_eval  (not in the default sections) the real ``lerobot-eval`` CLI on the recovering checkpoint of
+            round ``--eval_round`` (default: the last), every eval suite, the same seeds and episode counts;
+            prints its success beside the in-process one and the episodes on which they disagree.
 
 Evaluation is in-process (``lerobot_pnp.dagger.evaluate``: env from ``make_env``, LeRobot's
 ``preprocess_observation`` -> pre-processor -> ``select_action`` -> post-processor -> ``env.step``).
@@ -125,12 +128,34 @@ def latency(ckpt: Path, calls: int = 2000) -> float:
     return statistics.median(times) * 1e3
 
 
+def cli_check(cfg: DaggerConfig, out: Path, rnd: int) -> dict:
+    """Stock ``lerobot-eval`` (subprocess) on round ``rnd``'s checkpoint, suite by suite, against the
+    in-process evaluation of the same seeds (``round_XX/eval.json``)."""
+    from lerobot_pnp.dagger.rollouts import SUITES
+    from lerobot_pnp.report.cli_eval import EvalSpec, run_eval
+
+    rdir = out / "dagger" / f"round_{rnd:02d}"
+    ckpt = rdir / "train" / "checkpoints" / "last" / "pretrained_model"
+    in_process = json.loads((rdir / "eval.json").read_text())
+    report = {}
+    for suite in cfg.eval_suites:
+        spec = EvalSpec(suite, cfg.eval_episodes, dict(SUITES[suite]))
+        res = run_eval(ckpt, out / "lerobot_eval" / f"round_{rnd:02d}" / suite, spec, cfg.eval_seed, 50)
+        ok = sum(res["per_episode"].values())
+        report[suite] = {"successes": ok, "n": len(res["per_episode"]), "in_process": in_process[suite]["successes"]}
+        log(f"lerobot-eval round {rnd} {suite}: {ok}/{len(res['per_episode'])} (in process "
+            f"{in_process[suite]['successes']}/{in_process[suite]['n']})")  # fmt: skip
+    (out / f"lerobot_eval_round{rnd:02d}.json").write_text(json.dumps(report, indent=2))
+    return report
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--config", default="configs/dagger.json")
     ap.add_argument("--output_dir", default="outputs/bench_planner")
     ap.add_argument("--sections", default="dagger,clocked,memoryless,phase_told,latency")
     ap.add_argument("--rounds", type=int, default=None, help="override the config's DAgger rounds")
+    ap.add_argument("--eval_round", type=int, default=None, help="lerobot_eval section: the round (default: last)")
     args = ap.parse_args()
     sections = set(args.sections.split(","))
     out = Path(args.output_dir)
@@ -201,6 +226,9 @@ def main() -> None:
                 lat[name] = latency(Path(ckpt))
                 log(f"select_action batch 1, {name}: median {lat[name]:.3f} ms")
         results["select_action_ms"] = lat
+
+    if "lerobot_eval" in sections:
+        results["lerobot_eval"] = cli_check(cfg, out, cfg.rounds if args.eval_round is None else args.eval_round)
 
     if rows:
         table = write_table(rows, cfg.eval_suites, out)
