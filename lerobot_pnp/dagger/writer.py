@@ -43,10 +43,12 @@ def write_episodes(
     root: Path, repo_id: str, env_cfg, episodes: list[LabelledEpisode], splits: dict | None = None
 ) -> Path:
     """Write ``episodes`` as a finalized LeRobotDataset at ``root`` (replaced atomically if it exists)."""
+    import datasets
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
     from lerobot_pnp.dataset.schema import ROBOT_TYPE
 
+    datasets.disable_progress_bars()  # one "Map" bar per saved episode would flood the terminal
     root = Path(root)
     tmp = root.with_name(root.name + ".tmp")
     if tmp.exists():
