@@ -200,6 +200,10 @@ def test_latency_augmentation_delays_whole_episodes_by_one_step():
     torch.testing.assert_close(late[:, 1:], x[:, :-1])  # frame t sees frame t-1
     # the last real frame (the never-executed hold after success) leaves the loss, nothing else does
     assert late_valid.tolist() == [[True] * 4 + [False], [True, True, False, False, False]]
+    # with phase labels, the first frame of a recovery (the phase goes back) leaves the loss too
+    phase = torch.tensor([[0, 1, 2, 0, 1], [0, 1, 2, 3, 4]])
+    _, told = delay_some_episodes(x, valid, 1.0, phase)
+    assert told.tolist() == [[True, True, True, False, False], [True, True, False, False, False]]
     torch.manual_seed(0)
     mixed, _ = delay_some_episodes(torch.arange(400.0).view(200, 2, 1), torch.ones(200, 2, dtype=torch.bool), 0.5)
     n_late = int((mixed[:, 1] == mixed[:, 0]).sum())

@@ -160,7 +160,7 @@ class PnpLstmPolicy(PreTrainedPolicy):
         labels = [v if _is_window(v, x) else None for v in labels]
         x, y, valid, labels = self._episodes_of(batch, x, y, labels)
         if self.training and self.config.latency_augment_prob > 0:
-            x, valid = delay_some_episodes(x, valid, self.config.latency_augment_prob)
+            x, valid = delay_some_episodes(x, valid, self.config.latency_augment_prob, labels[1] if labels else None)
         if self.training and self.config.input_noise_std > 0:
             x = x + self.config.input_noise_std * torch.randn_like(x)
 
@@ -266,20 +266,25 @@ class PnpLstmPolicy(PreTrainedPolicy):
         return x, y, pos.unsqueeze(0) < n_real.unsqueeze(1), labels
 
 
-def delay_some_episodes(x: Tensor, valid: Tensor, prob: float) -> tuple[Tensor, Tensor]:
+def delay_some_episodes(x: Tensor, valid: Tensor, prob: float, phase: Tensor | None = None) -> tuple[Tensor, Tensor]:
     """Episodes ``(B, T, D)`` from frame 0, each shown one step late with probability ``prob``: frame ``t``
     gets frame ``t-1``'s observation and frame 0 keeps its own (what an env with ``obs_latency=1`` shows).
 
-    A late episode's last frame leaves the loss (``valid`` ``(B, T)`` is returned with it cleared): its label
-    is the hold after success, which the env never executes (it ends the episode on success), while its late
-    observation, the release, is also what a displaced object's episode shows before its re-pick."""
+    Returns the inputs and ``valid`` ``(B, T)`` with the frames a late observer cannot act on taken out of the
+    loss: a late episode's last frame (the hold after success, which the env never executes; its late
+    observation, the release, is also what a displaced object's episode shows before the re-pick) and, given
+    the per-frame ``phase`` labels, every frame where the expert's phase goes back (the first frame of a
+    recovery: the expert reacts to a drop or a displacement it saw one step before the late observer can).
+    """
     late = torch.rand(x.shape[0], device=x.device) < prob
     if not bool(late.any()) or x.shape[1] < 2:
         return x, valid
     shifted = torch.cat([x[:, :1], x[:, :-1]], dim=1)
-    last = torch.zeros_like(valid)
-    last[torch.arange(valid.shape[0], device=valid.device), valid.sum(dim=1).clamp(min=1) - 1] = True
-    return torch.where(late.view(-1, 1, 1), shifted, x), valid & ~(last & late.view(-1, 1))
+    blind = torch.zeros_like(valid)
+    blind[torch.arange(valid.shape[0], device=valid.device), valid.sum(dim=1).clamp(min=1) - 1] = True
+    if phase is not None:
+        blind[:, 1:] |= phase[:, 1:] < phase[:, :-1]
+    return torch.where(late.view(-1, 1, 1), shifted, x), valid & ~(blind & late.view(-1, 1))
 
 
 _BATCH_CHANGED = (
