@@ -1,6 +1,7 @@
 """The study as stages, each cached on disk and reused when finished (an interrupted run resumes).
 
-Stages: 1. dataset (the expert's demonstrations) -> 2. training (method x training seed) -> 3. evaluation
+Stages: 1. dataset (the expert's demonstrations; 1b. when a method trains on dense control (ACT), the
+same demonstrations recorded at the control rate, checked to be the same episodes) -> 2. training (method x training seed) -> 3. evaluation
 (method x training seed x suite, same eval seeds for every method) -> 4. report (``report.md``, figures,
 ``summary.json``). A finished training is recognised by its checkpoint, a finished evaluation by its JSON
 file (written atomically), so rerunning the same command only does what is missing.
@@ -63,7 +64,9 @@ PRESETS: dict[str, dict] = {
         "num_episodes": 1400,
         "epochs": 300,
         "train_seeds": [1000, 1001, 1002],
-        "methods": ["expert", "lookup_table", "clocked_lstm", "shared_lstm", "memoryless"],
+        # act: its own dense recording (~5 min once) and ~11 min per seed (2-min training, 9-min dense
+        # evaluation of every suite below) on 2 shared cores, ~38 min in all
+        "methods": ["expert", "lookup_table", "clocked_lstm", "shared_lstm", "memoryless", "act"],
         "suites": [
             SuiteSpec("nominal", 300),
             SuiteSpec("edge_strip", 100),

@@ -193,7 +193,9 @@ def _markdown(cfg, methods, results, suite_names, table, comparisons, figures, s
         "called in process on the `SyncVectorEnv` of `BaxterPnPEnvConfig.create_envs`, with a recording wrapper "
         f"for the final `info` of each episode. Every method runs the same seeds ({cfg.eval_seed} onwards, unseen "
         f"by the dataset's seeds 0..). Learned methods: {len(cfg.train_seeds)} training seeds {cfg.train_seeds}, "
-        f"{cfg.epochs} epochs each on {int(cfg.num_episodes * 0.8)} demonstrations; their rate pools the seeds.",
+        f"{cfg.epochs} epochs each on {int(cfg.num_episodes * 0.8)} demonstrations"
+        + (" (dense-control methods: their budget is under Methods)" if any(m.data == "dense" for m in methods) else "")
+        + "; their rate pools the seeds.",
         *_cli_lines(summary.get("lerobot_eval_cli_check")),
         "Intervals: 95 % Wilson. Pooling seeds treats them as one sample; the per-seed range is shown beside it.",
         "",
