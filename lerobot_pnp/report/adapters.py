@@ -19,8 +19,14 @@ from lerobot_pnp.errors import DatasetError, PnPError
 BATCH_SIZE = 64  # episodes per batch (the fast trainer's default)
 
 
-def generate_dataset(root: Path, num_episodes: int, seed: int, workers: int = 0, preset: str = "paper") -> dict:
-    """Generate (or finish, or reuse) an expert dataset of ``num_episodes`` in ``root``; returns its summary."""
+def generate_dataset(
+    root: Path, num_episodes: int, seed: int, workers: int = 0, preset: str = "paper", control_mode: str = "keyframe"
+) -> dict:
+    """Generate (or finish, or reuse) an expert dataset of ``num_episodes`` in ``root``; returns its summary.
+
+    ``control_mode="dense"`` records the same demonstrations (same seeds, same object positions) at the
+    control rate (ACT's training data).
+    """
     from lerobot_pnp.dataset import GenerateConfig, generate, validate_dataset
     from lerobot_pnp.env_config import BaxterPnPEnvConfig
 
@@ -38,7 +44,7 @@ def generate_dataset(root: Path, num_episodes: int, seed: int, workers: int = 0,
         workers=workers,
         resume=root.exists(),
         progress=True,
-        env=BaxterPnPEnvConfig(preset=preset),
+        env=BaxterPnPEnvConfig(preset=preset, control_mode=control_mode),
     )
     return generate(cfg)
 

@@ -9,17 +9,21 @@ is evaluated. New methods (the recovering planner, DAgger rounds, ACT) plug in b
 * ``memoryless``: the clocked two-network model with the hidden state reset every step (same weights and
   inputs; no memory). Only the input-to-hidden weights are used, so it is not capacity-matched (issue 11's
   fair controls will be added as methods of their own).
+* ``act``: LeRobot's ACT, state-only, trained on the dense recording of the same demonstrations and run in
+  dense control mode (``act_baseline.py``; its budget is in its description).
 """
 
 from __future__ import annotations
 
+import json
+import shutil
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from lerobot_pnp.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.errors import ConfigError
-from lerobot_pnp.report import adapters
+from lerobot_pnp.report import act_baseline, adapters
 from lerobot_pnp.report.evaluation import EpisodeRecord, eval_expert, eval_lerobot_policy, load_checkpoint
 
 
@@ -32,6 +36,8 @@ class TrainContext:
     seed: int
     epochs: int
     n_demos: int | None = None  # keep only the first n training episodes (data efficiency); None = all
+    dense_root: Path | None = None  # the dense recording of the same demonstrations (methods with data="dense")
+    act_steps: int | None = None  # ACT's training steps (None = act_baseline.ActBudget's default)
 
 
 @dataclass(frozen=True)
@@ -45,6 +51,13 @@ class Method:
     train: Callable[[TrainContext], Path | None]
     evaluate: Callable[[Path | None, TrainContext, BaxterPnPEnvConfig, int, int, int], list[EpisodeRecord]]
     policy_overrides: dict = field(default_factory=dict)
+    data: str = "keyframe"  # the recording it trains on: keyframe | dense (the study generates what is needed)
+    # the env config it runs a suite's config in (ACT: the same task in dense control mode); None = unchanged
+    adapt_env: Callable[[BaxterPnPEnvConfig, TrainContext], BaxterPnPEnvConfig] | None = None
+    suites: tuple[str, ...] | None = None  # evaluated only on these suites (cost); None = every suite
+
+    def env_config(self, env_cfg: BaxterPnPEnvConfig, ctx: TrainContext) -> BaxterPnPEnvConfig:
+        return env_cfg if self.adapt_env is None else self.adapt_env(env_cfg, ctx)
 
 
 # ------------------------------------------------------------------------------------------------ builders
@@ -91,6 +104,39 @@ def pnp_lstm_method(name: str, label: str, description: str, **overrides) -> Met
     return Method(name, label, description, True, _pnp_lstm_trainer(overrides), _checkpoint_eval, overrides)
 
 
+def _act_budget(ctx: TrainContext):
+    return act_baseline.ActBudget() if ctx.act_steps is None else act_baseline.ActBudget(steps=ctx.act_steps)
+
+
+def _act_train(ctx: TrainContext) -> Path:
+    if ctx.dense_root is None:
+        raise ConfigError("method 'act' needs the dense dataset (TrainContext.dense_root)")
+    ckpt, log, budget = adapters.checkpoint_of(ctx.train_dir), ctx.train_dir / "act_train.json", _act_budget(ctx)
+    if (
+        (ckpt / "model.safetensors").is_file()
+        and log.is_file()
+        and json.loads(log.read_text()).get("identity") == budget.identity()
+    ):
+        return ckpt  # finished earlier with this budget: reused
+    if ctx.train_dir.exists():
+        shutil.rmtree(ctx.train_dir)  # interrupted, or another budget: start over (a seed takes minutes)
+    return act_baseline.train_act(ctx.dense_root, ctx.train_dir, ctx.seed, budget, n_demos=ctx.n_demos)
+
+
+def _act_env(env_cfg: BaxterPnPEnvConfig, ctx: TrainContext) -> BaxterPnPEnvConfig:
+    return act_baseline.dense_env(env_cfg, ctx.dense_root)
+
+
+def _act_description() -> str:
+    o = act_baseline.ACT_OVERRIDES
+    return (
+        f"LeRobot ACT, state-only (joints + object position), no VAE, chunk {o['chunk_size']} / "
+        f"{o['n_action_steps']} executed, width {o['dim_model']}, {o['n_encoder_layers']}+{o['n_decoder_layers']} "
+        f"layers; trained on the dense recording of the same demonstrations ({act_baseline.ActBudget().describe()} per seed); "
+        "run in dense control mode (20 fps)"
+    )
+
+
 METHODS: dict[str, Method] = {
     m.name: m
     for m in (
@@ -106,6 +152,16 @@ METHODS: dict[str, Method] = {
         pnp_lstm_method("clocked_lstm", "clocked LSTM (paper)", "two LSTMs on a fixed 10-step clock (paper)"),
         pnp_lstm_method("shared_lstm", "shared LSTM", "one LSTM + subtask one-hot", shared_network=True),
         pnp_lstm_method("memoryless", "memoryless", "clocked nets, hidden state reset every step", recurrent=False),
+        Method(
+            "act",
+            "ACT (dense)",
+            _act_description(),
+            True,
+            _act_train,
+            _checkpoint_eval,
+            data="dense",
+            adapt_env=_act_env,
+        ),
     )
 }
 

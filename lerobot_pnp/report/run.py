@@ -1,6 +1,7 @@
 """The study as stages, each cached on disk and reused when finished (an interrupted run resumes).
 
-Stages: 1. dataset (the expert's demonstrations) -> 2. training (method x training seed) -> 3. evaluation
+Stages: 1. dataset (the expert's demonstrations; 1b. when a method trains on dense control (ACT), the
+same demonstrations recorded at the control rate, checked to be the same episodes) -> 2. training (method x training seed) -> 3. evaluation
 (method x training seed x suite, same eval seeds for every method) -> 4. report (``report.md``, figures,
 ``summary.json``). A finished training is recognised by its checkpoint, a finished evaluation by its JSON
 file (written atomically), so rerunning the same command only does what is missing.
@@ -23,6 +24,7 @@ from pathlib import Path
 from lerobot_pnp.env_config import BaxterPnPEnvConfig, read_recorded
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.report import adapters
+from lerobot_pnp.report.act_baseline import check_same_demonstrations
 from lerobot_pnp.report.evaluation import records_from_json, records_to_json
 from lerobot_pnp.report.methods import TrainContext, get_methods
 from lerobot_pnp.report.suites import get_suites
@@ -62,7 +64,9 @@ PRESETS: dict[str, dict] = {
         "num_episodes": 1400,
         "epochs": 300,
         "train_seeds": [1000, 1001, 1002],
-        "methods": ["expert", "lookup_table", "clocked_lstm", "shared_lstm", "memoryless"],
+        # act: its own dense recording (~5 min once) and ~11 min per seed (2-min training, 9-min dense
+        # evaluation of every suite below) on 2 shared cores, ~38 min in all
+        "methods": ["expert", "lookup_table", "clocked_lstm", "shared_lstm", "memoryless", "act"],
         "suites": [
             SuiteSpec("nominal", 300),
             SuiteSpec("edge_strip", 100),
@@ -103,6 +107,7 @@ class StudyConfig:
     cli_check_episodes: int | None = None
     eval_seed: int = 100_000  # first evaluation seed (disjoint from the dataset's seeds 0..)
     eval_batch_size: int = 50  # sub-envs of the SyncVectorEnv
+    act_steps: int | None = None  # ACT training steps per seed (None = act_baseline.ActBudget's default)
     fresh: bool = False  # delete output_dir first
     report_only: bool = False  # write the report from the finished evaluations only (train/evaluate nothing)
 
@@ -185,6 +190,16 @@ def run_study(cfg: StudyConfig) -> dict:
     generation = adapters.generate_dataset(root, cfg.num_episodes, cfg.dataset_seed, cfg.workers)
     timings["dataset"] = time.perf_counter() - t
     base_env = BaxterPnPEnvConfig.from_dict(read_recorded(root) or {})
+    dense_root = None
+    if any(m.data == "dense" for m in methods):
+        _stage(f"1b/4 dense dataset: the same {cfg.num_episodes} demonstrations at the control rate (ACT)")
+        t = time.perf_counter()
+        dense_root = out / "dataset_dense"
+        generation["dense"] = adapters.generate_dataset(
+            dense_root, cfg.num_episodes, cfg.dataset_seed, cfg.workers, control_mode="dense"
+        )
+        check_same_demonstrations(root, dense_root)
+        timings["dataset_dense"] = time.perf_counter() - t
 
     _stage(f"2-3/4 train and evaluate: {', '.join(m.name for m in methods)} (learned: seeds {cfg.train_seeds})")
     print("evaluation: stock LeRobot eval_policy, in process; the same seeds for every method", flush=True)
@@ -194,8 +209,10 @@ def run_study(cfg: StudyConfig) -> dict:
     jobs += [(m, f"n{n}", n) for n in cfg.data_efficiency for m in get_methods(["lookup_table", "clocked_lstm"])]
     for method, tag, n_demos in jobs:  # each job trains, then evaluates: the first results come early
         seed = int(cfg.train_seeds[0] if not tag.isdigit() else tag)
-        ctx = TrainContext(root, out / "train" / method.name / f"seed{tag}", seed, cfg.epochs, n_demos)
-        for suite, n_episodes in _suites_for(cfg, n_demos):
+        ctx = TrainContext(
+            root, out / "train" / method.name / f"seed{tag}", seed, cfg.epochs, n_demos, dense_root, cfg.act_steps
+        )
+        for suite, n_episodes in _suites_for(cfg, n_demos, method):
             path = out / "evals" / method.name / f"seed{tag}" / f"{suite.name}.json"
             if path.is_file():
                 data = json.loads(path.read_text())
@@ -230,7 +247,7 @@ def _evaluate(method, artifact, ctx, suite, n_episodes: int, base_env, cfg: Stud
     """One suite (all its parts, consecutive seed blocks from ``cfg.eval_seed``) for one trained method."""
     t = time.perf_counter()
     records, start = [], cfg.eval_seed
-    env_cfgs = suite.env_configs(base_env)
+    env_cfgs = [method.env_config(c, ctx) for c in suite.env_configs(base_env)]
     for env_cfg, n in zip(env_cfgs, suite.part_episodes(n_episodes), strict=True):
         if n:
             records += method.evaluate(artifact, ctx, env_cfg, n, start, cfg.eval_batch_size)
@@ -279,10 +296,14 @@ def _cli_check(cfg: StudyConfig, methods, results, out: Path, timings: dict) -> 
     }
 
 
-def _suites_for(cfg: StudyConfig, n_demos: int | None):
-    """(suite, episodes) pairs evaluated for a job; data-efficiency runs are evaluated on nominal only."""
+def _suites_for(cfg: StudyConfig, n_demos: int | None, method=None):
+    """(suite, episodes) pairs evaluated for a job; data-efficiency runs are evaluated on nominal only, a
+    method with a ``suites`` list only on those."""
     specs = [SuiteSpec("nominal", 200)] if n_demos is not None else cfg.suites
-    return [(s, spec.n_episodes) for spec in specs for s in get_suites([spec.name])]
+    pairs = [(s, spec.n_episodes) for spec in specs for s in get_suites([spec.name])]
+    if method is not None and method.suites is not None:
+        pairs = [(s, n) for s, n in pairs if s.name in method.suites]
+    return pairs
 
 
 def _command() -> str:

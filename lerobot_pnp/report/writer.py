@@ -182,7 +182,9 @@ def _markdown(cfg, methods, results, suite_names, table, comparisons, figures, s
         f"Produced by `{summary['command']}` (preset `{cfg.preset}`; full config in `study_config.json`).",
         f"Machine: {mach['cpu']}, {mach['cores_available']} cores available; Python {mach['python']}, "
         f"LeRobot {mach['lerobot']}, torch {mach['torch']}, MuJoCo {mach['mujoco']}, gymnasium {mach['gymnasium']}.",
-        f"Stage wall time (s): dataset {t.get('dataset', 0):.0f}, training "
+        f"Stage wall time (s): dataset {t.get('dataset', 0):.0f}"
+        + (f" (+ dense recording {t['dataset_dense']:.0f})" if "dataset_dense" in t else "")
+        + ", training "
         f"{sum(v for k, v in t.items() if k.startswith('train/')):.0f}, evaluation "
         f"{sum(v for k, v in t.items() if k.startswith('eval/')):.0f} (total {total:.0f}; an evaluation reused from an "
         "earlier run shows its original time, a reused dataset or training only the time to find it).",
@@ -191,9 +193,15 @@ def _markdown(cfg, methods, results, suite_names, table, comparisons, figures, s
         "called in process on the `SyncVectorEnv` of `BaxterPnPEnvConfig.create_envs`, with a recording wrapper "
         f"for the final `info` of each episode. Every method runs the same seeds ({cfg.eval_seed} onwards, unseen "
         f"by the dataset's seeds 0..). Learned methods: {len(cfg.train_seeds)} training seeds {cfg.train_seeds}, "
-        f"{cfg.epochs} epochs each on {int(cfg.num_episodes * 0.8)} demonstrations; their rate pools the seeds.",
+        f"{cfg.epochs} epochs each on {int(cfg.num_episodes * 0.8)} demonstrations"
+        + (" (dense-control methods: their budget is under Methods)" if any(m.data == "dense" for m in methods) else "")
+        + "; their rate pools the seeds.",
         *_cli_lines(summary.get("lerobot_eval_cli_check")),
         "Intervals: 95 % Wilson. Pooling seeds treats them as one sample; the per-seed range is shown beside it.",
+        "",
+        "## Methods",
+        "",
+        *_method_lines(methods, t),
         "",
         "## Success by suite",
         "",
@@ -251,9 +259,33 @@ def _markdown(cfg, methods, results, suite_names, table, comparisons, figures, s
         "- The expert is privileged (it reads the simulator) and runs its own loop on the same seeds.",
         "- Perturbations that need room to recover (missed grasp, drop, displacement) get a 20-keyframe budget for "
         "every method; the clocked LSTM stops acting after its 10-step clock (it holds its last action).",
+        *_dense_notes(methods),
         "",
     ]
     return "\n".join(lines)
+
+
+def _method_lines(methods, timings: dict) -> list[str]:
+    """One line per method: what it is and, for a learned one, its training wall time per seed."""
+    out = []
+    for m in methods:
+        times = [v for k, v in timings.items() if k.startswith(f"train/{m.name}/") and k.split("/")[-1].isdigit()]
+        cost = f" Training wall time per seed: {', '.join(f'{v:.0f} s' for v in times)}." if times else ""
+        only = f" Evaluated on {', '.join(m.suites)} only (cost)." if m.suites is not None else ""
+        out.append(f"- **{m.label}** (`{m.name}`): {m.description}.{only}{cost}")
+    return out
+
+
+def _dense_notes(methods) -> list[str]:
+    if not any(m.data == "dense" for m in methods):
+        return []
+    return [
+        "- Dense-control methods (ACT) run each suite's task at 20 fps with 3 s of control per keyframe of the "
+        "budget (600 steps nominal, 1200 with the recovery budget). A nudge fires at the dense step where the "
+        "expert reaches its first keyframe (median over the training demonstrations), the keyframe suites' "
+        "'after the first keyframe'. `latency` stays one env step: 50 ms in dense mode against one whole keyframe "
+        "move in keyframe mode, so that row does not compare the two control modes.",
+    ]
 
 
 def _cli_lines(c: dict | None) -> list[str]:
