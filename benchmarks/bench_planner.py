@@ -9,8 +9,8 @@ dagger      ``lerobot-pnp dagger`` with the config (expert demos of the ``full``
 clocked     The paper's clocked two-LSTM on the same task: trained (fast path, same epochs) on the
             demonstrations that needed no recovery (exactly 10 frames: it cannot represent longer episodes),
             evaluated on the same suites and seeds.
-memoryless  ``recurrent=False`` (the MLP trunk of matched parameter count), trained on the final DAgger
-            aggregate with the same recipe, same evaluation.
+memoryless  ``recurrent=False`` (the MLP trunk of matched parameter count), trained on the round-0
+            demonstrations with the same recipe, same evaluation.
 phase_told  The same matched MLP told the phase: the same demonstrations (same seeds) recorded with
             ``observe_phase`` (a one-hot of the phase the env infers from the true simulator state, appended
             to ``environment_state``; privileged), round 0 only (no DAgger), same recipe and evaluation.
@@ -194,17 +194,15 @@ def main() -> None:
         rows.insert(0, ("clocked (paper), 10-frame demos", res))
         results["clocked_checkpoint"] = str(ckpt)
 
-    if "memoryless" in sections:
-        last = out / "dagger" / f"round_{cfg.rounds:02d}"
-        data = last / "data" if cfg.rounds > 0 else out / "dagger" / "demos"
-        repo = f"{cfg.base_repo_id}_aggregate{cfg.rounds:02d}" if cfg.rounds > 0 else f"{cfg.base_repo_id}_demos"
+    if "memoryless" in sections:  # round-0 data, like the phase-told control and the round-0 planner
+        data, repo = out / "dagger" / "demos", f"{cfg.base_repo_id}_demos"
         n_demos = cfg.num_demos
         test = f"{n_demos - max(1, round(cfg.test_fraction * n_demos))}:{n_demos}"
         policy = copy.deepcopy(cfg.policy)
         policy.recurrent = False
         ckpt, train_s = train(data, repo, test, policy, cfg, out / "memoryless")
         res = evaluate_checkpoint(cfg, ckpt, env_cfg, out / "memoryless" / "eval.json")
-        rows.append((f"memoryless (matched MLP), round-{cfg.rounds} data", res))
+        rows.append(("memoryless (matched MLP), round-0 data", res))
 
     if "phase_told" in sections:
         told = copy.deepcopy(cfg)
