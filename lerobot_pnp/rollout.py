@@ -90,8 +90,12 @@ def resolve_checkpoint(path: str | Path) -> Path:
     )
 
 
-# environment_state widths a task can give: object xyz [+ (sin 4 yaw, cos 4 yaw)] [+ goal xy]
-ENV_STATE_WIDTHS = (robot.OBJECT_DIM, robot.OBJECT_DIM + 2, robot.OBJECT_DIM + 4)
+# environment_state widths a task can give: object xyz [+ (sin 4 yaw, cos 4 yaw)] [+ goal xy] [+ phase one-hot]
+ENV_STATE_WIDTHS = tuple(
+    sorted(
+        {robot.OBJECT_DIM + yaw + goal + phase for yaw in (0, 2) for goal in (0, 2) for phase in (0, robot.N_KEYFRAMES)}
+    )
+)
 
 
 def check_policy_features(config: Any, env_state_dim: int | None = None) -> None:
