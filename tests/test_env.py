@@ -269,3 +269,27 @@ def test_observe_phase_appends_the_inferred_phase_one_hot():
             break
     assert len(seen) >= 5  # the one-hot follows the task through its phases
     assert told.observation_space["environment_state"].shape == (3 + robot.N_KEYFRAMES,)
+
+
+def test_policy_feature_check_accepts_every_task_width_and_names_a_wrong_one():
+    """A checkpoint trained on any task's observation (object, + yaw, + goal, + phase one-hot) passes the
+    feature check; another width fails with a message naming the feature."""
+    from lerobot.configs import FeatureType, PolicyFeature
+
+    from lerobot_pnp.policy import PnpLstmConfig
+    from lerobot_pnp.rollout import IncompatiblePolicyError, check_policy_features
+
+    def config(env_width):
+        cfg = PnpLstmConfig()
+        cfg.input_features = {
+            "observation.state": PolicyFeature(FeatureType.STATE, (robot.STATE_DIM,)),
+            "observation.environment_state": PolicyFeature(FeatureType.ENV, (env_width,)),
+        }
+        cfg.output_features = {"action": PolicyFeature(FeatureType.ACTION, (robot.ACTION_DIM,))}
+        return cfg
+
+    for preset_changes in ({}, {"preset": "full"}, {"observe_phase": True}, {"preset": "full", "observe_phase": True}):
+        width = len(BaxterPnPEnvConfig(**preset_changes).environment_state_names)
+        check_policy_features(config(width))
+    with pytest.raises(IncompatiblePolicyError, match="observation.environment_state"):
+        check_policy_features(config(4))
