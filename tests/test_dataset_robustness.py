@@ -119,11 +119,16 @@ def test_resume_after_kill_keeps_unrelated_files_and_finishes(tmp_path):
     assert (root / "notes.txt").read_text() == "keep me" and validate_dataset(root)["total_episodes"] == 2
 
 
+def _sigint_as_in_a_terminal() -> None:
+    """A background job (``cmd &``, CI runners) starts its children with SIGINT ignored; a terminal does not."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def test_ctrl_c_is_one_line_and_resume_finishes(tmp_path):
     root = tmp_path / "sigint"
     proc = subprocess.Popen(
         _args(root, 8, "--tasks=4", "--workers=1"), env=_env(), stderr=subprocess.PIPE, text=True,
-        start_new_session=True,
+        start_new_session=True, preexec_fn=_sigint_as_in_a_terminal,
     )  # fmt: skip
     _wait_for(_first_shard_done(root), proc)
     os.killpg(proc.pid, signal.SIGINT)  # Ctrl-C in a terminal: the whole process group
