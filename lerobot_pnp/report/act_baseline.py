@@ -91,37 +91,28 @@ class _Frames:
 
 
 def _read_frames(dataset_root: Path, episodes: np.ndarray) -> _Frames:
-    import pyarrow.compute as pc
-    import pyarrow.dataset as pads
+    from lerobot_pnp.report.adapters import read_frames
 
-    files = sorted((dataset_root / "data").rglob("*.parquet"))
-    if not files:
-        raise DatasetError(f"{dataset_root}: no data/*.parquet files")
-    cols = ["episode_index", "frame_index", "observation.state", "observation.environment_state", "action"]
-    table = pads.dataset([str(f) for f in files], format="parquet").to_table(columns=cols)
-    ep, frame = table["episode_index"].to_numpy(), table["frame_index"].to_numpy()
-
-    def matrix(name: str) -> np.ndarray:
-        return pc.list_flatten(table[name]).to_numpy().reshape(len(table), -1).astype(np.float32)
-
-    keep = np.isin(ep, episodes)
-    order = np.lexsort((frame[keep], ep[keep]))
-    ep = ep[keep][order]
+    cols = read_frames(dataset_root, ["observation.state", "observation.environment_state", "action"])
+    keep = np.isin(cols["episode_index"], episodes)
+    ep = cols["episode_index"][keep]
     if not len(ep):
         raise DatasetError(f"{dataset_root}: none of the episodes {episodes[:5].tolist()}... are in the data")
-    state, env_state, action = (matrix(n)[keep][order] for n in cols[2:])
+    state, env_state, action = (
+        cols[n][keep].astype(np.float32) for n in ("observation.state", "observation.environment_state", "action")
+    )
     ends = np.searchsorted(ep, ep, side="right") - 1
     return _Frames(state, env_state, action, ep, ends)
 
 
 def split_episodes(dataset_root: Path, split: str) -> np.ndarray:
     """Episode indices of ``split`` (``meta/info.json`` ``splits``, as the rest of the study reads them)."""
-    info = json.loads((dataset_root / "meta" / "info.json").read_text())
-    spec = (info.get("splits") or {}).get(split)
-    if not spec:
+    from lerobot_pnp.report.adapters import split_episodes as recorded_split
+
+    episodes = recorded_split(dataset_root, split)
+    if episodes is None:
         raise DatasetError(f"{dataset_root}: no {split!r} split in meta/info.json")
-    a, b = (int(v) for v in str(spec).split(":"))
-    return np.arange(a, b)
+    return episodes
 
 
 class _ChunkBatches:
@@ -268,23 +259,19 @@ def dense_nudge_step(dataset_root: Path) -> int:
     a different start). The dense equivalent is the step the first keyframe is reached, read from the
     demonstrations' ``phase.index`` (first frame of phase 1).
     """
-    import pyarrow.dataset as pads
+    from lerobot_pnp.report.adapters import read_frames
 
     key = str(Path(dataset_root).resolve())
     if key not in _NUDGE_STEP:
-        files = sorted((Path(dataset_root) / "data").rglob("*.parquet"))
-        table = pads.dataset([str(f) for f in files], format="parquet").to_table(
-            columns=["episode_index", "frame_index", "phase.index"]
-        )
-        ep, frame = table["episode_index"].to_numpy(), table["frame_index"].to_numpy()
-        phase = np.asarray(table["phase.index"].to_pylist()).reshape(len(ep))
+        cols = read_frames(Path(dataset_root), ["phase.index"])
+        ep, frame = cols["episode_index"], cols["frame_index"]
+        phase = cols["phase.index"].reshape(len(ep))
         rows = np.isin(ep, split_episodes(Path(dataset_root), "train")) & (phase >= 1)
         ep, frame = ep[rows], frame[rows]
-        order = np.lexsort((frame, ep))
-        _, first = np.unique(ep[order], return_index=True)  # each episode's first frame in phase >= 1
+        _, first = np.unique(ep, return_index=True)  # each episode's first frame in phase >= 1 (rows sorted)
         if not len(first):
             raise DatasetError(f"{dataset_root}: no training frame reaches phase 1")
-        _NUDGE_STEP[key] = int(np.median(frame[order][first]))
+        _NUDGE_STEP[key] = int(np.median(frame[first]))
     return _NUDGE_STEP[key]
 
 
@@ -310,14 +297,12 @@ def check_same_demonstrations(keyframe_root: Path, dense_root: Path) -> int:
     Episode slot ``i`` of a generation uses seed ``seed + i`` unless the expert failed and reseeded, so equal
     ``episode.seed`` per episode means the same object positions in both recordings.
     """
-    import pyarrow.dataset as pads
+    from lerobot_pnp.report.adapters import read_frames
 
     seeds, splits = [], []
     for root in (keyframe_root, dense_root):
-        files = sorted((Path(root) / "data").rglob("*.parquet"))
-        t = pads.dataset([str(f) for f in files], format="parquet").to_table(columns=["episode_index", "episode.seed"])
-        ep = t["episode_index"].to_numpy()
-        seed = np.asarray(t["episode.seed"].to_pylist()).reshape(len(ep))
+        cols = read_frames(Path(root), ["episode.seed"])
+        ep, seed = cols["episode_index"], cols["episode.seed"].reshape(len(cols["episode_index"]))
         _, first = np.unique(ep, return_index=True)
         seeds.append(seed[first])
         splits.append(json.loads((Path(root) / "meta" / "info.json").read_text()).get("splits"))

@@ -111,43 +111,59 @@ class Episodes:
     actions: list[np.ndarray]  # E arrays (T_e, action_dim)
 
 
+def read_frames(dataset_root: Path, columns: list[str]) -> dict[str, np.ndarray]:
+    """The named per-frame columns of a dataset, rows sorted by episode then frame (vector columns as
+    ``(N, D)``), plus ``episode_index`` and ``frame_index``.
+
+    The data files of a LeRobotDataset v3 are plain parquet: reading the columns in one go takes well under
+    a second, where LeRobotDataset's row access takes minutes.
+    """
+    import pyarrow as pa
+    import pyarrow.compute as pc
+    import pyarrow.dataset as pads
+
+    files = sorted((Path(dataset_root) / "data").rglob("*.parquet"))
+    if not files:
+        raise DatasetError(f"{dataset_root}: no data/*.parquet files")
+    names = list(dict.fromkeys(["episode_index", "frame_index", *columns]))
+    table = pads.dataset([str(f) for f in files], format="parquet").to_table(columns=names)
+    order = np.lexsort((table["frame_index"].to_numpy(), table["episode_index"].to_numpy()))
+    out = {}
+    for name in names:
+        col = table[name]
+        if pa.types.is_list(col.type) or pa.types.is_fixed_size_list(col.type):
+            out[name] = pc.list_flatten(col).to_numpy().reshape(len(table), -1)[order]
+        else:
+            out[name] = col.to_numpy()[order]
+    return out
+
+
+def split_episodes(dataset_root: Path, split: str) -> np.ndarray | None:
+    """Episode indices of ``split`` from ``meta/info.json`` ``splits`` (None if the dataset records none)."""
+    info = json.loads((Path(dataset_root) / "meta" / "info.json").read_text())
+    spec = (info.get("splits") or {}).get(split)
+    if not spec:
+        return None
+    a, b = (int(v) for v in str(spec).split(":"))
+    return np.arange(a, b)
+
+
 def load_train_episodes(dataset_root: Path, split: str = "train", limit: int | None = None) -> Episodes:
     """Episodes of ``split`` (meta/info.json ``splits``; all episodes if absent), read with LeRobot's dataset.
 
     ``limit`` keeps the first ``limit`` episodes of the split (the data-efficiency study).
     """
-    import pyarrow.compute as pc
-    import pyarrow.dataset as pads
-
-    info = json.loads((dataset_root / "meta" / "info.json").read_text())
-    # the data files of a LeRobotDataset v3 are plain parquet: read the four columns needed, in one go
-    # (LeRobotDataset's row access takes minutes for this; the columns take well under a second)
-    files = sorted((dataset_root / "data").rglob("*.parquet"))
-    if not files:
-        raise DatasetError(f"{dataset_root}: no data/*.parquet files")
-    table = pads.dataset([str(f) for f in files], format="parquet").to_table(
-        columns=["episode_index", "frame_index", "observation.environment_state", "action"]
-    )
-    ep = table["episode_index"].to_numpy()
-    frame = table["frame_index"].to_numpy()
-
-    def matrix(name: str) -> np.ndarray:
-        col = pc.list_flatten(table[name]).to_numpy()
-        return col.reshape(len(table), -1).astype(np.float32)
-
-    env_state, action = matrix("observation.environment_state"), matrix("action")
-    spec = (info.get("splits") or {}).get(split)
-    if spec:
-        a, b = (int(v) for v in str(spec).split(":"))
-        wanted = np.arange(a, b)
-    elif split == "train":
+    frames = read_frames(dataset_root, ["observation.environment_state", "action"])
+    ep = frames["episode_index"]
+    env_state = frames["observation.environment_state"].astype(np.float32)
+    action = frames["action"].astype(np.float32)
+    wanted = split_episodes(dataset_root, split)
+    if wanted is None:
+        if split != "train":
+            raise DatasetError(f"{dataset_root}: no {split!r} split in meta/info.json")
         wanted = np.unique(ep)
-    else:
-        raise DatasetError(f"{dataset_root}: no {split!r} split in meta/info.json")
     if limit is not None:
         wanted = wanted[:limit]
-    order = np.lexsort((frame, ep))  # rows by episode, then frame
-    ep, env_state, action = ep[order], env_state[order], action[order]
     starts = np.searchsorted(ep, wanted, side="left")
     stops = np.searchsorted(ep, wanted, side="right")
     firsts, actions = [], []
