@@ -10,12 +10,12 @@ clocked     The paper's clocked two-LSTM on the same task: trained (fast path, s
             demonstrations that needed no recovery (exactly 10 frames: it cannot represent longer episodes),
             evaluated on the same suites and seeds.
 memoryless  ``recurrent=False`` (the MLP trunk of matched parameter count), trained on the round-0
-            demonstrations with the same recipe except the late episodes (a model without memory cannot
-            tell a late observation from a current one, so they only hurt it), same evaluation.
+            demonstrations with the same recipe, and again on current observations only (no late
+            episodes), same evaluation.
 phase_told  The same matched MLP told the phase: the same demonstrations (same seeds) recorded with
             ``observe_phase`` (a one-hot of the phase the env infers from the true simulator state, appended
-            to ``environment_state``; privileged), round 0 only (no DAgger), the memoryless control's recipe,
-            same evaluation.
+            to ``environment_state``; privileged), round 0 only (no DAgger), both of the memoryless
+            control's recipes, same evaluation.
 latency     ``select_action`` at batch 1, median over 2000 calls, recovering vs clocked (one torch thread).
 lerobot_eval  (not in the default sections) the real ``lerobot-eval`` CLI on the recovering checkpoint of
             round ``--eval_round`` (default: the last), every eval suite, the same seeds and episode counts;
@@ -196,29 +196,36 @@ def main() -> None:
         rows.insert(0, ("clocked (paper), 10-frame demos", res))
         results["clocked_checkpoint"] = str(ckpt)
 
+    # The memoryless controls with both recipes: with the late episodes (the planner's recipe) and on current
+    # observations only (a model without memory cannot tell a late observation from a current one; measured,
+    # the late episodes help the plain MLP and hurt the phase-told one, so both are reported).
+    recipes = (("late", cfg.policy.latency_augment_prob), ("current", 0.0))
     if "memoryless" in sections:  # round-0 data, like the phase-told control and the round-0 planner
         data, repo = out / "dagger" / "demos", f"{cfg.base_repo_id}_demos"
         n_demos = cfg.num_demos
         test = f"{n_demos - max(1, round(cfg.test_fraction * n_demos))}:{n_demos}"
-        policy = copy.deepcopy(cfg.policy)
-        policy.recurrent = False
-        # Late episodes only hurt a model without memory: it cannot tell a late observation of frame t-1
-        # from a current one of frame t-1, so it is trained on current observations only (both controls).
-        policy.latency_augment_prob = 0.0
-        ckpt, train_s = train(data, repo, test, policy, cfg, out / "memoryless")
-        res = evaluate_checkpoint(cfg, ckpt, env_cfg, out / "memoryless" / "eval.json")
-        rows.append(("memoryless (matched MLP), round-0 data", res))
+        for name, prob in recipes:
+            policy = copy.deepcopy(cfg.policy)
+            policy.recurrent, policy.latency_augment_prob = False, prob
+            rdir = out / ("memoryless_late" if name == "late" else "memoryless")
+            ckpt, train_s = train(data, repo, test, policy, cfg, rdir)
+            res = evaluate_checkpoint(cfg, ckpt, env_cfg, rdir / "eval.json")
+            rows.append((f"memoryless (matched MLP), round-0 data, {name} observations in training", res))
 
     if "phase_told" in sections:
-        told = copy.deepcopy(cfg)
-        told.output_dir, told.rounds = str(out / "phase_told"), 0
-        told.env_changes = {**cfg.env_changes, "observe_phase": True}
-        told.policy.recurrent = False
-        told.policy.latency_augment_prob = 0.0  # as for the memoryless control above
-        summary = run_dagger(told)
-        log(f"phase-told MLP timings (s): {summary['timings_s']}")
-        res = json.loads((out / "phase_told" / "round_00" / "eval.json").read_text())
-        rows.append(("memoryless (matched MLP) told the phase, round-0 data", res))
+        for name, prob in reversed(recipes):  # "current" first: it writes the phase-told demonstrations
+            told = copy.deepcopy(cfg)
+            told.output_dir, told.rounds = str(out / ("phase_told_late" if name == "late" else "phase_told")), 0
+            told.env_changes = {**cfg.env_changes, "observe_phase": True}
+            told.policy.recurrent, told.policy.latency_augment_prob = False, prob
+            if name == "late":  # the same phase-told demonstrations, written by the "current" run
+                told.base_root, told.base_repo_id = str(out / "phase_told" / "demos"), f"{cfg.base_repo_id}_demos"
+            summary = run_dagger(told)
+            log(f"phase-told MLP ({name}) timings (s): {summary['timings_s']}")
+            res = json.loads((Path(told.output_dir) / "round_00" / "eval.json").read_text())
+            rows.append(
+                (f"memoryless (matched MLP) told the phase, round-0 data, {name} observations in training", res)
+            )
 
     if "latency" in sections:
         lat = {}

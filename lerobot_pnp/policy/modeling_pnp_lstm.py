@@ -160,7 +160,7 @@ class PnpLstmPolicy(PreTrainedPolicy):
         labels = [v if _is_window(v, x) else None for v in labels]
         x, y, valid, labels = self._episodes_of(batch, x, y, labels)
         if self.training and self.config.latency_augment_prob > 0:
-            x, valid = delay_some_episodes(x, valid, self.config.latency_augment_prob, labels[1] if labels else None)
+            x, valid = delay_some_episodes(x, valid, self.config.latency_augment_prob, labels[1])  # phase.index
         if self.training and self.config.input_noise_std > 0:
             x = x + self.config.input_noise_std * torch.randn_like(x)
 
