@@ -49,6 +49,10 @@ RECORDED_FILE = "meta/baxter_pnp_env.json"
 PAPER_TASK: dict[str, Any] = {
     "object_low": (0.45, 0.10),  # object xy box (m, base frame); fully reachable gripper-down
     "object_high": (0.75, 0.50),
+    # an xy box inside which no object is placed (rejection sampling; low == high excludes nothing): with
+    # object_low/high it makes a band, e.g. the strip along the edge of the training box or a ring around it
+    "object_exclude_low": (0.0, 0.0),
+    "object_exclude_high": (0.0, 0.0),
     "yaw_range": (0.0, 0.0),  # object yaw (rad); the paper varies position only
     "place_low": (0.60, -0.05),  # the place target is drawn from this xy box (a point in the paper),
     "place_high": (0.60, -0.05),  # outside the object box so no episode starts solved
@@ -99,7 +103,12 @@ FULL_TASK: dict[str, Any] = {
 }
 PRESETS: dict[str, dict[str, Any]] = {"paper": PAPER_TASK, "full": FULL_TASK}
 TASK_FIELDS = tuple(PAPER_TASK)
-_PAIRS = (("object_low", "object_high"), ("place_low", "place_high"), ("start_low", "start_high"))
+_PAIRS = (
+    ("object_low", "object_high"),
+    ("object_exclude_low", "object_exclude_high"),
+    ("place_low", "place_high"),
+    ("start_low", "start_high"),
+)
 _RANGES = ("yaw_range", "size_range", "mass_range", "friction_range")
 
 
@@ -125,6 +134,8 @@ class BaxterPnPEnvConfig(EnvConfig):
     # ---- task (None = from the preset / recorded task; see PAPER_TASK for meanings and defaults)
     object_low: tuple[float, float] | None = None
     object_high: tuple[float, float] | None = None
+    object_exclude_low: tuple[float, float] | None = None
+    object_exclude_high: tuple[float, float] | None = None
     yaw_range: tuple[float, float] | None = None
     place_low: tuple[float, float] | None = None
     place_high: tuple[float, float] | None = None
@@ -236,7 +247,7 @@ class BaxterPnPEnvConfig(EnvConfig):
             raise ConfigError(
                 f"env.speed (fraction of Baxter's joint velocity limits) must be in (0, 1], got {self.speed}"
             )
-        sizes = {name: 2 for name in ("object_low", "object_high", "place_low", "place_high", *_RANGES)}
+        sizes = {name: 2 for name in (*_PAIRS[0], *_PAIRS[1], "place_low", "place_high", *_RANGES)}
         sizes |= {"start_low": 3, "start_high": 3}
         for name, size in sizes.items():
             value = getattr(self, name)
@@ -257,6 +268,13 @@ class BaxterPnPEnvConfig(EnvConfig):
                 raise ConfigError(
                     f"env.{low} must be <= {high or 'its upper end'} elementwise, got {list(lo)} > {list(hi)}"
                 )
+        if all(e <= o for e, o in zip(self.object_exclude_low, self.object_low, strict=True)) and all(
+            e >= o for e, o in zip(self.object_exclude_high, self.object_high, strict=True)
+        ):
+            raise ConfigError(
+                f"env.object_exclude_low/high {list(self.object_exclude_low)}..{list(self.object_exclude_high)} "
+                f"covers the whole object box {list(self.object_low)}..{list(self.object_high)}: no position is left"
+            )
         for name in ("hover_height", "success_xy_tol"):
             if not (isinstance(getattr(self, name), int | float) and 0 < getattr(self, name) < 1):
                 raise ConfigError(f"env.{name} must be in (0, 1) m, got {getattr(self, name)!r}")

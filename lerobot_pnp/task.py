@@ -18,6 +18,7 @@ from lerobot_pnp.physics import BaxterPhysics
 
 RESET_OPTIONS = ("arm_qpos", "object_pos", "object_yaw")
 _START_TRIES = 20
+_OBJECT_TRIES = 10_000  # rejection draws for an object position outside the excluded box
 
 
 # Inferred task progress, as the index of the FSM state reached (robot.PHASE_NAMES), from the physical state.
@@ -77,7 +78,7 @@ class PickPlaceTask:
         if unknown:
             raise ResetOptionError(f"unknown reset option(s) {unknown}; valid options: {list(RESET_OPTIONS)}")
         c = self.config
-        xy = rng.uniform(c.object_low, c.object_high)
+        xy = self._sample_object_xy(rng)
         yaw = float(rng.uniform(*c.yaw_range)) if c.yaw_range[1] > c.yaw_range[0] else c.yaw_range[0]
         object_pos = np.array([xy[0], xy[1], 0.0])
         if "object_pos" in options:
@@ -112,6 +113,20 @@ class PickPlaceTask:
         self._fired, self._history, self._furthest, self._was_grasped = [], [], 0, False
         physics.set_place_target(self.place_xy)
         physics.reset(q, object_pos, yaw)
+
+    def _sample_object_xy(self, rng: np.random.Generator) -> np.ndarray:
+        """Uniform in the object box outside the excluded box (rejection sampling: exactly uniform on the band,
+        and without an excluded box the first draw is taken, so the paper's task draws what it always drew)."""
+        c = self.config
+        lo, hi = np.asarray(c.object_exclude_low), np.asarray(c.object_exclude_high)
+        for _ in range(_OBJECT_TRIES):
+            xy = rng.uniform(c.object_low, c.object_high)
+            if not np.all((lo < xy) & (xy < hi)):
+                return xy
+        raise ConfigError(
+            f"env.object_exclude_low/high {list(c.object_exclude_low)}..{list(c.object_exclude_high)} leaves almost "
+            f"none of the object box {list(c.object_low)}..{list(c.object_high)} ({_OBJECT_TRIES} draws rejected)"
+        )
 
     def _check_object_option(self, physics: BaxterPhysics, pos: np.ndarray, size: float) -> None:
         c = self.config

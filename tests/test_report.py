@@ -16,7 +16,7 @@ from lerobot_pnp.errors import ConfigError, PolicyError
 from lerobot_pnp.report.adapters import Episodes
 from lerobot_pnp.report.baselines import LookupTablePolicy
 from lerobot_pnp.report.stats import paired_comparison, sign_test_p, wilson_interval
-from lerobot_pnp.report.suites import SUITES, get_suites, strip_parts
+from lerobot_pnp.report.suites import SUITES, get_suites
 
 
 # ---------------------------------------------------------------------------------------------- stats
@@ -46,22 +46,37 @@ def test_sign_test_and_paired_comparison():
 
 
 # ---------------------------------------------------------------------------------------------- suites
-def test_strip_inside_and_ring_outside_the_training_box():
-    low, high = PAPER_TASK["object_low"], PAPER_TASK["object_high"]
-    inside = strip_parts(low, high, 0.03, outside=False)
-    outside = strip_parts(low, high, 0.03, outside=True)
-    for part in inside:
-        assert all(low[i] - 1e-9 <= part["object_low"][i] and part["object_high"][i] <= high[i] + 1e-9 for i in (0, 1))
-    for part in outside:  # every box reaches beyond the training box on one side
-        assert (
-            part["object_low"][0] < low[0]
-            or part["object_low"][1] < low[1]
-            or part["object_high"][0] > high[0]
-            or part["object_high"][1] > high[1]
-        )
-    # the four boxes cover the band: a point in the middle of the box is in none of them
-    centre = [(low[i] + high[i]) / 2 for i in (0, 1)]
-    assert not any(all(p["object_low"][i] <= centre[i] <= p["object_high"][i] for i in (0, 1)) for p in inside)
+def _object_starts(env_cfg, n: int) -> np.ndarray:
+    from lerobot_pnp.task import PickPlaceTask
+
+    task, rng = PickPlaceTask(env_cfg), np.random.default_rng(0)
+    return np.stack([task._sample_object_xy(rng) for _ in range(n)])
+
+
+def test_edge_strip_and_outside_ring_sample_exactly_the_band():
+    low, high = np.array(PAPER_TASK["object_low"]), np.array(PAPER_TASK["object_high"])
+    base = BaxterPnPEnvConfig(preset="paper")
+    (strip,) = SUITES["edge_strip"].env_configs(base)
+    (ring,) = SUITES["outside_ring"].env_configs(base)
+    inside = _object_starts(strip, 2000)
+    outside = _object_starts(ring, 2000)
+    # distance to the training box's edge: >= 0 inside the box (from its nearest side), < 0 beyond it
+    margin_in = np.minimum(inside - low, high - inside).min(axis=1)
+    assert margin_in.min() >= 0 and margin_in.max() <= 0.03 + 1e-9
+    beyond = np.maximum(low - outside, outside - high).max(axis=1)
+    assert beyond.min() > 0 and beyond.max() <= 0.03 + 1e-9
+    # uniform on the band: each side's share is its share of the band's area (long sides 0.4 m, short 0.3 m)
+    near_y_high = np.mean(high[1] - inside[:, 1] <= 0.03)
+    assert abs(near_y_high - 0.3 * 0.03 / (0.3 * 0.4 - 0.24 * 0.34)) < 0.04
+    # the nominal task draws exactly as before: no exclusion, first draw taken
+    assert np.array_equal(_object_starts(base, 5), np.random.default_rng(0).uniform(low, high, (5, 2)))
+
+
+def test_an_exclusion_that_covers_the_object_box_is_a_clear_error():
+    with pytest.raises(ConfigError, match="covers the whole object box"):
+        BaxterPnPEnvConfig(preset="paper", object_exclude_low=(0.4, 0.0), object_exclude_high=(0.8, 0.6))
+    with pytest.raises(ConfigError, match="object_exclude_low must be <= object_exclude_high"):
+        BaxterPnPEnvConfig(preset="paper", object_exclude_low=(0.6, 0.3), object_exclude_high=(0.5, 0.4))
 
 
 def test_suites_apply_to_the_training_task_and_reject_unknown_names():
@@ -70,7 +85,7 @@ def test_suites_apply_to_the_training_task_and_reject_unknown_names():
     assert grasp.grasp_miss_prob == 1.0 and grasp.keyframe_budget == 20 and grasp.episode_length == 20
     assert grasp.object_low == base.object_low  # everything else is the training task
     assert [s.name for s in get_suites(["nudge"])] == ["nudge_0.01", "nudge_0.02", "nudge_0.03", "nudge_0.05"]
-    assert SUITES["edge_strip"].part_episodes(10) == [3, 3, 2, 2]
+    assert SUITES["edge_strip"].part_episodes(10) == [10]
     with pytest.raises(ConfigError, match="unknown evaluation suite"):
         get_suites(["nudge_big"])
 

@@ -80,11 +80,11 @@ def test_dense_dataset_and_training_are_reused_on_the_second_call(study):
 
 def test_dense_recording_must_hold_the_same_demonstrations(study, tmp_path):
     out, _, _ = study
-    assert act_baseline.check_same_demonstrations(out / "dataset", out / "dataset_dense") == N
+    assert adapters.check_same_demonstrations(out / "dataset", out / "dataset_dense") == N
     other = tmp_path / "other"
     adapters.generate_dataset(other, N, seed=5, workers=1)  # other seeds: other object positions
     with pytest.raises(DatasetError, match="does not hold the demonstrations"):
-        act_baseline.check_same_demonstrations(other, out / "dataset_dense")
+        adapters.check_same_demonstrations(other, out / "dataset_dense")
 
 
 def test_dense_env_keeps_the_suite_and_times_the_nudge(study):

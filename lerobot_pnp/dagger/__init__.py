@@ -5,13 +5,14 @@ evaluation), ``writer`` (LeRobotDataset writing and aggregation), ``loop`` (the 
 ``stats`` (Wilson intervals).
 """
 
-from .config import DaggerConfig
+from .config import RECOVERING_RECIPE, DaggerConfig
 from .loop import evaluate_checkpoint, run_dagger, write_table
 from .rollouts import NOMINAL, SUITES, evaluate, labelled_rollout
 from .stats import wilson
 
 __all__ = [
     "NOMINAL",
+    "RECOVERING_RECIPE",
     "SUITES",
     "DaggerConfig",
     "evaluate",

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from lerobot_pnp.env_config import TASK_FIELDS
@@ -18,12 +19,21 @@ DEFAULT_ROLLOUT_SUITES = ["full", "grasp_miss", "drop", "nudge", "displace"]
 DEFAULT_EVAL_SUITES = ["nominal", "grasp_miss", "drop", "nudge", "displace", "noise_latency"]
 
 
+# The recovering planner's recipe (``configs/dagger.json``; how each part was chosen: docs/results/planner.md).
+# The study (``lerobot_pnp.report``) trains the same recipe on its own data.
+RECOVERING_RECIPE: dict[str, Any] = {
+    "mode": "recovering",
+    "hidden_size": 256,
+    "optimizer_lr": 3e-3,
+    "lr_scheduler": "cosine",
+    "scheduler_warmup_steps": 200,
+    "latency_augment_prob": 0.5,
+    "binary_gripper": True,
+}
+
+
 def _recovering_policy() -> PnpLstmConfig:
-    """The recipe of ``configs/dagger.json`` (docs/results/planner.md)."""
-    return PnpLstmConfig(
-        mode="recovering", hidden_size=256, optimizer_lr=3e-3, lr_scheduler="cosine", scheduler_warmup_steps=200,
-        latency_augment_prob=0.5, binary_gripper=True,
-    )  # fmt: skip
+    return PnpLstmConfig(**RECOVERING_RECIPE)
 
 
 @dataclass
@@ -44,6 +54,9 @@ class DaggerConfig:
             ``{"observe_phase": true}`` for the phase-told memoryless control; validated by the env config.
         base_root / base_repo_id: An existing keyframe dataset (its recorded task defines the env) used as the
             round-0 data instead of generating ``num_demos`` demonstrations.
+        round0_checkpoint: A policy already trained on the round-0 data (a ``pretrained_model`` folder): round 0
+            is not trained again, the first rollouts run this policy (the study's ``recovering_dagger``
+            continues its ``recovering`` run of the same seed this way).
         num_demos: Expert demonstrations written for round 0 (``full`` task as recorded: every perturbation
             at its preset probability, so recoveries are demonstrated); the last ``test_fraction`` is held out.
         rounds: DAgger rounds after round 0.
@@ -58,6 +71,7 @@ class DaggerConfig:
     env_changes: dict[str, Any] = field(default_factory=dict)
     base_root: str | None = None
     base_repo_id: str = "local/baxter_pnp_full"
+    round0_checkpoint: str | None = None
     num_demos: int = 600
     test_fraction: float = 0.1
     rounds: int = 1
@@ -83,6 +97,10 @@ class DaggerConfig:
             (self.eval_episodes >= 0, f"eval_episodes must be >= 0, got {self.eval_episodes}"),
             (self.epochs >= 1 and self.batch_size >= 1, "epochs and batch_size must be >= 1"),
             (bool(self.rollout_suites), "rollout_suites must not be empty"),
+            (
+                self.round0_checkpoint is None or Path(self.round0_checkpoint, "config.json").is_file(),
+                f"round0_checkpoint {self.round0_checkpoint} is not a policy checkpoint (no config.json)",
+            ),
             (
                 not (bad := sorted(set(self.env_changes) - set(TASK_FIELDS))),
                 f"env_changes has unknown task fields {bad}; valid: {sorted(TASK_FIELDS)}",

@@ -198,7 +198,10 @@ def run_dagger(cfg: DaggerConfig) -> dict:
                 aggregate(roots, repos, data_root, data_repo, env_cfg, {"test": test})
         timings[f"round{rnd}_data_s"] = time.perf_counter() - t
         t = time.perf_counter()
-        ckpt = _train(cfg, data_root, data_repo, test, rdir / "train")
+        if rnd == 0 and cfg.round0_checkpoint:
+            ckpt = Path(cfg.round0_checkpoint)
+        else:
+            ckpt = _train(cfg, data_root, data_repo, test, rdir / "train")
         timings[f"round{rnd}_train_s"] = time.perf_counter() - t
         if cfg.eval_episodes > 0:
             rows.append((f"round {rnd}", evaluate_checkpoint(cfg, ckpt, env_cfg, rdir / "eval.json")))

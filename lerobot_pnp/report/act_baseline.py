@@ -289,27 +289,3 @@ def dense_env(env_cfg, dense_root: Path | None):
             raise DatasetError("a dense nudge suite needs the dense dataset to time the nudge")
         changes["nudge_at_step"] = dense_nudge_step(dense_root)
     return env_cfg.with_changes(**changes)
-
-
-def check_same_demonstrations(keyframe_root: Path, dense_root: Path) -> int:
-    """Raise DatasetError unless both datasets hold the same episodes (seeds, split); return the count.
-
-    Episode slot ``i`` of a generation uses seed ``seed + i`` unless the expert failed and reseeded, so equal
-    ``episode.seed`` per episode means the same object positions in both recordings.
-    """
-    from lerobot_pnp.report.adapters import read_frames
-
-    seeds, splits = [], []
-    for root in (keyframe_root, dense_root):
-        cols = read_frames(Path(root), ["episode.seed"])
-        ep, seed = cols["episode_index"], cols["episode.seed"].reshape(len(cols["episode_index"]))
-        _, first = np.unique(ep, return_index=True)
-        seeds.append(seed[first])
-        splits.append(json.loads((Path(root) / "meta" / "info.json").read_text()).get("splits"))
-    if len(seeds[0]) != len(seeds[1]) or not np.array_equal(seeds[0], seeds[1]) or splits[0] != splits[1]:
-        differ = np.flatnonzero(seeds[0][: len(seeds[1])] != seeds[1][: len(seeds[0])])[:5].tolist()
-        raise DatasetError(
-            f"{dense_root} does not hold the demonstrations of {keyframe_root}: {len(seeds[1])} vs {len(seeds[0])} "
-            f"episodes, splits {splits[1]} vs {splits[0]}, first differing episodes {differ}"
-        )
-    return len(seeds[0])

@@ -20,12 +20,19 @@ BATCH_SIZE = 64  # episodes per batch (the fast trainer's default)
 
 
 def generate_dataset(
-    root: Path, num_episodes: int, seed: int, workers: int = 0, preset: str = "paper", control_mode: str = "keyframe"
+    root: Path,
+    num_episodes: int,
+    seed: int,
+    workers: int = 0,
+    preset: str = "paper",
+    control_mode: str = "keyframe",
+    env_changes: dict | None = None,
 ) -> dict:
     """Generate (or finish, or reuse) an expert dataset of ``num_episodes`` in ``root``; returns its summary.
 
     ``control_mode="dense"`` records the same demonstrations (same seeds, same object positions) at the
-    control rate (ACT's training data).
+    control rate (ACT's training data); ``env_changes`` sets task fields on top of the preset (e.g.
+    ``observe_phase``: the same demonstrations with the phase one-hot observed).
     """
     from lerobot_pnp.dataset import GenerateConfig, generate, validate_dataset
     from lerobot_pnp.env_config import BaxterPnPEnvConfig
@@ -44,7 +51,7 @@ def generate_dataset(
         workers=workers,
         resume=root.exists(),
         progress=True,
-        env=BaxterPnPEnvConfig(preset=preset, control_mode=control_mode),
+        env=BaxterPnPEnvConfig(preset=preset, control_mode=control_mode, **(env_changes or {})),
     )
     return generate(cfg)
 
@@ -174,3 +181,28 @@ def load_train_episodes(dataset_root: Path, split: str = "train", limit: int | N
     if not actions:
         raise DatasetError(f"{dataset_root}: split {split!r} has no episodes")
     return Episodes(np.asarray(wanted), np.stack(firsts), actions)
+
+
+def check_same_demonstrations(root: Path, other: Path) -> int:
+    """Raise DatasetError unless both recordings hold the same episodes (seeds, split); return the count.
+
+    The study records its demonstrations once more for a method that needs another view of them (the dense
+    control rate for ACT, the phase one-hot for the phase-told control); this is what makes them "the same data".
+
+    Episode slot ``i`` of a generation uses seed ``seed + i`` unless the expert failed and reseeded, so equal
+    ``episode.seed`` per episode means the same object positions in both recordings.
+    """
+    seeds, splits = [], []
+    for path in (root, other):
+        cols = read_frames(Path(path), ["episode.seed"])
+        ep, seed = cols["episode_index"], cols["episode.seed"].reshape(len(cols["episode_index"]))
+        _, first = np.unique(ep, return_index=True)
+        seeds.append(seed[first])
+        splits.append(json.loads((Path(path) / "meta" / "info.json").read_text()).get("splits"))
+    if len(seeds[0]) != len(seeds[1]) or not np.array_equal(seeds[0], seeds[1]) or splits[0] != splits[1]:
+        differ = np.flatnonzero(seeds[0][: len(seeds[1])] != seeds[1][: len(seeds[0])])[:5].tolist()
+        raise DatasetError(
+            f"{other} does not hold the demonstrations of {root}: {len(seeds[1])} vs {len(seeds[0])} "
+            f"episodes, splits {splits[1]} vs {splits[0]}, first differing episodes {differ}"
+        )
+    return len(seeds[0])

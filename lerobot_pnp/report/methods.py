@@ -7,8 +7,20 @@ is evaluated. New methods (the recovering planner, DAgger rounds, ACT) plug in b
 * ``clocked_lstm``: the paper's planner, two LSTMs (PICK, PLACE) on a fixed 10-step clock.
 * ``shared_lstm``: one LSTM for both subtasks with a subtask one-hot input.
 * ``memoryless``: the clocked two-network model with the hidden state reset every step (same weights and
-  inputs; no memory). Only the input-to-hidden weights are used, so it is not capacity-matched (issue 11's
-  fair controls will be added as methods of their own).
+  inputs; no memory). Only the input-to-hidden weights are used, so it is not capacity-matched: the paper's
+  architecture without its memory.
+* ``recovering``: the recovering planner (``policy/recovering.py``): one LSTM over the whole variable-length
+  episode, no clock, trained with the recipe of ``configs/dagger.json`` (``RECOVERING_RECIPE``) on the same
+  demonstrations, which show no recovery.
+* ``recovering_dagger``: ``recovering`` of the same seed plus one DAgger round (``lerobot_pnp.dagger``): 300
+  rollouts of that policy under nominal, missed-grasp, drop, nudge and displacement conditions, every visited
+  state labelled by the expert, aggregated with the demonstrations, retrained from scratch. Extra data the
+  others do not get (interactive expert labels): it shows what the teacher adds, not a like-for-like method.
+* ``memoryless_mlp``: the capacity-matched memoryless control: ``recovering`` with an MLP trunk of about the
+  LSTM trunk's parameter count instead of the LSTM (same data, inputs, loss and budget).
+* ``phase_told_mlp``: the same MLP told the phase: trained and run with ``observe_phase`` (a one-hot of the
+  phase inferred from the true simulator state appended to ``environment_state``; privileged), on the same
+  demonstrations recorded with that observation. What memory must infer, handed to a network without it.
 * ``act``: LeRobot's ACT, state-only, trained on the dense recording of the same demonstrations and run in
   dense control mode (``act_baseline.py``; its budget is in its description).
 """
@@ -18,13 +30,15 @@ from __future__ import annotations
 import json
 import shutil
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+from lerobot_pnp.dagger import RECOVERING_RECIPE
 from lerobot_pnp.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.report import act_baseline, adapters
 from lerobot_pnp.report.evaluation import EpisodeRecord, eval_expert, eval_lerobot_policy, load_checkpoint
+from lerobot_pnp.report.suites import RECOVERY_BUDGET
 
 
 @dataclass
@@ -51,7 +65,9 @@ class Method:
     train: Callable[[TrainContext], Path | None]
     evaluate: Callable[[Path | None, TrainContext, BaxterPnPEnvConfig, int, int, int], list[EpisodeRecord]]
     policy_overrides: dict = field(default_factory=dict)
-    data: str = "keyframe"  # the recording it trains on: keyframe | dense (the study generates what is needed)
+    # the recording it trains on (the study generates each one needed, all of the same demonstrations):
+    # keyframe | dense (control rate, ACT) | phase (keyframe with the phase one-hot observed)
+    data: str = "keyframe"
     # the env config it runs a suite's config in (ACT: the same task in dense control mode); None = unchanged
     adapt_env: Callable[[BaxterPnPEnvConfig, TrainContext], BaxterPnPEnvConfig] | None = None
     suites: tuple[str, ...] | None = None  # evaluated only on these suites (cost); None = every suite
@@ -104,6 +120,51 @@ def pnp_lstm_method(name: str, label: str, description: str, **overrides) -> Met
     return Method(name, label, description, True, _pnp_lstm_trainer(overrides), _checkpoint_eval, overrides)
 
 
+# The recovering planner's recipe; its training windows hold the longest episode of the study (a recovery
+# suite's budget + the final state: DAgger's rollouts are that long).
+RECOVERING = {**RECOVERING_RECIPE, "max_episode_length": RECOVERY_BUDGET + 1}
+# The memoryless controls take the recipe that gave each its best nominal success on the `full` task
+# (docs/results/planner.md): the plain MLP with the late episodes, the phase-told one without.
+MEMORYLESS_MLP = {**RECOVERING, "recurrent": False}
+PHASE_TOLD_MLP = {**RECOVERING, "recurrent": False, "latency_augment_prob": 0.0}
+DAGGER_ROLLOUTS = 300  # policy episodes of the one DAgger round, cycled over the rollout suites
+
+
+def _dagger_train(ctx: TrainContext) -> Path:
+    """One DAgger round on top of the ``recovering`` run of the same seed (trained first if missing)."""
+    from lerobot_pnp.dagger import DaggerConfig, run_dagger
+    from lerobot_pnp.policy import PnpLstmConfig
+
+    if ctx.n_demos is not None:
+        raise ConfigError("method 'recovering_dagger' has no data-efficiency variant")
+    round0 = METHODS["recovering"].train(
+        replace(ctx, train_dir=ctx.train_dir.parent.parent / "recovering" / ctx.train_dir.name)
+    )
+    summary = run_dagger(
+        DaggerConfig(
+            output_dir=str(ctx.train_dir),
+            base_root=str(ctx.dataset_root),
+            base_repo_id=f"local/{ctx.dataset_root.name}",
+            round0_checkpoint=str(round0),
+            # room to recover in the rollouts (the study's recovery suites have the same budget)
+            env_changes={"keyframe_budget": RECOVERY_BUDGET},
+            rounds=1,
+            rollouts_per_round=DAGGER_ROLLOUTS,
+            eval_episodes=0,  # the study evaluates it like every other method
+            policy=PnpLstmConfig(**RECOVERING),
+            epochs=ctx.epochs,
+            batch_size=adapters.BATCH_SIZE,
+            seed=ctx.seed,
+            progress=False,
+        )
+    )
+    return Path(summary["final_checkpoint"])
+
+
+def _observe_phase(env_cfg: BaxterPnPEnvConfig, ctx: TrainContext) -> BaxterPnPEnvConfig:
+    return env_cfg.with_changes(observe_phase=True)
+
+
 def _act_budget(ctx: TrainContext):
     return act_baseline.ActBudget() if ctx.act_steps is None else act_baseline.ActBudget(steps=ctx.act_steps)
 
@@ -152,6 +213,42 @@ METHODS: dict[str, Method] = {
         pnp_lstm_method("clocked_lstm", "clocked LSTM (paper)", "two LSTMs on a fixed 10-step clock (paper)"),
         pnp_lstm_method("shared_lstm", "shared LSTM", "one LSTM + subtask one-hot", shared_network=True),
         pnp_lstm_method("memoryless", "memoryless", "clocked nets, hidden state reset every step", recurrent=False),
+        pnp_lstm_method(
+            "memoryless_mlp",
+            "memoryless MLP (matched)",
+            "the recovering planner's recipe with an MLP trunk of about the LSTM trunk's parameter count (no memory)",
+            **MEMORYLESS_MLP,
+        ),
+        Method(
+            "phase_told_mlp",
+            "MLP told the phase",
+            "the matched MLP with the phase one-hot inferred from the simulator appended to its input (privileged; "
+            "the same demonstrations recorded with `observe_phase`; trained on current observations only)",
+            True,
+            _pnp_lstm_trainer(PHASE_TOLD_MLP),
+            _checkpoint_eval,
+            PHASE_TOLD_MLP,
+            data="phase",
+            adapt_env=_observe_phase,
+        ),
+        pnp_lstm_method(
+            "recovering",
+            "recovering LSTM",
+            "one LSTM over the whole episode, no clock, learned subtask switch; the recipe of `configs/dagger.json` "
+            "(hidden 256, late episodes, binary gripper); no recovery in its demonstrations",
+            **RECOVERING,
+        ),
+        Method(
+            "recovering_dagger",
+            "recovering LSTM + DAgger",
+            f"`recovering` of the same seed + one DAgger round: {DAGGER_ROLLOUTS} rollouts of it under nominal, "
+            "missed-grasp, drop, nudge and displacement conditions labelled by the expert, aggregated with the "
+            "demonstrations, retrained from scratch (extra interactive data: what the teacher adds)",
+            True,
+            _dagger_train,
+            _checkpoint_eval,
+            RECOVERING,
+        ),
         Method(
             "act",
             "ACT (dense)",

@@ -1,7 +1,7 @@
 """The study's figures (matplotlib, Agg). Each figure carries the command and config that produced it.
 
 Loss curves (the paper's Fig. 4), success over the workspace, robustness curves with 95 % Wilson intervals,
-the data-efficiency curve and failures by FSM phase and cause. Functions take plain data (no simulator).
+the data-efficiency curve, success on the recovery suites and failures by FSM phase and cause. Functions take plain data (no simulator).
 """
 
 from __future__ import annotations
@@ -17,6 +17,8 @@ import numpy as np
 
 from lerobot_pnp import robot
 from lerobot_pnp.report.stats import Rate
+
+PANELS_PER_ROW = 4  # heat maps and failure panels wrap after this many methods
 
 
 def _finish(fig, path: Path, provenance: str) -> Path:
@@ -52,11 +54,15 @@ def success_heatmap(
 ) -> Path:
     """Success rate per cell of the object box, one panel per method (``panels``: name -> EpisodeRecords)."""
     n = len(panels)
-    fig, axes = plt.subplots(1, n, figsize=(3.4 * n + 1.2, 3.9), squeeze=False, layout="constrained")
+    cols = min(n, PANELS_PER_ROW)
+    rows = -(-n // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(3.4 * cols + 1.2, 3.9 * rows), squeeze=False, layout="constrained")
+    for ax in axes.flat[n:]:
+        ax.set_visible(False)
     xe = np.linspace(low[0], high[0], bins + 1)
     ye = np.linspace(low[1], high[1], bins + 1)
     image = None
-    for k, (ax, (name, records)) in enumerate(zip(axes[0], panels.items(), strict=True)):
+    for k, (ax, (name, records)) in enumerate(zip(axes.flat[:n], panels.items(), strict=True)):
         x = np.array([r.object_x for r in records])
         y = np.array([r.object_y for r in records])
         s = np.array([r.success for r in records], dtype=float)
@@ -71,11 +77,11 @@ def success_heatmap(
                     ax.text(cx, cy, f"{int(total[i, j])}", ha="center", va="center", fontsize=6, color="0.2")
         ax.set_title(f"{name}\n{100 * s.mean():.0f}% of {len(s)}", fontsize=9)
         ax.set_xlabel("object y (m)")
-        if k == 0:
+        if k % cols == 0:
             ax.set_ylabel("object x (m)")
         ax.invert_xaxis()  # y grows to the robot's left: seen from the robot
         ax.set_aspect("equal")
-    fig.colorbar(image, ax=list(axes[0]), label="success rate per cell\n(number = episodes)", shrink=0.85)
+    fig.colorbar(image, ax=list(axes.flat), label="success rate per cell\n(number = episodes)", shrink=0.85)
     if title:
         fig.suptitle(title, fontsize=10)
     fig.supxlabel(provenance, fontsize=6, color="0.35")
@@ -108,7 +114,38 @@ def rate_curves(
     ax.set_ylabel("success (%) with 95 % Wilson interval")
     ax.set_title(title)
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=8)
+    _legend(ax, len(curves))
+    return _finish(fig, path, provenance)
+
+
+def _legend(ax, entries: int) -> None:
+    if entries > 5:  # many methods: beside the plot, not over the curves
+        ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1))
+    else:
+        ax.legend(fontsize=8)
+
+
+def rate_bars(rates: dict[str, dict[str, Rate]], path: Path, provenance: str, title: str) -> Path:
+    """Grouped bars: success per suite (group) and method (bar), with 95 % Wilson intervals.
+
+    ``rates``: method -> {suite: Rate}; a method without a suite has no bar there.
+    """
+    suites = list(dict.fromkeys(s for per in rates.values() for s in per))
+    k = max(len(rates), 1)
+    width = 0.8 / k
+    fig, ax = plt.subplots(figsize=(max(6.4, 1.1 * len(suites) * k * 0.35 + 2.5), 4.2))
+    for i, (name, per) in enumerate(rates.items()):
+        xs = [j + (i - (k - 1) / 2) * width for j, s in enumerate(suites) if s in per]
+        r = np.array([100 * per[s].rate for s in suites if s in per])
+        lo = np.array([100 * per[s].interval[0] for s in suites if s in per])
+        hi = np.array([100 * per[s].interval[1] for s in suites if s in per])
+        ax.bar(xs, r, width, color=f"C{i}", label=name, yerr=[r - lo, hi - r], capsize=2, ecolor="0.25")
+    ax.set_xticks(range(len(suites)), suites)
+    ax.set_ylim(0, 103)
+    ax.set_ylabel("success (%) with 95 % Wilson interval")
+    ax.set_title(title)
+    ax.grid(True, axis="y", alpha=0.3)
+    _legend(ax, len(rates))
     return _finish(fig, path, provenance)
 
 
@@ -120,25 +157,30 @@ def failures_by_phase(failures: dict[str, dict[str, dict[str, int]]], path: Path
     none = [name for name, per in failures.items() if not any(per.values())]
     failures = {name: per for name, per in failures.items() if any(per.values())} or {"(no failures)": {}}
     n = len(failures)
-    fig, axes = plt.subplots(1, n, figsize=(4.2 * n + 1.4, 3.8), squeeze=False, sharey=True)
+    cols = min(n, PANELS_PER_ROW)
+    rows = -(-n // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols + 1.4, 3.8 * rows), squeeze=False, sharey=True)
+    for ax in axes.flat[n:]:
+        ax.set_visible(False)
     causes = sorted({c for per in failures.values() for counts in per.values() for c in counts})
     phases = list(robot.PHASE_NAMES)
     top = 1.0
-    for ax, (name, per_phase) in zip(axes[0], failures.items(), strict=True):
+    for ax, (name, per_phase) in zip(axes.flat[:n], failures.items(), strict=True):
         bottom = np.zeros(len(phases))
         for k, cause in enumerate(causes):
             h = np.array([per_phase.get(p, {}).get(cause, 0) for p in phases], dtype=float)
             ax.bar(range(len(phases)), h, bottom=bottom, color=f"C{k}")
             bottom += h
         top = max(top, bottom.max())
-        ax.set_xticks(range(len(phases)), [p.replace("/", "\n") for p in phases], fontsize=6)
+        ax.set_xticks(range(len(phases)), phases, fontsize=6, rotation=90)
         ax.set_title(f"{name} ({int(bottom.sum())} failures)", fontsize=9)
         ax.set_xlabel("furthest phase reached")
-    axes[0][0].set_ylabel("failed episodes")
+    for row in axes:
+        row[0].set_ylabel("failed episodes")
     axes[0][0].set_ylim(0, top * 1.12)
     if causes:
         handles = [matplotlib.patches.Patch(color=f"C{k}", label=c) for k, c in enumerate(causes)]
-        axes[0][-1].legend(
+        axes.flat[n - 1].legend(
             handles=handles,
             fontsize=7,
             title="failure cause",

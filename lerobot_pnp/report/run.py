@@ -21,13 +21,20 @@ import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from lerobot_pnp.env_config import BaxterPnPEnvConfig, read_recorded
+from lerobot_pnp.env_config import PAPER_TASK, BaxterPnPEnvConfig, read_recorded
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.report import adapters
-from lerobot_pnp.report.act_baseline import check_same_demonstrations
+from lerobot_pnp.report.adapters import check_same_demonstrations
 from lerobot_pnp.report.evaluation import records_from_json, records_to_json
 from lerobot_pnp.report.methods import TrainContext, get_methods
 from lerobot_pnp.report.suites import get_suites
+
+# The recordings a method can train on besides the keyframe dataset (``Method.data``): what they are and the
+# env-config changes they are generated with (the same seeds, so the same demonstrations).
+RECORDINGS: dict[str, tuple[str, dict]] = {
+    "dense": ("at the control rate (ACT)", {"control_mode": "dense"}),
+    "phase": ("with the phase one-hot observed (the phase-told control)", {"observe_phase": True}),
+}
 
 
 @dataclass
@@ -66,7 +73,18 @@ PRESETS: dict[str, dict] = {
         "train_seeds": [1000, 1001, 1002],
         # act: its own dense recording (~5 min once) and ~11 min per seed (2-min training, 9-min dense
         # evaluation of every suite below) on 2 shared cores, ~38 min in all
-        "methods": ["expert", "lookup_table", "clocked_lstm", "shared_lstm", "memoryless", "act"],
+        "methods": [
+            "expert",
+            "lookup_table",
+            "clocked_lstm",
+            "shared_lstm",
+            "memoryless",
+            "memoryless_mlp",
+            "phase_told_mlp",
+            "recovering",
+            "recovering_dagger",
+            "act",
+        ],
         "suites": [
             SuiteSpec("nominal", 300),
             SuiteSpec("edge_strip", 100),
@@ -190,16 +208,22 @@ def run_study(cfg: StudyConfig) -> dict:
     generation = adapters.generate_dataset(root, cfg.num_episodes, cfg.dataset_seed, cfg.workers)
     timings["dataset"] = time.perf_counter() - t
     base_env = BaxterPnPEnvConfig.from_dict(read_recorded(root) or {})
-    dense_root = None
-    if any(m.data == "dense" for m in methods):
-        _stage(f"1b/4 dense dataset: the same {cfg.num_episodes} demonstrations at the control rate (ACT)")
+    roots = {"keyframe": root}
+    for data in dict.fromkeys(m.data for m in methods if m.data != "keyframe"):
+        if data not in RECORDINGS:
+            raise ConfigError(f"a method trains on the unknown recording {data!r}; valid: {sorted(RECORDINGS)}")
+        what, changes = RECORDINGS[data]
+        _stage(f"1b/4 {data} dataset: the same {cfg.num_episodes} demonstrations {what}")
         t = time.perf_counter()
-        dense_root = out / "dataset_dense"
-        generation["dense"] = adapters.generate_dataset(
-            dense_root, cfg.num_episodes, cfg.dataset_seed, cfg.workers, control_mode="dense"
+        roots[data] = out / f"dataset_{data}"
+        control = changes.get("control_mode", "keyframe")
+        changes = {k: v for k, v in changes.items() if k != "control_mode"}
+        generation[data] = adapters.generate_dataset(
+            roots[data], cfg.num_episodes, cfg.dataset_seed, cfg.workers, control_mode=control, env_changes=changes
         )
-        check_same_demonstrations(root, dense_root)
-        timings["dataset_dense"] = time.perf_counter() - t
+        check_same_demonstrations(root, roots[data])
+        timings[f"dataset_{data}"] = time.perf_counter() - t
+    dense_root = roots.get("dense")
 
     _stage(f"2-3/4 train and evaluate: {', '.join(m.name for m in methods)} (learned: seeds {cfg.train_seeds})")
     print("evaluation: stock LeRobot eval_policy, in process; the same seeds for every method", flush=True)
@@ -209,12 +233,14 @@ def run_study(cfg: StudyConfig) -> dict:
     jobs += [(m, f"n{n}", n) for n in cfg.data_efficiency for m in get_methods(["lookup_table", "clocked_lstm"])]
     for method, tag, n_demos in jobs:  # each job trains, then evaluates: the first results come early
         seed = int(cfg.train_seeds[0] if not tag.isdigit() else tag)
+        data_root = root if method.data == "dense" else roots[method.data]  # ACT reads ctx.dense_root
         ctx = TrainContext(
-            root, out / "train" / method.name / f"seed{tag}", seed, cfg.epochs, n_demos, dense_root, cfg.act_steps
+            data_root, out / "train" / method.name / f"seed{tag}", seed, cfg.epochs, n_demos, dense_root, cfg.act_steps
         )
         for suite, n_episodes in _suites_for(cfg, n_demos, method):
             path = out / "evals" / method.name / f"seed{tag}" / f"{suite.name}.json"
-            if path.is_file():
+            env_parts = [method.env_config(c, ctx).to_dict() for c in suite.env_configs(base_env)]
+            if path.is_file() and _same_parts(json.loads(path.read_text()).get("env_parts"), env_parts):
                 data = json.loads(path.read_text())
             elif cfg.report_only:
                 continue
@@ -255,6 +281,20 @@ def _evaluate(method, artifact, ctx, suite, n_episodes: int, base_env, cfg: Stud
     data = records_to_json(records, time.perf_counter() - t)
     data["env_parts"] = [c.to_dict() for c in env_cfgs]
     return data
+
+
+def _same_parts(stored: list[dict] | None, current: list[dict]) -> bool:
+    """Whether a finished evaluation ran the suite as it is defined now (else it is run again).
+
+    A task field missing from the stored config was added later and had its paper value ("off") then, the
+    rule of recorded tasks; other missing keys are ignored."""
+    if stored is None or len(stored) != len(current):
+        return False
+    current = json.loads(json.dumps(current))  # tuples -> lists, as stored
+    paper = json.loads(json.dumps(PAPER_TASK))
+    return all(
+        old.get(k, paper.get(k, v)) == v for old, new in zip(stored, current, strict=True) for k, v in new.items()
+    )
 
 
 def _cli_check(cfg: StudyConfig, methods, results, out: Path, timings: dict) -> dict | None:

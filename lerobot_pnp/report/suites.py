@@ -5,9 +5,9 @@ field names), applied on top of the task recorded with the training data, so the
 thing for a policy trained on ``paper`` and one trained on ``full`` (e.g. "random yaw" widens the yaw range;
 whether the policy observes yaw is a property of its training task).
 
-A suite may have several parts evaluated one after the other on consecutive seed blocks (the inside strip
-and the outside ring are unions of four boxes, because the env config can only sample a box; see
-``strip_parts``). Every method sees exactly the same seeds.
+A suite may have several parts evaluated one after the other on consecutive seed blocks (no suite of the
+catalogue needs more than one since the env can exclude an inner box: the inside strip and the outside ring
+are one box minus another, see ``band``). Every method sees exactly the same seeds.
 
 Perturbations that need room to recover (missed grasp, drop, displacement) raise the keyframe budget
 to ``RECOVERY_BUDGET`` keyframe steps: with the paper's 10 steps not even the expert could recover.
@@ -56,25 +56,21 @@ class Suite:
         return out
 
 
-def strip_parts(low, high, width: float, outside: bool) -> tuple[dict[str, Any], ...]:
-    """Four boxes covering the band of ``width`` along the edge of the box ``low..high``.
-
-    Inside (``outside=False``): the band just inside the edge (interpolation at the border of the data);
-    outside: the ring just beyond it (extrapolation). The corners of the band belong to two boxes, so they
-    are sampled slightly more often than the rest; exact sampling needs an excluded inner box in the env
-    config (``object_exclude_low/high``, rejection sampling), which it does not have yet.
-    """
-    (x0, y0), (x1, y1) = low, high
-    w = width
-    if outside:
-        x0, y0, x1, y1 = x0 - w, y0 - w, x1 + w, y1 + w
-    boxes = [
-        ((x0, y0), (x1, y0 + w)),  # the low-y side, full length
-        ((x0, y1 - w), (x1, y1)),  # the high-y side
-        ((x0, y0 + w), (x0 + w, y1 - w)),  # the low-x side, between the two
-        ((x1 - w, y0 + w), (x1, y1 - w)),  # the high-x side
-    ]
-    return tuple({"object_low": tuple(map(_r, lo)), "object_high": tuple(map(_r, hi))} for lo, hi in boxes)
+def band(low, high, width: float, outside: bool) -> dict[str, Any]:
+    """The env changes that place the object uniformly in the band of ``width`` along the edge of the box
+    ``low..high``: just inside the edge (``outside=False``: interpolation at the border of the data) or the ring
+    just beyond it (extrapolation). One box minus an excluded inner box (the env's rejection sampling), so the
+    band is sampled exactly uniformly."""
+    low, high = tuple(map(float, low)), tuple(map(float, high))
+    w = width if outside else -width
+    outer = (tuple(_r(v - w) for v in low), tuple(_r(v + w) for v in high)) if outside else (low, high)
+    inner = (low, high) if outside else (tuple(_r(v - w) for v in low), tuple(_r(v + w) for v in high))
+    return {
+        "object_low": outer[0],
+        "object_high": outer[1],
+        "object_exclude_low": inner[0],
+        "object_exclude_high": inner[1],
+    }
 
 
 def _r(v: float) -> float:
@@ -103,12 +99,12 @@ def _catalogue() -> dict[str, Suite]:
         Suite(
             "edge_strip",
             f"object within {100 * EDGE_WIDTH:.0f} cm inside the edge of the training box",
-            strip_parts(low, high, EDGE_WIDTH, outside=False),
+            (band(low, high, EDGE_WIDTH, outside=False),),
         ),
         Suite(
             "outside_ring",
             f"object up to {100 * EDGE_WIDTH:.0f} cm outside the training box (extrapolation)",
-            strip_parts(low, high, EDGE_WIDTH, outside=True),
+            (band(low, high, EDGE_WIDTH, outside=True),),
         ),
         *_sweep(
             "nudge",

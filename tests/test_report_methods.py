@@ -1,0 +1,73 @@
+"""The study's memory controls and the recovering planner before / after DAgger, on a tiny study."""
+
+import json
+
+import pytest
+
+from lerobot_pnp.env_config import read_recorded
+from lerobot_pnp.report import methods
+from lerobot_pnp.report.run import StudyConfig, SuiteSpec, run_study
+
+N = 10  # demonstrations: 8 train / 2 test
+
+
+@pytest.fixture(scope="module")
+def study(tmp_path_factory):
+    out = tmp_path_factory.mktemp("methods") / "study"
+    cfg = dict(
+        output_dir=str(out),
+        preset="quick",
+        num_episodes=N,
+        workers=1,
+        epochs=2,
+        methods=["phase_told_mlp", "recovering_dagger"],
+        train_seeds=[1000],
+        suites=[SuiteSpec("nominal", 2), SuiteSpec("grasp_miss", 2)],
+    )
+    patch = pytest.MonkeyPatch()
+    patch.setattr(methods, "DAGGER_ROLLOUTS", 3)
+    try:
+        summary = run_study(StudyConfig(**cfg))
+    finally:
+        patch.undo()
+    return out, cfg, summary
+
+
+def test_phase_told_control_trains_on_the_same_demonstrations_with_the_phase_observed(study):
+    from lerobot_pnp.report.adapters import check_same_demonstrations
+
+    out, _, _ = study
+    assert read_recorded(out / "dataset_phase")["observe_phase"] is True
+    assert check_same_demonstrations(out / "dataset", out / "dataset_phase") == N
+    ckpt = json.loads((out / "train/phase_told_mlp/seed1000/checkpoints/last/pretrained_model/config.json").read_text())
+    assert ckpt["input_features"]["observation.environment_state"]["shape"] == [3 + 10]  # xyz + phase one-hot
+    assert ckpt["recurrent"] is False and ckpt["mode"] == "recovering"
+    evaluated = json.loads((out / "evals/phase_told_mlp/seed1000/nominal.json").read_text())
+    assert all(part["observe_phase"] for part in evaluated["env_parts"])
+
+
+def test_dagger_continues_the_recovering_run_of_the_same_seed(study):
+    out, _, _ = study
+    round0 = out / "train/recovering/seed1000/checkpoints/last/pretrained_model"
+    assert (round0 / "model.safetensors").is_file()  # trained once, as the method `recovering` of the report
+    dagger = out / "train/recovering_dagger/seed1000"
+    assert not (dagger / "round_00" / "train").exists()  # round 0 was not trained again
+    assert json.loads((dagger / "round_01" / "rollouts.json").read_text())["episodes"] == 3
+    recorded = read_recorded(dagger / "round_01" / "rollouts")
+    assert recorded["keyframe_budget"] == 20  # room to recover in the rollouts
+    for suite in ("nominal", "grasp_miss"):
+        assert len(json.loads((out / f"evals/recovering_dagger/seed1000/{suite}.json").read_text())["episodes"]) == 2
+
+
+def test_finished_evaluations_are_reused_unless_their_suite_changed(study):
+    out, cfg, _ = study
+    files = {p: p.stat().st_mtime_ns for p in (out / "evals").rglob("*.json")}
+    stale = out / "evals/phase_told_mlp/seed1000/grasp_miss.json"
+    data = json.loads(stale.read_text())
+    data["env_parts"][0]["grasp_miss_prob"] = 0.5  # as if the suite had been defined otherwise
+    stale.write_text(json.dumps(data))
+    files[stale] = stale.stat().st_mtime_ns
+    run_study(StudyConfig(**cfg))
+    changed = {p for p, t in files.items() if p.stat().st_mtime_ns != t}
+    assert changed == {stale}
+    assert json.loads(stale.read_text())["env_parts"][0]["grasp_miss_prob"] == 1.0
