@@ -387,6 +387,12 @@ def test_rollout_task_from_task_source(policy_dir, custom_dataset, tmp_path):
     dense = rollout_config(str(policy_dir), str(custom_dataset["root"]), "dense")
     assert dense.control_mode == "dense" and dense.fps == 20 and dense.object_low == CUSTOM_TASK["object_low"]
     assert rollout_config(str(policy_dir), None, None).place_low == (0.60, -0.05)  # nothing recorded: the paper's
+    dropped = rollout_config(
+        str(policy_dir), str(custom_dataset["root"]), None, {"drop_prob": 1.0, "keyframe_budget": 20}
+    )
+    assert dropped.drop_prob == 1.0 and dropped.episode_length == 20 and dropped.place_low == PLACE
+    with pytest.raises(ConfigError, match="unknown task fields"):
+        VizConfig(policy_path=str(policy_dir), env_changes={"drop_probability": 1.0})
 
 
 def test_run_policy_episode_is_deterministic(policy_dir):

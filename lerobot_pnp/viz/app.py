@@ -46,7 +46,7 @@ def visualize(cfg: VizConfig) -> dict:
         from lerobot_pnp.rollout import check_policy_features, load_policy
 
         loaded = load_policy(cfg.policy_path, device=cfg.device)
-        policy_cfg = rollout_config(str(loaded.path), cfg.task_source, cfg.control_mode)
+        policy_cfg = rollout_config(str(loaded.path), cfg.task_source, cfg.control_mode, cfg.env_changes)
         check_policy_features(loaded.policy.config, len(policy_cfg.environment_state_names))  # fits this task
     seeds = [cfg.seed + i for i in range(cfg.n_rollouts)] if loaded is not None else []
 

@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from lerobot_pnp.env_config import CONTROL_MODES
+from lerobot_pnp.env_config import CONTROL_MODES, TASK_FIELDS
 from lerobot_pnp.errors import ConfigError
 
 
@@ -40,6 +40,9 @@ class VizConfig:
     # checkpoint's own, i.e. the task of the dataset it was trained on).
     task_source: str | None = None
     control_mode: str | None = None  # env mode for rollouts (default: the recorded one, else keyframe)
+    # task fields changed for the rollouts, on top of that task, e.g. '{"drop_prob": 1.0, "keyframe_budget": 20}'
+    # to watch a planner re-pick a dropped cube
+    env_changes: dict[str, Any] = field(default_factory=dict)
     n_rollouts: int = 1  # policy rollouts, seeds seed .. seed + n_rollouts - 1
     seed: int = 0
     compare_expert: bool = True  # run the FSM expert from each rollout's start state and log the differences
@@ -54,6 +57,8 @@ class VizConfig:
         self.policy_path = self.policy_path or self.policy.path
         self.policy.path = self.policy_path
         self.episode_index = episode_list(self.episode_index)
+        if bad := sorted(set(self.env_changes) - set(TASK_FIELDS)):
+            raise ConfigError(f"env_changes has unknown task fields {bad}; valid: {sorted(TASK_FIELDS)}")
         if self.n_rollouts < 1:
             raise ConfigError(f"n_rollouts must be >= 1, got {self.n_rollouts}")
         if not 1 <= self.log_hz <= 500:

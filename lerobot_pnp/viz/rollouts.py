@@ -21,14 +21,21 @@ from lerobot_pnp.viz.scene import SceneModel
 logger = logging.getLogger(__name__)
 
 
-def rollout_config(checkpoint: str, task_source: str | None, control_mode: str | None) -> BaxterPnPEnvConfig:
-    """The env a policy is shown in: the recorded task of ``task_source`` (default: the checkpoint's)."""
+def rollout_config(
+    checkpoint: str, task_source: str | None, control_mode: str | None, env_changes: dict | None = None
+) -> BaxterPnPEnvConfig:
+    """The env a policy is shown in: the recorded task of ``task_source`` (default: the checkpoint's), with
+    ``env_changes`` (task fields) on top."""
     source = task_source or checkpoint
     recorded = read_recorded(source)
     if recorded is None:
         logger.warning("viz: %s records no task (no dataset env config found): rollouts use the paper's task", source)
-        return BaxterPnPEnvConfig(preset="paper", control_mode=control_mode or "keyframe", cameras=[])
-    changes: dict = {"cameras": []}
+        return BaxterPnPEnvConfig(
+            preset="paper", control_mode=control_mode or "keyframe", cameras=[], **(env_changes or {})
+        )
+    changes: dict = {"cameras": [], **(env_changes or {})}
+    if "keyframe_budget" in changes:
+        changes["episode_length"] = None  # follows the new budget
     if control_mode is not None and control_mode != recorded.get("control_mode"):
         # a deliberate look at the policy in another control mode: that mode's own rate and episode length
         changes |= {"control_mode": control_mode, "fps": None, "episode_length": None}
