@@ -3,6 +3,8 @@
     python scripts/viewer_screenshot.py --root outputs/datasets/baxter_pnp_keyframe --episode 12
     python scripts/viewer_screenshot.py --root outputs/datasets/baxter_pnp_keyframe --recovery
     python scripts/viewer_screenshot.py            # no dataset given: one expert episode is generated first
+    python scripts/viewer_screenshot.py --policy <pretrained_model> --seed 100000 \
+        --env-changes '{"drop_prob": 1.0, "keyframe_budget": 20}'   # a policy rollout (here: a re-pick)
 
 The picture is what ``lerobot-pnp viz --screenshot`` writes (the viewer laid out by the recording's
 blueprint), scaled down (and palette-quantised if large) so the README stays light. ``--recovery`` picks the
@@ -12,6 +14,7 @@ first episode in which the expert recovered (its FSM phase goes back, e.g. a re-
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import sys
 import tempfile
@@ -52,6 +55,8 @@ def main() -> int:
     parser.add_argument("--episode", type=int, default=0)
     parser.add_argument("--recovery", action="store_true", help="show the first episode whose phase goes back")
     parser.add_argument("--seed", type=int, default=0, help="seed of the generated episode (without --root)")
+    parser.add_argument("--policy", help="a checkpoint (pretrained_model folder): show its rollout from --seed")
+    parser.add_argument("--env-changes", default="{}", help="task fields for the rollout, JSON (with --policy)")
     parser.add_argument("--out", default=str(REPO / "docs" / "viewer.png"))
     parser.add_argument("--window", default="1600x1000", help="viewer size in logical points")
     parser.add_argument("--width", type=int, default=1600, help="width of the saved picture (px)")
@@ -60,7 +65,19 @@ def main() -> int:
     with tempfile.TemporaryDirectory(prefix="viewer_shot_") as tmp:
         root = args.root
         try:
-            if root is None:
+            if args.policy:
+                shot = Path(tmp) / "shot.png"
+                summary = visualize(
+                    VizConfig(
+                        policy_path=args.policy,
+                        env_changes=json.loads(args.env_changes),
+                        seed=args.seed,
+                        screenshot=str(shot),
+                        window_size=args.window,
+                    )
+                )
+                root = args.policy
+            elif root is None:
                 from lerobot_pnp.dataset import GenerateConfig, generate
 
                 root = str(Path(tmp) / "dataset")
@@ -69,16 +86,17 @@ def main() -> int:
                         repo_id=args.repo_id, root=root, num_episodes=1, seed=args.seed, workers=1, progress=False
                     )
                 )
-            episode = first_recovery(args.repo_id, root) if args.recovery else args.episode
-            shot = Path(tmp) / "shot.png"
-            cfg = VizConfig(
-                repo_id=args.repo_id,
-                root=root,
-                episode_index=episode,
-                screenshot=str(shot),
-                window_size=args.window,
-            )
-            summary = visualize(cfg)
+            if not args.policy:
+                episode = first_recovery(args.repo_id, root) if args.recovery else args.episode
+                shot = Path(tmp) / "shot.png"
+                cfg = VizConfig(
+                    repo_id=args.repo_id,
+                    root=root,
+                    episode_index=episode,
+                    screenshot=str(shot),
+                    window_size=args.window,
+                )
+                summary = visualize(cfg)
         except PnPError as err:
             print(f"viewer_screenshot: {err}", file=sys.stderr)
             return 2
@@ -91,7 +109,7 @@ def main() -> int:
         if out.stat().st_size > MAX_BYTES:  # a palette keeps the README light; octree keeps the small colours
             img.quantize(colors=256, method=Image.Quantize.FASTOCTREE).save(out, optimize=True)
     run = summary["runs"][0]
-    print(f"wrote {out} ({out.stat().st_size // 1000} kB): {run['run']} of {root}, {run['frames']} frames")
+    print(f"wrote {out} ({out.stat().st_size // 1000} kB): {run['run']} of {root}, {run.get('frames', run.get('steps', '?'))} frames")
     return 0
 
 
