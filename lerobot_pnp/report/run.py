@@ -87,6 +87,7 @@ PRESETS: dict[str, dict] = {
         ],
         "suites": [
             SuiteSpec("nominal", 300),
+            SuiteSpec("slack", 100),
             SuiteSpec("edge_strip", 100),
             SuiteSpec("outside_ring", 100),
             SuiteSpec("nudge", 100),

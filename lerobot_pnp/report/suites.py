@@ -97,6 +97,11 @@ def _catalogue() -> dict[str, Suite]:
     suites = [
         Suite("nominal", "unseen object positions, the training task unchanged"),
         Suite(
+            "slack",
+            f"unseen object positions with a {RECOVERY_BUDGET}-keyframe budget: room for repeated or extra steps",
+            (recover,),
+        ),
+        Suite(
             "edge_strip",
             f"object within {100 * EDGE_WIDTH:.0f} cm inside the edge of the training box",
             (band(low, high, EDGE_WIDTH, outside=False),),

@@ -15,10 +15,10 @@ from pathlib import Path
 from lerobot_pnp import robot
 from lerobot_pnp.report import adapters, plots
 from lerobot_pnp.report.stats import Rate, paired_comparison
-from lerobot_pnp.report.suites import SUITES
+from lerobot_pnp.report.suites import RECOVERY_BUDGET, SUITES
 
 BASELINE = "lookup_table"
-RECOVERY_FIGURE_SUITES = ("nominal", "nudge_0.05", "grasp_miss", "drop", "displace")
+RECOVERY_FIGURE_SUITES = ("nominal", "slack", "nudge_0.05", "grasp_miss", "drop", "displace")
 
 
 def pooled(runs: dict[str, dict[str, list]], suite: str) -> tuple[Rate, list[Rate]] | None:
@@ -425,6 +425,20 @@ def _memory_claim(table) -> list[str]:
                 else ", so memory supplies more than the phase (e.g. where in the phase the arm is, and the "
                 "observation history)."
                 if gap > 0
+                else "."
+            )
+        )
+    slack = table.get("slack", {})
+    if all(m in slack for m in ("recovering", "memoryless_mlp", "phase_told_mlp")):
+        told_slack = slack["phase_told_mlp"]
+        slower = told and told_slack["interval"][0] > told["interval"][1]
+        line += (
+            f" With a {RECOVERY_BUDGET}-keyframe budget (suite `slack`) the told MLP reaches {_pct(told_slack)} "
+            f"(LSTM {_pct(slack['recovering'])}, plain MLP {_pct(slack['memoryless_mlp'])})"
+            + (
+                ": told the phase, a memoryless net knows what to do but wastes steps where memory keeps time, and "
+                "the paper's 10-keyframe budget has none to spare."
+                if slower
                 else "."
             )
         )
