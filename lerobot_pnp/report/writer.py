@@ -9,6 +9,7 @@ means "beats with every training seed").
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import asdict
 from pathlib import Path
 
@@ -208,7 +209,7 @@ def _markdown(cfg, methods, results, suite_names, table, comparisons, figures, s
         "",
         "## Methods",
         "",
-        *_method_lines(methods, t),
+        *_method_lines(methods, t, _parameter_counts(Path(summary["config"]["output_dir"]), methods, cfg)),
         "",
         "## Success by suite",
         "",
@@ -273,12 +274,27 @@ def _markdown(cfg, methods, results, suite_names, table, comparisons, figures, s
     return "\n".join(lines)
 
 
-def _method_lines(methods, timings: dict) -> list[str]:
-    """One line per method: what it is and, for a learned one, its training wall time per seed."""
+def _parameter_counts(out: Path, methods, cfg) -> dict[str, int]:
+    """Trained parameters of each learned method (its first seed's checkpoint), read from the safetensors header."""
+    from safetensors import safe_open
+
+    counts = {}
+    for m in methods:
+        files = sorted((out / "train" / m.name / f"seed{cfg.train_seeds[0]}").rglob("model.safetensors"))
+        if m.learned and files:
+            with safe_open(str(files[-1]), "pt") as f:
+                counts[m.name] = sum(math.prod(f.get_slice(k).get_shape()) for k in f.keys())  # noqa: SIM118
+    return counts
+
+
+def _method_lines(methods, timings: dict, params: dict[str, int]) -> list[str]:
+    """One line per method: what it is and, for a learned one, its size and training wall time per seed."""
     out = []
     for m in methods:
         times = [v for k, v in timings.items() if k.startswith(f"train/{m.name}/") and k.split("/")[-1].isdigit()]
         cost = f" Training wall time per seed: {', '.join(f'{v:.0f} s' for v in times)}." if times else ""
+        if m.name in params:
+            cost = f" {params[m.name]:,} parameters.{cost}"
         only = f" Evaluated on {', '.join(m.suites)} only (cost)." if m.suites is not None else ""
         out.append(f"- **{m.label}** (`{m.name}`): {m.description}.{only}{cost}")
     return out
