@@ -71,3 +71,25 @@ def test_finished_evaluations_are_reused_unless_their_suite_changed(study):
     changed = {p for p, t in files.items() if p.stat().st_mtime_ns != t}
     assert changed == {stale}
     assert json.loads(stale.read_text())["env_parts"][0]["grasp_miss_prob"] == 1.0
+
+
+def _timed_job(job, log_dir):
+    """A stand-in for run_job in a spawned process: records when it ran."""
+    import time
+    from pathlib import Path
+
+    start = time.time()
+    time.sleep(0.3 if job.method == "recovering" else 0.05)
+    Path(log_dir, f"{job.method}_{job.tag}").write_text(f"{start} {time.time()}")
+    return job.method
+
+
+def test_parallel_jobs_run_dagger_after_the_recovering_run_it_continues(tmp_path):
+    from lerobot_pnp.report.run import Job, _run_jobs
+
+    jobs = [Job("recovering_dagger", "1", None), Job("recovering", "1", None), Job("clocked_lstm", "1", None)]
+    out = dict(_run_jobs(jobs, (str(tmp_path),), 2, fn=_timed_job))
+    assert {j.method for j in out} == {j.method for j in jobs} and all(out[j] == j.method for j in jobs)
+    start = {p.name: [float(v) for v in p.read_text().split()] for p in tmp_path.iterdir()}
+    assert start["recovering_dagger_1"][0] >= start["recovering_1"][1]  # waited for its round 0
+    assert start["clocked_lstm_1"][0] < start["recovering_1"][1]  # the other job ran beside it

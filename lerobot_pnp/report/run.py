@@ -115,7 +115,8 @@ class StudyConfig:
     full: bool = False  # shorthand for preset=full
     num_episodes: int | None = None  # demonstrations generated (80 % train / 20 % held out)
     dataset_seed: int = 0
-    workers: int = 0  # generation processes; 0 = one per core
+    # processes for generation and for the train-and-evaluate jobs (each single-threaded); 0 = one per core
+    workers: int = 0
     epochs: int | None = None
     train_seeds: list[int] | None = None
     methods: list[str] | None = None
@@ -224,43 +225,23 @@ def run_study(cfg: StudyConfig) -> dict:
         )
         check_same_demonstrations(root, roots[data])
         timings[f"dataset_{data}"] = time.perf_counter() - t
-    dense_root = roots.get("dense")
 
     _stage(f"2-3/4 train and evaluate: {', '.join(m.name for m in methods)} (learned: seeds {cfg.train_seeds})")
-    print("evaluation: stock LeRobot eval_policy, in process; the same seeds for every method", flush=True)
-    artifacts: dict[tuple[str, str], Path | None] = {}
-    results: dict[str, dict[str, dict[str, list]]] = {}  # method -> tag -> suite -> records
-    jobs = [(m, str(s), None) for m in methods for s in (cfg.train_seeds if m.learned else ["-"])]
-    jobs += [(m, f"n{n}", n) for n in cfg.data_efficiency for m in get_methods(["lookup_table", "clocked_lstm"])]
-    for method, tag, n_demos in jobs:  # each job trains, then evaluates: the first results come early
-        seed = int(cfg.train_seeds[0] if not tag.isdigit() else tag)
-        data_root = root if method.data == "dense" else roots[method.data]  # ACT reads ctx.dense_root
-        ctx = TrainContext(
-            data_root, out / "train" / method.name / f"seed{tag}", seed, cfg.epochs, n_demos, dense_root, cfg.act_steps
-        )
-        for suite, n_episodes in _suites_for(cfg, n_demos, method):
-            path = out / "evals" / method.name / f"seed{tag}" / f"{suite.name}.json"
-            env_parts = [method.env_config(c, ctx).to_dict() for c in suite.env_configs(base_env)]
-            if path.is_file() and _same_parts(json.loads(path.read_text()).get("env_parts"), env_parts):
-                data = json.loads(path.read_text())
-            elif cfg.report_only:
-                continue
-            else:
-                if (method.name, tag) not in artifacts:
-                    t = time.perf_counter()
-                    artifacts[(method.name, tag)] = method.train(ctx)
-                    if method.learned:
-                        timings[f"train/{method.name}/{tag}"] = time.perf_counter() - t
-                        print(f"  trained {method.name} seed {tag}: {time.perf_counter() - t:.0f} s", flush=True)
-                data = _evaluate(method, artifacts[(method.name, tag)], ctx, suite, n_episodes, base_env, cfg)
-                _write_json(path, data)
-                ok = sum(e["success"] for e in data["episodes"])
-                print(
-                    f"  {method.name:<13} {tag:>5} {suite.name:<16} {ok}/{len(data['episodes'])} ({data['wall_s']:.0f} s)",
-                    flush=True,
-                )
-            timings[f"eval/{method.name}/{tag}/{suite.name}"] = data["wall_s"]
-            results.setdefault(method.name, {}).setdefault(tag, {})[suite.name] = records_from_json(data)
+    jobs = [Job(m.name, str(s), None) for m in methods for s in (cfg.train_seeds if m.learned else ["-"])]
+    jobs += [Job(m, f"n{n}", n) for n in cfg.data_efficiency for m in ("lookup_table", "clocked_lstm")]
+    processes = _job_processes(cfg, len(jobs))
+    print(
+        f"evaluation: stock LeRobot eval_policy, in process; the same seeds for every method; {len(jobs)} jobs "
+        f"(method x training seed) in {processes} process{'es' if processes > 1 else ''}",
+        flush=True,
+    )
+    finished = dict(_run_jobs(jobs, (cfg, out, roots, base_env), processes))
+    results: dict[str, dict[str, dict[str, list]]] = {}  # method -> tag -> suite -> records, in job order
+    for job in jobs:
+        records, job_timings = finished[job]
+        timings.update(job_timings)
+        for suite, recs in records.items():
+            results.setdefault(job.method, {}).setdefault(job.tag, {})[suite] = recs
 
     cli_check = _cli_check(cfg, methods, results, out, timings)
 
@@ -268,6 +249,98 @@ def run_study(cfg: StudyConfig) -> dict:
     summary = write_report(out, cfg, methods, results, base_env, generation, timings, machine(), _command(), cli_check)
     print(f"\nreport: {out / 'report.md'}")
     return summary
+
+
+@dataclass(frozen=True)
+class Job:
+    """One trained artefact and its evaluations: a method x training seed (``tag``), or a data-efficiency run."""
+
+    method: str
+    tag: str  # a training seed, "-" (nothing to train) or "n<demos>" (data efficiency)
+    n_demos: int | None
+
+    def after(self) -> tuple[str, str] | None:
+        """The job that must finish first: DAgger continues the ``recovering`` run of the same seed."""
+        return ("recovering", self.tag) if self.method == "recovering_dagger" else None
+
+
+def _job_processes(cfg: StudyConfig, n_jobs: int) -> int:
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+    return max(1, min(n_jobs, cfg.workers or cores))
+
+
+def _run_jobs(jobs: list[Job], context: tuple, processes: int, fn=None):
+    """Yield ``(job, fn(job, *context))`` for every job (``fn``: ``run_job``, a module-level function). One process: in order, in this process. Several: a
+    spawned process pool (each job is single-threaded: torch and MuJoCo on one core), a job starting once the
+    job it continues has finished; results come in order of completion."""
+    fn = fn or run_job
+    if processes == 1:
+        for job in jobs:
+            yield job, fn(job, *context)
+        return
+    import multiprocessing as mp
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+
+    names = {(j.method, j.tag) for j in jobs}
+    done: set[tuple[str, str]] = set()
+    pending, running = list(jobs), {}
+    with ProcessPoolExecutor(processes, mp_context=mp.get_context("spawn")) as pool:
+        while pending or running:
+            for job in [j for j in pending if j.after() not in names or j.after() in done]:
+                if len(running) >= processes:
+                    break
+                pending.remove(job)
+                running[pool.submit(fn, job, *context)] = job
+            finished, _ = wait(running, return_when=FIRST_COMPLETED)
+            for future in finished:
+                job = running.pop(future)
+                done.add((job.method, job.tag))
+                yield job, future.result()
+
+
+def run_job(job: Job, cfg: StudyConfig, out: Path, roots: dict[str, Path], base_env) -> tuple[dict, dict]:
+    """Train ``job`` if one of its evaluations is missing or stale, run those evaluations; return the records
+    per suite and the stage timings. Everything it finishes is on disk, so an interrupted study resumes."""
+    import torch
+
+    torch.set_num_threads(1)
+    (method,) = get_methods([job.method])
+    seed = int(cfg.train_seeds[0] if not job.tag.isdigit() else job.tag)
+    data_root = roots["keyframe"] if method.data == "dense" else roots[method.data]  # ACT reads ctx.dense_root
+    ctx = TrainContext(
+        data_root,
+        out / "train" / method.name / f"seed{job.tag}",
+        seed,
+        cfg.epochs,
+        job.n_demos,
+        roots.get("dense"),
+        cfg.act_steps,
+    )
+    records, timings, artifact, trained = {}, {}, None, False
+    for suite, n_episodes in _suites_for(cfg, job.n_demos, method):
+        path = out / "evals" / method.name / f"seed{job.tag}" / f"{suite.name}.json"
+        env_parts = [method.env_config(c, ctx).to_dict() for c in suite.env_configs(base_env)]
+        if path.is_file() and _same_parts(json.loads(path.read_text()).get("env_parts"), env_parts):
+            data = json.loads(path.read_text())
+        elif cfg.report_only:
+            continue
+        else:
+            if not trained:
+                t = time.perf_counter()
+                artifact, trained = method.train(ctx), True
+                if method.learned:
+                    timings[f"train/{method.name}/{job.tag}"] = time.perf_counter() - t
+                    print(f"  trained {method.name} seed {job.tag}: {time.perf_counter() - t:.0f} s", flush=True)
+            data = _evaluate(method, artifact, ctx, suite, n_episodes, base_env, cfg)
+            _write_json(path, data)
+            ok = sum(e["success"] for e in data["episodes"])
+            print(
+                f"  {method.name:<13} {job.tag:>5} {suite.name:<16} {ok}/{len(data['episodes'])} ({data['wall_s']:.0f} s)",
+                flush=True,
+            )
+        timings[f"eval/{method.name}/{job.tag}/{suite.name}"] = data["wall_s"]
+        records[suite.name] = records_from_json(data)
+    return records, timings
 
 
 def _evaluate(method, artifact, ctx, suite, n_episodes: int, base_env, cfg: StudyConfig) -> dict:
