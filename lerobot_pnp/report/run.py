@@ -202,6 +202,7 @@ def run_study(cfg: StudyConfig) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     _write_json(out / "study_config.json", asdict(cfg))
     timings: dict[str, float] = {}
+    started = time.perf_counter()
     methods = get_methods(cfg.methods)
 
     _stage(f"1/4 dataset: {cfg.num_episodes} expert demonstrations")
@@ -244,11 +245,16 @@ def run_study(cfg: StudyConfig) -> dict:
             results.setdefault(job.method, {}).setdefault(job.tag, {})[suite] = recs
 
     cli_check = _cli_check(cfg, methods, results, out, timings)
+    timings["run/wall_clock"] = time.perf_counter() - started  # this invocation, all processes together
+    timings["run/processes"] = processes
 
     _stage("4/4 report")
     summary = write_report(out, cfg, methods, results, base_env, generation, timings, machine(), _command(), cli_check)
     print(f"\nreport: {out / 'report.md'}")
     return summary
+
+
+TRAIN_TIME = "study_train_time.json"  # in a training folder: how long its training took (reported when reused)
 
 
 @dataclass(frozen=True)
@@ -326,10 +332,10 @@ def run_job(job: Job, cfg: StudyConfig, out: Path, roots: dict[str, Path], base_
             continue
         else:
             if not trained:
-                t = time.perf_counter()
+                t, existed = time.perf_counter(), any(ctx.train_dir.rglob("model.safetensors"))
                 artifact, trained = method.train(ctx), True
-                if method.learned:
-                    timings[f"train/{method.name}/{job.tag}"] = time.perf_counter() - t
+                if method.learned and not existed:  # trained now, not found from an earlier run
+                    _write_json(ctx.train_dir / TRAIN_TIME, {"wall_s": time.perf_counter() - t})
                     print(f"  trained {method.name} seed {job.tag}: {time.perf_counter() - t:.0f} s", flush=True)
             data = _evaluate(method, artifact, ctx, suite, n_episodes, base_env, cfg)
             _write_json(path, data)
@@ -340,6 +346,8 @@ def run_job(job: Job, cfg: StudyConfig, out: Path, roots: dict[str, Path], base_
             )
         timings[f"eval/{method.name}/{job.tag}/{suite.name}"] = data["wall_s"]
         records[suite.name] = records_from_json(data)
+    if (ctx.train_dir / TRAIN_TIME).is_file():  # the time it took when it was trained (this run or earlier)
+        timings[f"train/{method.name}/{job.tag}"] = json.loads((ctx.train_dir / TRAIN_TIME).read_text())["wall_s"]
     return records, timings
 
 
