@@ -133,7 +133,7 @@ def rate_bars(rates: dict[str, dict[str, Rate]], path: Path, provenance: str, ti
     suites = list(dict.fromkeys(s for per in rates.values() for s in per))
     k = max(len(rates), 1)
     width = 0.8 / k
-    fig, ax = plt.subplots(figsize=(max(6.4, 1.1 * len(suites) * k * 0.35 + 2.5), 4.2))
+    fig, ax = plt.subplots(figsize=(min(12.0, max(6.4, 0.25 * len(suites) * k + 2.5)), 4.6))
     for i, (name, per) in enumerate(rates.items()):
         xs = [j + (i - (k - 1) / 2) * width for j, s in enumerate(suites) if s in per]
         r = np.array([100 * per[s].rate for s in suites if s in per])
