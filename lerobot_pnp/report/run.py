@@ -46,8 +46,9 @@ class SuiteSpec:
 # Episode counts: the 95 % Wilson half-width is <= 4.4 pts at n = 500, <= 7 pts at n = 200 and <= 10 pts at
 # n = 100 (worst case, p = 0.5); near 0 or 100 % it is far smaller (n = 100, 98 %: [93.0, 99.4]). A learned
 # method pools 3 training seeds (3 n episodes). The demo's headline gets 500 per seed. The full study gives
-# 300 to nominal and 100 to each other suite (3400 episodes per method and seed: ~50 min of evaluation for
-# 11 method-seeds on 2 shared cores): enough to separate 50 % from 80 %, or 100 % from 90 %, on the paired test.
+# 300 to nominal and 100 to each other suite: enough to separate 50 % from 80 %, or 100 % from 90 %, on the
+# paired test. Measured from scratch on 2 cores with two job processes: 63 min (datasets 5 min, then 36
+# train-and-evaluate jobs: 55 min of training and 60 min of evaluation, side by side).
 PRESETS: dict[str, dict] = {
     "demo": {
         "num_episodes": 1400,
@@ -71,8 +72,8 @@ PRESETS: dict[str, dict] = {
         "num_episodes": 1400,
         "epochs": 300,
         "train_seeds": [1000, 1001, 1002],
-        # act: its own dense recording (~5 min once) and ~11 min per seed (2-min training, 9-min dense
-        # evaluation of every suite below) on 2 shared cores, ~38 min in all
+        # the costliest: act (its dense recording, 3 min once, then ~2 min of training and ~8 min of dense
+        # evaluation per seed) and recovering_dagger (~5 min of rollouts and retraining per seed)
         "methods": [
             "expert",
             "lookup_table",
