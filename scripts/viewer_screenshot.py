@@ -109,7 +109,9 @@ def main() -> int:
         if out.stat().st_size > MAX_BYTES:  # a palette keeps the README light; octree keeps the small colours
             img.quantize(colors=256, method=Image.Quantize.FASTOCTREE).save(out, optimize=True)
     run = summary["runs"][0]
-    print(f"wrote {out} ({out.stat().st_size // 1000} kB): {run['run']} of {root}, {run.get('frames', run.get('steps', '?'))} frames")
+    print(
+        f"wrote {out} ({out.stat().st_size // 1000} kB): {run['run']} of {root}, {run.get('frames', run.get('steps', '?'))} frames"
+    )
     return 0
 
 
