@@ -1,10 +1,12 @@
 """The study as stages, each cached on disk and reused when finished (an interrupted run resumes).
 
-Stages: 1. dataset (the expert's demonstrations; 1b. when a method trains on dense control (ACT), the
-same demonstrations recorded at the control rate, checked to be the same episodes) -> 2. training (method x training seed) -> 3. evaluation
-(method x training seed x suite, same eval seeds for every method) -> 4. report (``report.md``, figures,
-``summary.json``). A finished training is recognised by its checkpoint, a finished evaluation by its JSON
-file (written atomically), so rerunning the same command only does what is missing.
+Stages: 1. dataset (the expert's demonstrations; 1b. the same demonstrations recorded again for a method
+that needs another view of them: at the control rate for ACT, with the phase observed for the phase-told
+control; checked to be the same episodes) -> 2-3. jobs, one per method x training seed: train, then
+evaluate every suite (same eval seeds for every method), run side by side in a process pool -> 4. report
+(``report.md``, figures, ``summary.json``). A finished training is recognised by its checkpoint, a finished
+evaluation by its JSON file (written atomically, re-run if its suite's env config changed), so rerunning
+the same command only does what is missing.
 
 Presets (``preset``): ``demo`` (the README's main command, < 15 min on 2 cores), ``quick`` (CI-sized, a few
 minutes) and ``full`` (the whole study). Fields left at None take the preset's value.
