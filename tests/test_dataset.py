@@ -242,11 +242,14 @@ def test_kill_9_then_resume(tmp_path):
         stderr=subprocess.PIPE,
     )
     shards = root / ".pnp_work" / "shards"
+    completions = root / ".pnp_work" / "logs" / "completions"
     deadline = time.time() + 90
     workers = []
-    while time.time() < deadline:  # kill once 2 shards are finished and others are being written
+    # kill once datatrove has marked 2 tasks complete (a finished shard file alone may not be marked yet, and
+    # an unmarked task is redone on resume) while others are being written
+    while time.time() < deadline:
         workers = workers or [c for c in _children(proc.pid) if _alive(c)]
-        done = [p for p in shards.glob("shard-*") if not p.name.endswith(".tmp")] if shards.exists() else []
+        done = list(completions.glob("*")) if completions.exists() else []
         if len(done) >= 2 and list(shards.glob("*.tmp")):
             break
         assert proc.poll() is None, proc.communicate()
