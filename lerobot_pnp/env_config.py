@@ -247,8 +247,9 @@ class BaxterPnPEnvConfig(EnvConfig):
             raise ConfigError(
                 f"env.speed (fraction of Baxter's joint velocity limits) must be in (0, 1], got {self.speed}"
             )
-        sizes = {name: 2 for name in (*_PAIRS[0], *_PAIRS[1], "place_low", "place_high", *_RANGES)}
-        sizes |= {"start_low": 3, "start_high": 3}
+        sizes = {
+            name: 3 if name.startswith("start_") else 2 for name in (*(n for pair in _PAIRS for n in pair), *_RANGES)
+        }
         for name, size in sizes.items():
             value = getattr(self, name)
             try:

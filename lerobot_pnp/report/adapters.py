@@ -31,8 +31,8 @@ def generate_dataset(
     """Generate (or finish, or reuse) an expert dataset of ``num_episodes`` in ``root``; returns its summary.
 
     ``control_mode="dense"`` records the same demonstrations (same seeds, same object positions) at the
-    control rate (ACT's training data); ``env_changes`` sets task fields on top of the preset (e.g.
-    ``observe_phase``: the same demonstrations with the phase one-hot observed).
+    control rate (ACT's training data); ``env_changes`` sets env fields on top of the preset (e.g.
+    ``observe_phase``: the same demonstrations with the phase one-hot observed; a ``control_mode`` there wins).
     """
     from lerobot_pnp.dataset import GenerateConfig, generate, validate_dataset
     from lerobot_pnp.env_config import BaxterPnPEnvConfig
@@ -51,7 +51,7 @@ def generate_dataset(
         workers=workers,
         resume=root.exists(),
         progress=True,
-        env=BaxterPnPEnvConfig(preset=preset, control_mode=control_mode, **(env_changes or {})),
+        env=BaxterPnPEnvConfig(preset=preset, **{"control_mode": control_mode, **(env_changes or {})}),
     )
     return generate(cfg)
 

@@ -71,6 +71,8 @@ class Method:
     # the env config it runs a suite's config in (ACT: the same task in dense control mode); None = unchanged
     adapt_env: Callable[[BaxterPnPEnvConfig, TrainContext], BaxterPnPEnvConfig] | None = None
     suites: tuple[str, ...] | None = None  # evaluated only on these suites (cost); None = every suite
+    # a method whose run of the same training seed this one starts from (the study runs that job first)
+    continues: str | None = None
 
     def env_config(self, env_cfg: BaxterPnPEnvConfig, ctx: TrainContext) -> BaxterPnPEnvConfig:
         return env_cfg if self.adapt_env is None else self.adapt_env(env_cfg, ctx)
@@ -137,9 +139,8 @@ def _dagger_train(ctx: TrainContext) -> Path:
 
     if ctx.n_demos is not None:
         raise ConfigError("method 'recovering_dagger' has no data-efficiency variant")
-    round0 = METHODS["recovering"].train(
-        replace(ctx, train_dir=ctx.train_dir.parent.parent / "recovering" / ctx.train_dir.name)
-    )
+    base = METHODS["recovering_dagger"].continues
+    round0 = METHODS[base].train(replace(ctx, train_dir=ctx.train_dir.parent.parent / base / ctx.train_dir.name))
     summary = run_dagger(
         DaggerConfig(
             output_dir=str(ctx.train_dir),
@@ -248,6 +249,7 @@ METHODS: dict[str, Method] = {
             _dagger_train,
             _checkpoint_eval,
             RECOVERING,
+            continues="recovering",
         ),
         Method(
             "act",

@@ -222,10 +222,8 @@ def run_study(cfg: StudyConfig) -> dict:
         _stage(f"1b/4 {data} dataset: the same {cfg.num_episodes} demonstrations {what}")
         t = time.perf_counter()
         roots[data] = out / f"dataset_{data}"
-        control = changes.get("control_mode", "keyframe")
-        changes = {k: v for k, v in changes.items() if k != "control_mode"}
         generation[data] = adapters.generate_dataset(
-            roots[data], cfg.num_episodes, cfg.dataset_seed, cfg.workers, control_mode=control, env_changes=changes
+            roots[data], cfg.num_episodes, cfg.dataset_seed, cfg.workers, env_changes=changes
         )
         check_same_demonstrations(root, roots[data])
         timings[f"dataset_{data}"] = time.perf_counter() - t
@@ -269,8 +267,9 @@ class Job:
     n_demos: int | None
 
     def after(self) -> tuple[str, str] | None:
-        """The job that must finish first: DAgger continues the ``recovering`` run of the same seed."""
-        return ("recovering", self.tag) if self.method == "recovering_dagger" else None
+        """The job that must finish first: the run of the same seed that this method continues (DAgger)."""
+        continues = get_methods([self.method])[0].continues
+        return (continues, self.tag) if continues else None
 
 
 def _job_processes(cfg: StudyConfig, n_jobs: int) -> int:
@@ -329,8 +328,9 @@ def run_job(job: Job, cfg: StudyConfig, out: Path, roots: dict[str, Path], base_
     for suite, n_episodes in _suites_for(cfg, job.n_demos, method):
         path = out / "evals" / method.name / f"seed{job.tag}" / f"{suite.name}.json"
         env_parts = [method.env_config(c, ctx).to_dict() for c in suite.env_configs(base_env)]
-        if path.is_file() and _same_parts(json.loads(path.read_text()).get("env_parts"), env_parts):
-            data = json.loads(path.read_text())
+        cached = json.loads(path.read_text()) if path.is_file() else None
+        if cached is not None and _same_parts(cached.get("env_parts"), env_parts):
+            data = cached  # finished earlier, as the suite is defined now
         elif cfg.report_only:
             continue
         else:

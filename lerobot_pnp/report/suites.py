@@ -46,10 +46,7 @@ class Suite:
         """The env config of each part: ``base`` (the training task) with this suite's changes."""
         out = []
         for changes in self.parts:
-            if "keyframe_budget" in changes and "episode_length" not in changes:
-                # the resolved episode length of the base would otherwise stay (to_dict stores it)
-                changes = {**changes, "episode_length": None}
-            try:
+            try:  # with_changes lets the episode length follow a changed keyframe budget
                 out.append(base.with_changes(**changes))
             except ConfigError as err:
                 raise ConfigError(f"suite {self.name!r}: {err}") from None
@@ -61,16 +58,19 @@ def band(low, high, width: float, outside: bool) -> dict[str, Any]:
     ``low..high``: just inside the edge (``outside=False``: interpolation at the border of the data) or the ring
     just beyond it (extrapolation). One box minus an excluded inner box (the env's rejection sampling), so the
     band is sampled exactly uniformly."""
-    low, high = tuple(map(float, low)), tuple(map(float, high))
-    w = width if outside else -width
-    outer = (tuple(_r(v - w) for v in low), tuple(_r(v + w) for v in high)) if outside else (low, high)
-    inner = (low, high) if outside else (tuple(_r(v - w) for v in low), tuple(_r(v + w) for v in high))
+    box = tuple(map(float, low)), tuple(map(float, high))
+    outer, inner = (_grow(*box, width), box) if outside else (box, _grow(*box, -width))
     return {
         "object_low": outer[0],
         "object_high": outer[1],
         "object_exclude_low": inner[0],
         "object_exclude_high": inner[1],
     }
+
+
+def _grow(low, high, d: float):
+    """The box ``low..high`` with every side moved out by ``d`` (in, for ``d < 0``)."""
+    return tuple(_r(v - d) for v in low), tuple(_r(v + d) for v in high)
 
 
 def _r(v: float) -> float:

@@ -33,13 +33,12 @@ def rollout_config(
         return BaxterPnPEnvConfig(
             preset="paper", control_mode=control_mode or "keyframe", cameras=[], **(env_changes or {})
         )
-    changes: dict = {"cameras": [], **(env_changes or {})}
-    if "keyframe_budget" in changes:
-        changes["episode_length"] = None  # follows the new budget
+    changes = dict(env_changes or {})
     if control_mode is not None and control_mode != recorded.get("control_mode"):
         # a deliberate look at the policy in another control mode: that mode's own rate and episode length
-        changes |= {"control_mode": control_mode, "fps": None, "episode_length": None}
-    return BaxterPnPEnvConfig.from_dict(recorded, **changes)
+        changes["control_mode"] = control_mode
+    # with_changes derives the rate and episode length of a changed mode or keyframe budget
+    return BaxterPnPEnvConfig.from_dict(recorded, cameras=[]).with_changes(**changes)
 
 
 def rollout_with_expert(
