@@ -31,7 +31,7 @@ from lerobot.configs import FeatureType, PolicyFeature
 from lerobot.envs.configs import EnvConfig
 from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_IMAGES, OBS_STATE
 
-from lerobot_pnp import robot
+from lerobot_pnp import disturbances, robot
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.physics import CAMERAS
 
@@ -79,6 +79,27 @@ PAPER_TASK: dict[str, Any] = {
     "obs_noise_joints": 0.0,  # ... and on the joint angles (rad)
     "obs_bias_object": 0.0,  # a constant per-episode offset of this length (m, xy) on the observed object
     "obs_latency": 0,  # observations are this many steps old
+    # Perturbations as distributions (disturbances.py); these values are the original single triggers, so a
+    # task recorded before they existed keeps its meaning. Times are fractions of a kind's window; 0 = the
+    # original trigger at the end of a step, > 0 = in the middle of a move (see disturbances.py).
+    "nudge_last_step": 0,  # the nudge step is uniform in nudge_at_step..nudge_last_step (<= nudge_at_step: fixed)
+    "grasp_miss_window": (0.0, 0.0),  # when: 0 = at the close, f > 0 = slips out once lifted f of the hover height
+    "grasp_miss_range": (0.055, 0.07),  # how far the object slides out of the fingers (m)
+    "grasp_miss_max_events": 1,  # chances per episode, each taken with grasp_miss_prob
+    "drop_window": (0.0, 0.0),  # when: 0 = after the lift step, f > 0 = after f of the way to the target
+    "drop_range": (0.08, 0.12),  # landing distance from where it left the fingers (m)
+    "drop_spread": 0.0,  # landing direction: up to this angle (rad) off the gripper axis toward the box; pi = any
+    "drop_max_events": 1,  # chances per episode, each taken with drop_prob
+    "displace_window": (0.0, 0.0),  # when: 0 = on release, f > 0 = once the gripper has risen f of h / 2
+    "displace_range": (0.04, 0.08),  # how far a released object is pushed (m)
+    "displace_spread": 1.0471975511965976,  # push direction: up to this angle (rad) off the way to the box
+    "displace_max_events": 1,  # chances per episode, each taken with displace_prob
+    # a disturbed object only lands in this xy box (redrawn, else the nearest point), where the arm re-picks it;
+    # low == high: anywhere (the original perturbations)
+    "landing_low": (0.0, 0.0),
+    "landing_high": (0.0, 0.0),
+    "obs_latency_max": 0,  # latency per episode uniform in obs_latency..obs_latency_max (0: fixed obs_latency)
+    "obs_latency_jitter": 0.0,  # per step, the latency is redrawn within that range with this probability
 }
 # `full`: everything on (a benchmark that a lookup table cannot pass; the expert recovers from all of it).
 FULL_TASK: dict[str, Any] = {
@@ -159,6 +180,22 @@ class BaxterPnPEnvConfig(EnvConfig):
     obs_noise_joints: float | None = None
     obs_bias_object: float | None = None
     obs_latency: int | None = None
+    nudge_last_step: int | None = None
+    grasp_miss_window: tuple[float, float] | None = None
+    grasp_miss_range: tuple[float, float] | None = None
+    grasp_miss_max_events: int | None = None
+    drop_window: tuple[float, float] | None = None
+    drop_range: tuple[float, float] | None = None
+    drop_spread: float | None = None
+    drop_max_events: int | None = None
+    displace_window: tuple[float, float] | None = None
+    displace_range: tuple[float, float] | None = None
+    displace_spread: float | None = None
+    displace_max_events: int | None = None
+    landing_low: tuple[float, float] | None = None
+    landing_high: tuple[float, float] | None = None
+    obs_latency_max: int | None = None
+    obs_latency_jitter: float | None = None
     features: dict[str, PolicyFeature] = field(default_factory=dict)
     features_map: dict[str, str] = field(default_factory=dict)
 
@@ -309,6 +346,7 @@ class BaxterPnPEnvConfig(EnvConfig):
                 f"env.start_low z={self.start_low[2]} puts the gripper within 5 cm of the table "
                 f"(table top at z={robot.TABLE_TOP_Z})"
             )
+        disturbances.validate(self)
 
     @property
     def environment_state_names(self) -> list[str]:

@@ -56,6 +56,9 @@ class BaxterPhysics:
         # Optional observer called after every control tick (100 Hz for keyframe moves, once per dense
         # period), e.g. by the viewer to record the motion between keyframes. It must not change the state.
         self.on_control_tick = None
+        # Optional disturbance called after every control tick before the observer; unlike the observer it may
+        # change the state (the task's perturbations that happen in the middle of a move).
+        self.disturb = None
 
     # ------------------------------------------------------------------ named queries
     @property
@@ -194,6 +197,8 @@ class BaxterPhysics:
     # ------------------------------------------------------------------ control primitives
     def _run(self, substeps: int) -> None:
         mujoco.mj_step(self.model, self.data, substeps)
+        if self.disturb is not None:
+            self.disturb(self)
         if self.on_control_tick is not None:
             self.on_control_tick(self)
 

@@ -13,6 +13,7 @@ import math
 import numpy as np
 
 from lerobot_pnp import robot
+from lerobot_pnp.disturbances import Disturbances
 from lerobot_pnp.errors import ConfigError, ResetOptionError, UnreachableError
 from lerobot_pnp.physics import BaxterPhysics
 
@@ -24,9 +25,6 @@ _OBJECT_TRIES = 10_000  # rejection draws for an object position outside the exc
 # Inferred task progress, as the index of the FSM state reached (robot.PHASE_NAMES), from the physical state.
 PROGRESS_NAMES = {i: name for i, name in enumerate(robot.PHASE_NAMES)}
 FAILURE_CAUSES = ("not_grasped", "dropped", "not_transported", "not_placed", "not_released")
-_GRASP_MISS_SHIFT = (0.055, 0.07)  # m, along the gripper's x axis: out from between the open fingers
-_DROP_SHIFT = (0.08, 0.12)  # m, sideways out of the closed fingers; the object then falls to the table
-_DISPLACE_SHIFT = (0.04, 0.08)  # m, a released object pushed off the target
 
 
 class PickPlaceTask:
@@ -35,8 +33,7 @@ class PickPlaceTask:
     def __init__(self, config):
         self.config = config
         self.place_xy = np.asarray(config.place_low, dtype=float)
-        self._armed: set[str] = set()
-        self._fired: list[str] = []
+        self.disturbances = Disturbances(config)
         self._bias = np.zeros(3)
         self._history: list[dict] = []
         self._furthest = 0
@@ -45,7 +42,7 @@ class PickPlaceTask:
     @property
     def perturbations_fired(self) -> list[str]:
         """Names of the perturbations applied so far in this episode (in order)."""
-        return list(self._fired)
+        return list(self.disturbances.fired)
 
     # ------------------------------------------------------------------ set-up
     def check_reachable(self, physics: BaxterPhysics) -> None:
@@ -103,16 +100,19 @@ class PickPlaceTask:
             physics.set_object_properties(float(mass), float(friction))
         if size != physics.object_size:
             physics.set_object_size(size)
-        self._armed = {
-            name for name in ("grasp_miss", "drop", "displace") if _bernoulli(rng, getattr(c, f"{name}_prob"))
-        }
         self._bias = np.zeros(3)
-        if c.obs_bias_object > 0:
-            angle = rng.uniform(0, 2 * np.pi)
-            self._bias[:2] = c.obs_bias_object * np.array([np.cos(angle), np.sin(angle)])
-        self._fired, self._history, self._furthest, self._was_grasped = [], [], 0, False
+
+        def draw_bias():
+            if c.obs_bias_object > 0:
+                angle = rng.uniform(0, 2 * np.pi)
+                self._bias[:2] = c.obs_bias_object * np.array([np.cos(angle), np.sin(angle)])
+
+        self.disturbances.reset(rng, draw_bias)
+        self._history, self._furthest, self._was_grasped = [], 0, False
         physics.set_place_target(self.place_xy)
+        physics.disturb = None
         physics.reset(q, object_pos, yaw)
+        self.disturbances.attach(self, physics)
 
     def _sample_object_xy(self, rng: np.random.Generator) -> np.ndarray:
         """Uniform in the object box outside the excluded box (rejection sampling: exactly uniform on the band,
@@ -156,64 +156,14 @@ class PickPlaceTask:
 
     # ------------------------------------------------------------------ perturbations
     def after_step(self, physics: BaxterPhysics, step_count: int, rng: np.random.Generator) -> None:
-        """Apply the perturbations due after env step ``step_count`` (each at most once per episode).
+        """Apply the perturbations due after env step ``step_count`` (``disturbances.Disturbances``).
 
         nudge: the resting object is pushed before the grasp (the paper's feedback test).
-        grasp_miss: the open gripper is down at the object -> the object slides out from between the fingers.
-        drop: the object is held and lifted -> it is knocked sideways out of the fingers and falls.
+        grasp_miss: the object slides out of the open gripper at the object, or slips out during the lift.
+        drop: the held object is knocked out of the fingers in transport and falls to the table.
         displace: the object was placed and released -> it is pushed off the target.
         """
-        c = self.config
-        if c.nudge_max > 0 and step_count == c.nudge_at_step and not physics.object_in_grasp():
-            angle = rng.uniform(0, 2 * np.pi)
-            radius = c.nudge_max * np.sqrt(rng.uniform())
-            physics.displace_object(np.array([radius * np.cos(angle), radius * np.sin(angle), 0.0]))
-            self._fired.append("nudge")
-        if not self._armed:
-            return
-        obj, _ = physics.object_pose()
-        ee, rot = physics.ee_pose()
-        near = np.linalg.norm(ee[:2] - obj[:2]) < 0.02
-        open_at_object = (
-            near and physics.gripper_opening() > 0.5 and physics.pad_bottom_z() < obj[2] + physics.object_size / 2
-        )
-        if "grasp_miss" in self._armed and open_at_object and not physics.object_in_grasp():
-            self._shift_object(physics, rng, rot[:, 0], _GRASP_MISS_SHIFT, "grasp_miss")
-            return
-        if "drop" in self._armed and physics.object_in_grasp() and obj[2] > physics.object_rest_z() + 0.08:
-            self._shift_object(physics, rng, rot[:, 0], _DROP_SHIFT, "drop")
-            physics.wait(0.8)  # it falls and comes to rest on the table
-            return
-        if "displace" in self._armed and self.is_success(physics):
-            angle = rng.uniform(-np.pi / 3, np.pi / 3)
-            toward = self._toward_object_box(obj)
-            direction = np.array(
-                [
-                    toward[0] * np.cos(angle) - toward[1] * np.sin(angle),
-                    toward[0] * np.sin(angle) + toward[1] * np.cos(angle),
-                    0.0,
-                ]
-            )
-            physics.displace_object(direction * rng.uniform(*_DISPLACE_SHIFT))
-            self._armed.discard("displace")
-            self._fired.append("displace")
-
-    def _toward_object_box(self, obj: np.ndarray) -> np.ndarray:
-        centre = (np.asarray(self.config.object_low) + np.asarray(self.config.object_high)) / 2
-        d = centre - obj[:2]
-        n = np.linalg.norm(d)
-        return d / n if n > 1e-6 else np.array([1.0, 0.0])
-
-    def _shift_object(self, physics, rng, gripper_x: np.ndarray, shift_range, name: str) -> None:
-        """Move the object along the gripper's x axis (out of the fingers), toward the object box."""
-        axis = np.array([gripper_x[0], gripper_x[1], 0.0])
-        axis /= max(np.linalg.norm(axis), 1e-9)
-        obj, _ = physics.object_pose()
-        if axis[:2] @ self._toward_object_box(obj) < 0:
-            axis = -axis
-        physics.displace_object(axis * rng.uniform(*shift_range))
-        self._armed.discard(name)
-        self._fired.append(name)
+        self.disturbances.after_step(self, physics, step_count, rng)
 
     # ------------------------------------------------------------------ observations
     def observe(self, physics: BaxterPhysics, rng: np.random.Generator) -> dict[str, np.ndarray]:
@@ -234,11 +184,13 @@ class PickPlaceTask:
         if c.observe_phase:  # privileged: from the true state, never noisy (latency still applies)
             env_state.append(np.eye(robot.N_KEYFRAMES)[self.progress(physics)])
         obs = {"agent_pos": state, "environment_state": np.concatenate(env_state).astype(np.float32)}
-        if c.obs_latency <= 0:
+        longest = max(c.obs_latency, c.obs_latency_max)
+        if longest <= 0:
             return obs
+        latency = self.disturbances.observed_latency(rng)
         self._history.append(obs)
-        del self._history[: -(c.obs_latency + 1)]
-        return self._history[0]
+        del self._history[: -(longest + 1)]
+        return self._history[max(0, len(self._history) - 1 - latency)]
 
     # ------------------------------------------------------------------ progress and success
     def object_placed(self, physics: BaxterPhysics) -> bool:
@@ -297,7 +249,7 @@ class PickPlaceTask:
         return {
             "phase": phase,
             "furthest_phase": self._furthest,
-            "perturbations": ",".join(self._fired),
+            "perturbations": ",".join(self.disturbances.fired),
             "failure_cause": cause or "",
         }
 
@@ -309,13 +261,6 @@ def _uniform(rng: np.random.Generator, low, high):
         return low.copy() if low.ndim else float(low)
     value = rng.uniform(low, high)
     return value if low.ndim else float(value)
-
-
-def _bernoulli(rng: np.random.Generator, p: float) -> bool:
-    """True with probability ``p``; no draw for p = 0 or 1."""
-    if p <= 0:
-        return False
-    return True if p >= 1 else bool(rng.uniform() < p)
 
 
 def grasp_yaw(object_yaw: float) -> float:
