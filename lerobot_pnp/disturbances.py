@@ -128,21 +128,21 @@ class Disturbances:
             else:
                 hit = held and lift >= due["grasp_miss"] * (c.hover_height - _LIFTED)
             if hit:
-                return self._fire(task, physics, rng, "grasp_miss", rot[:, 0], c.grasp_miss_range, 0.0)
+                return self._fire(task, physics, rng, "grasp_miss", rot[:, 0], c.grasp_miss_range, 0.0, at_step_end)
         if "drop" in due and held:
             if due["drop"] == 0:
                 hit = obj[2] > physics.object_rest_z() + _LEGACY_DROP_LIFT
             else:
                 hit = lift >= _LIFTED and self._transported(task, obj) >= due["drop"]
             if hit:
-                kind = self._fire(task, physics, rng, "drop", rot[:, 0], c.drop_range, c.drop_spread)
+                kind = self._fire(task, physics, rng, "drop", rot[:, 0], c.drop_range, c.drop_spread, at_step_end)
                 if at_step_end:
                     physics.wait(0.8)  # it falls and comes to rest on the table
                 return kind
         if "displace" in due and task.is_success(physics):
             rise = physics.pad_bottom_z() - (obj[2] + physics.object_size / 2)
             if at_step_end or rise >= due["displace"] * c.hover_height / 2:
-                return self._fire(task, physics, rng, "displace", None, c.displace_range, c.displace_spread)
+                return self._fire(task, physics, rng, "displace", None, c.displace_range, c.displace_spread, True)
         return None
 
     def _transported(self, task, obj) -> float:
@@ -153,9 +153,12 @@ class Disturbances:
         start = max(np.linalg.norm(self._pick_xy - task.place_xy), 1e-6)
         return float(np.clip(1 - dist / start, 0.0, 1.0))
 
-    def _fire(self, task, physics, rng, kind: str, gripper_x, distance_range, spread: float) -> str:
+    def _fire(self, task, physics, rng, kind: str, gripper_x, distance_range, spread: float, in_place: bool) -> str:
         """Move the object: along the gripper's x axis (out of the fingers) or toward the object box, turned by
-        up to ``spread``, by a distance from ``distance_range``; redrawn until it lands where it may."""
+        up to ``spread``, by a distance from ``distance_range``; redrawn until it lands where it may.
+
+        ``in_place``: at its height (the original perturbations: a knocked object then falls); otherwise onto the
+        table (mid-move, the arm keeps moving and would bat a falling object out of the landing box)."""
         c = self.config
         obj, _ = physics.object_pose()
         toward = _toward_box(c, obj)
@@ -177,7 +180,8 @@ class Disturbances:
         else:  # no draw landed inside the box: the nearest point of the box (the distance is then shorter)
             lo, hi = np.asarray(c.landing_low), np.asarray(c.landing_high)
             offset = np.clip(obj[:2] + offset, lo, hi) - obj[:2]
-        physics.displace_object(np.array([offset[0], offset[1], 0.0]))
+        drop_z = 0.0 if in_place else min(0.0, physics.object_rest_z() + 0.002 - obj[2])
+        physics.displace_object(np.array([offset[0], offset[1], drop_z]))
         self.pending[kind].pop(0)
         self.fired.append(kind)
         return kind
@@ -247,6 +251,8 @@ def validate(c) -> None:
         value = getattr(c, name)
         if not (isinstance(value, int | float) and 0 <= value <= np.pi):
             raise ConfigError(f"env.{name} must be an angle in [0, pi] rad, got {value!r}")
+    if not (isinstance(c.carry_min_time, int | float) and 0 <= c.carry_min_time <= 5):
+        raise ConfigError(f"env.carry_min_time must be in [0, 5] s, got {c.carry_min_time!r}")
     if not (isinstance(c.obs_latency_jitter, int | float) and 0 <= c.obs_latency_jitter <= 1):
         raise ConfigError(
             f"env.obs_latency_jitter is a probability per step and must be in [0, 1], got {c.obs_latency_jitter!r}"

@@ -249,7 +249,8 @@ def run_expert_episode(env: gym.Env, seed: int, config: ExpertConfig | None = No
 def _dense_segment(env_cfg, physics, start: np.ndarray, target: np.ndarray, cfg: ExpertConfig) -> list[np.ndarray]:
     """Dense actions executing one keyframe: interpolated arm setpoints, a settle, then the gripper."""
     fps = env_cfg.fps
-    arm = joint_trajectory(start[:7], target[:7], fps, env_cfg.speed, ik=physics.path_ik)
+    carry = env_cfg.carry_min_time if env_cfg.carry_min_time > 0 and physics.object_in_grasp() else 0.0
+    arm = joint_trajectory(start[:7], target[:7], fps, env_cfg.speed, ik=physics.path_ik, min_time=carry)
     steps = [np.append(q, start[7]) for q in arm]
     steps += [np.append(target[:7], start[7])] * math.ceil(cfg.settle_time * fps)
     if target[7] != start[7]:

@@ -28,13 +28,14 @@ def min_jerk(s):
     return 10 * s**3 - 15 * s**4 + 6 * s**5
 
 
-def move_duration(q0: np.ndarray, q1: np.ndarray, speed: float = 1.0) -> float:
-    """Shortest min-jerk duration within the velocity limits (peak velocity is 1.875 * delta / T)."""
+def move_duration(q0: np.ndarray, q1: np.ndarray, speed: float = 1.0, min_time: float = 0.0) -> float:
+    """Shortest min-jerk duration within the velocity limits (peak velocity is 1.875 * delta / T), and at least
+    ``min_time`` (a gentle carry: a short move at the velocity limit accelerates hard enough to shake a cube loose)."""
     delta = np.abs(np.asarray(q1) - np.asarray(q0))
-    return max(MIN_MOVE_TIME, float(np.max(1.875 * delta / (robot.JOINT_VEL_LIMIT * speed))))
+    return max(MIN_MOVE_TIME, min_time, float(np.max(1.875 * delta / (robot.JOINT_VEL_LIMIT * speed))))
 
 
-def joint_trajectory(q0, q1, rate_hz: float, speed: float = 1.0, ik=None) -> np.ndarray:
+def joint_trajectory(q0, q1, rate_hz: float, speed: float = 1.0, ik=None, min_time: float = 0.0) -> np.ndarray:
     """Setpoints at ``rate_hz`` from ``q0`` (excluded) to ``q1`` (included), shape (n, 7); (0, 7) for a hold.
 
     With ``ik`` (an ``ArmIK``), the gripper follows a straight line between the two keyframes' poses.
@@ -42,7 +43,7 @@ def joint_trajectory(q0, q1, rate_hz: float, speed: float = 1.0, ik=None) -> np.
     q0, q1 = np.asarray(q0, dtype=float), np.asarray(q1, dtype=float)
     if np.array_equal(q0, q1):  # a hold (e.g. while the gripper acts): nothing to interpolate
         return np.empty((0, q0.size))
-    n = math.ceil(move_duration(q0, q1, speed) * rate_hz)
+    n = math.ceil(move_duration(q0, q1, speed, min_time) * rate_hz)
     max_step = robot.JOINT_VEL_LIMIT * speed / rate_hz
     knot_offsets = None
     for _ in range(3):

@@ -59,6 +59,8 @@ class BaxterPhysics:
         # Optional disturbance called after every control tick before the observer; unlike the observer it may
         # change the state (the task's perturbations that happen in the middle of a move).
         self.disturb = None
+        # Keyframe moves with the object in the grasp last at least this long (s); 0 = the velocity limits alone.
+        self.carry_min_time = 0.0
 
     # ------------------------------------------------------------------ named queries
     @property
@@ -205,7 +207,9 @@ class BaxterPhysics:
     def move_to_keyframe(self, q_target: np.ndarray, grip: float, speed: float) -> None:
         """Interpolate the arm to ``q_target`` (min-jerk, within the joint velocity limits), settle, then grip."""
         d = self.data
-        for setpoint in joint_trajectory(d.ctrl[self._arm_act], q_target, 1.0 / CONTROL_DT, speed, ik=self.path_ik):
+        min_time = self.carry_min_time if self.carry_min_time > 0 and self.object_in_grasp() else 0.0
+        q0 = d.ctrl[self._arm_act]
+        for setpoint in joint_trajectory(q0, q_target, 1.0 / CONTROL_DT, speed, ik=self.path_ik, min_time=min_time):
             d.ctrl[self._arm_act] = setpoint
             self._run(self._substeps_keyframe)
         self._settle(lambda: np.max(np.abs(d.qvel[self._dofadr])) < 0.02, max_time=1.0)

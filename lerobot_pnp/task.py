@@ -53,6 +53,11 @@ class PickPlaceTask:
         places = {(x, y) for x in (c.place_low[0], c.place_high[0]) for y in (c.place_low[1], c.place_high[1])}
         checks = [("object box corner", p, yaw) for p in corners for yaw in yaws]
         checks += [("place region corner", p, 0.0) for p in sorted(places)]
+        if c.landing_low != c.landing_high:  # a disturbed object may land anywhere in it, with any yaw
+            landing = [
+                (x, y) for x in (c.landing_low[0], c.landing_high[0]) for y in (c.landing_low[1], c.landing_high[1])
+            ]
+            checks += [("landing box corner", p, yaw) for p in landing for yaw in (-np.pi / 4, 0.0, np.pi / 4)]
         for what, (x, y), yaw in checks:
             seed = robot.NEUTRAL_Q
             try:
@@ -110,7 +115,7 @@ class PickPlaceTask:
         self.disturbances.reset(rng, draw_bias)
         self._history, self._furthest, self._was_grasped = [], 0, False
         physics.set_place_target(self.place_xy)
-        physics.disturb = None
+        physics.disturb, physics.carry_min_time = None, c.carry_min_time
         physics.reset(q, object_pos, yaw)
         self.disturbances.attach(self, physics)
 

@@ -19,7 +19,8 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from lerobot_pnp.env_config import PAPER_TASK, BaxterPnPEnvConfig
+from lerobot_pnp.disturbances import KINDS
+from lerobot_pnp.env_config import FULL_TASK, PAPER_TASK, BaxterPnPEnvConfig
 from lerobot_pnp.errors import ConfigError
 
 RECOVERY_BUDGET = 20  # keyframe steps: two full pick-and-place attempts
@@ -140,7 +141,126 @@ def _catalogue() -> dict[str, Suite]:
             ({"place_low": (0.50, -0.20), "place_high": (0.70, -0.05)},),
         ),
     ]
-    return {s.name: s for s in suites}
+    return {s.name: s for s in [*suites, *_held_out_protocol()]}
+
+
+# ---------------------------------------------------------------------------------------------- held-out protocol
+@dataclass(frozen=True)
+class Axis:
+    """One disturbance axis of the held-out protocol: suites drawn from the training condition (the `full`
+    preset's distributions) and suites beyond it on this axis only (the report prints the two side by side)."""
+
+    name: str
+    description: str
+    in_distribution: tuple[str, ...]
+    held_out: tuple[str, ...]
+
+
+def _kind(kind: str, **changes) -> dict[str, Any]:
+    """Every field of one perturbation kind, from the training condition, with ``changes``; the kind fires in
+    every episode and the budget leaves room for one more attempt per event and a spare one (the training task's
+    own perturbations still happen). Stating every field makes the
+    suite mean the same on top of any training task."""
+    fields_ = {k: FULL_TASK[k] for k in FULL_TASK if k.startswith(f"{kind}_") or k.startswith("landing_")}
+    out = {**fields_, f"{kind}_prob": 1.0, **changes}
+    events = out[f"{kind}_max_events"]
+    return {**out, "keyframe_budget": 10 * (events + 2)}
+
+
+_LATE = (0.5, 1.0)  # the second half of each window (training: the first half)
+_TRAIN_LATENCY = {"obs_latency": 0, "obs_latency_max": 1, "obs_latency_jitter": 0.0}  # the recovering recipe's
+
+
+def _held_out_protocol() -> list[Suite]:
+    far = {"drop": (0.15, 0.30), "displace": (0.10, 0.20)}
+    suites = [Suite(f"train_{k}", f"{k} as in training: the full preset's distribution", (_kind(k),)) for k in KINDS]
+    suites += [
+        Suite(
+            f"heldout_late_{k}",
+            f"{k} in the second half of its window (trained: the first)",
+            (_kind(k, **{f"{k}_window": _LATE}),),
+        )
+        for k in KINDS
+    ]
+    suites += [
+        Suite(
+            f"heldout_far_{k}",
+            f"{k} moving the object {r[0]:g}-{r[1]:g} m (trained: up to {FULL_TASK[f'{k}_range'][1]:g})",
+            (_kind(k, **{f"{k}_range": r}),),
+        )
+        for k, r in far.items()
+    ]
+    suites += [
+        Suite(
+            "train_nudge",
+            f"nudge up to {FULL_TASK['nudge_max']:g} m before the grasp (as in training)",
+            ({"nudge_max": FULL_TASK["nudge_max"]},),
+        ),
+        Suite(
+            "heldout_far_nudge", "nudge up to 0.06 m before the grasp (twice the trained size)", ({"nudge_max": 0.06},)
+        ),
+    ]
+    suites += [
+        Suite(
+            f"heldout_double_{k}",
+            f"{k} twice in every episode (trained: at most once)",
+            (_kind(k, **{f"{k}_max_events": 2}),),
+        )
+        for k in KINDS
+    ]
+    suites += [
+        Suite("train_latency", "observations 0 or 1 step old, fixed per episode (as in training)", (_TRAIN_LATENCY,)),
+        Suite(
+            "heldout_latency_2",
+            "observations 2 steps old (one beyond the trained maximum)",
+            ({**_TRAIN_LATENCY, "obs_latency": 2, "obs_latency_max": 0},),
+        ),
+        Suite(
+            "heldout_latency_jitter",
+            "observations 0-2 steps old, redrawn at half the steps (trained: fixed per episode, at most 1)",
+            ({**_TRAIN_LATENCY, "obs_latency_max": 2, "obs_latency_jitter": 0.5},),
+        ),
+    ]
+    together = {k: v for kind in KINDS for k, v in _kind(kind).items()}
+    suites += [
+        Suite(
+            "train_mixture",
+            "each of grasp miss, drop and displacement with probability 1/4 (the full preset)",
+            ({k: FULL_TASK[k] for k in together},),
+        ),
+        Suite(
+            "heldout_all_at_once",
+            "a grasp miss, a drop and a displacement in every episode",
+            ({**together, "keyframe_budget": 50},),
+        ),
+    ]
+    return suites
+
+
+HELD_OUT_AXES: tuple[Axis, ...] = (
+    Axis(
+        "timing",
+        "when the disturbance happens within its window",
+        tuple(f"train_{k}" for k in KINDS),
+        tuple(f"heldout_late_{k}" for k in KINDS),
+    ),
+    Axis(
+        "magnitude",
+        "how far the object is moved",
+        ("train_drop", "train_displace", "train_nudge"),
+        ("heldout_far_drop", "heldout_far_displace", "heldout_far_nudge"),
+    ),
+    Axis(
+        "count",
+        "events of one kind per episode",
+        tuple(f"train_{k}" for k in KINDS),
+        tuple(f"heldout_double_{k}" for k in KINDS),
+    ),
+    Axis(
+        "latency", "how old the observations are", ("train_latency",), ("heldout_latency_2", "heldout_latency_jitter")
+    ),
+    Axis("combination", "kinds of disturbance in one episode", ("train_mixture",), ("heldout_all_at_once",)),
+)
 
 
 SUITES: dict[str, Suite] = _catalogue()
