@@ -205,3 +205,22 @@ def test_object_size_is_simulated_and_handled_by_the_expert(size):
     assert physics.object_size == pytest.approx(size)
     assert obs["environment_state"][2] == pytest.approx(robot.TABLE_TOP_Z + size / 2, abs=2e-3)  # resting on the table
     assert all(run_expert_episode(env, s).success for s in range(3))
+
+
+@pytest.mark.parametrize("carry_min_time, kept", [(0.0, False), (0.5, True)])
+def test_a_short_carry_keeps_a_heavy_cube_only_when_gentle(carry_min_time, kept):
+    """A re-pick 8 cm from the target (wide displacements make them common): at the joint velocity limits the
+    short move accelerates hard enough to shake the smallest, heaviest, least grippy cube loose."""
+    from lerobot_pnp.env_config import make_env
+
+    worst = {"size_range": (0.045, 0.045), "mass_range": (0.8, 0.8), "friction_range": (0.7, 0.7)}
+    env = make_env(
+        render_mode=None, place_low=(0.63, -0.18), place_high=(0.63, -0.18), carry_min_time=carry_min_time, **worst
+    )
+    env.reset(seed=0, options={"object_pos": [0.63, -0.10, 0.0]})
+    expert, physics = FSMExpert(env), env.unwrapped.physics
+    for _ in range(5):  # approach, grasp, close, retract, hold
+        env.step(expert.next_keyframe())
+    assert physics.object_in_grasp()
+    env.step(expert.next_keyframe())  # the place approach: an 8 cm carry
+    assert physics.object_in_grasp() == kept
