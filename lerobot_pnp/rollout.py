@@ -173,6 +173,7 @@ def check_checkpoint_values(ckpt: Path, policy: Any, processors: tuple) -> None:
             raise PolicyLoadError(f"the checkpoint {ckpt} is corrupt: its weights {name!r} contain NaN/inf")
     for proc in processors:
         for step in getattr(proc, "steps", []):
+            used = getattr(step, "features", None) or {}  # the features it normalises (not task_index, ...)
             for feature, stats in (getattr(step, "stats", None) or {}).items():
                 for stat, value in stats.items():
                     array = np.asarray(value.cpu() if hasattr(value, "cpu") else value, dtype=np.float64)
@@ -180,7 +181,7 @@ def check_checkpoint_values(ckpt: Path, policy: Any, processors: tuple) -> None:
                         raise PolicyLoadError(
                             f"the checkpoint {ckpt} is corrupt: its normalisation stats {feature}.{stat} contain NaN/inf"
                         )
-                    if stat == "std" and np.any(array == 0):
+                    if stat == "std" and feature in used and np.any(array == 0):
                         logging.getLogger(__name__).warning(
                             "checkpoint %s: %s has std 0 in dims %s (constant in its training data)",
                             ckpt, feature, np.flatnonzero(array.reshape(-1) == 0).tolist(),
