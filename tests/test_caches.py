@@ -267,7 +267,9 @@ def test_7_a_checkpoint_saved_by_lerobot_carries_its_task_and_a_bad_record_is_re
     root = _copy(dagger_run / "demos", tmp_path / "demos")
     task = read_recorded(root)
     # lerobot-train's own save (policy, config and processors): the plugin's policy writes the task too
-    policy = make_policy(PnpLstmConfig(mode="recovering", hidden_size=8), ds_meta=LeRobotDatasetMetadata("x", root=root))
+    policy = make_policy(
+        PnpLstmConfig(mode="recovering", hidden_size=8), ds_meta=LeRobotDatasetMetadata("x", root=root)
+    )
     cfg = TrainPipelineConfig(dataset=DatasetConfig(repo_id="x", root=str(root)), policy=policy.config)
     optimizer = __import__("torch").optim.SGD(policy.parameters(), lr=0.1)
     save_checkpoint(tmp_path / "ckpt", 1, cfg, policy, optimizer)
