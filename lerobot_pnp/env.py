@@ -90,7 +90,7 @@ class BaxterPnPEnv(gym.Env):
         return self._observation(), self._info(truncated=False)
 
     def step(self, action):
-        action = np.asarray(action, dtype=np.float64).reshape(-1)
+        action = _real_action(action)
         if action.shape != (robot.ACTION_DIM,):
             raise ConfigError(
                 f"action must have shape ({robot.ACTION_DIM},) (7 joint targets + gripper), got {action.shape}"
@@ -135,3 +135,14 @@ class BaxterPnPEnv(gym.Env):
 
     def is_success(self) -> bool:
         return self.pnp_task.is_success(self.physics)
+
+
+def _real_action(action) -> np.ndarray:
+    """The action as float64 numbers; a non-numeric or complex action is one ConfigError naming it."""
+    try:
+        raw = np.asarray(action)
+    except ValueError:  # ragged nesting
+        raise ConfigError(f"action must be {robot.ACTION_DIM} real numbers, got {action!r}") from None
+    if raw.dtype.kind not in "biuf":
+        raise ConfigError(f"action must be {robot.ACTION_DIM} real numbers, got dtype {raw.dtype}: {action!r}")
+    return raw.astype(np.float64).reshape(-1)

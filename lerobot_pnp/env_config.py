@@ -22,6 +22,7 @@ A generated dataset stores the resolved config in ``meta/baxter_pnp_env.json`` (
 from __future__ import annotations
 
 import json
+import logging
 import math
 from dataclasses import dataclass, field, fields
 from pathlib import Path
@@ -36,6 +37,7 @@ from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.physics import CAMERAS
 
 ENV_TYPE = "baxter_pnp"
+MAX_EPISODE_LENGTH = 100_000  # env steps: every episode's arrays are held in memory (recorder, datasets)
 GYM_NAMESPACE = "lerobot_pnp"
 GYM_TASK = "BaxterPnP-v0"
 GYM_ID = f"{GYM_NAMESPACE}/{GYM_TASK}"
@@ -238,6 +240,11 @@ class BaxterPnPEnvConfig(EnvConfig):
                 if self.control_mode == "keyframe"
                 else DENSE_SECONDS_PER_KEYFRAME * self.keyframe_budget * self.fps
             )
+            if self.episode_length > MAX_EPISODE_LENGTH:
+                raise ConfigError(
+                    f"env.keyframe_budget={self.keyframe_budget} gives episodes of {self.episode_length} steps "
+                    f"({self.control_mode} control, {self.fps} fps); the most is {MAX_EPISODE_LENGTH}"
+                )
         self.features = {
             ACTION: PolicyFeature(type=FeatureType.ACTION, shape=(robot.ACTION_DIM,)),
             "agent_pos": PolicyFeature(type=FeatureType.STATE, shape=(robot.STATE_DIM,)),
@@ -302,8 +309,12 @@ class BaxterPnPEnvConfig(EnvConfig):
             raise ConfigError(
                 f"env.fps: keyframe control has one step per FSM state (fps {KEYFRAME_FPS}), got {self.fps}"
             )
-        if self.episode_length is not None and not (isinstance(self.episode_length, int) and self.episode_length >= 1):
-            raise ConfigError(f"env.episode_length must be an integer >= 1, got {self.episode_length!r}")
+        if self.episode_length is not None and not (
+            isinstance(self.episode_length, int) and 1 <= self.episode_length <= MAX_EPISODE_LENGTH
+        ):
+            raise ConfigError(
+                f"env.episode_length must be an integer in [1, {MAX_EPISODE_LENGTH}], got {self.episode_length!r}"
+            )
         if not (8 <= self.image_height <= 4096 and 8 <= self.image_width <= 4096):
             raise ConfigError(
                 f"env.image_height/width must be in [8, 4096], got {self.image_height}x{self.image_width}"
@@ -456,6 +467,42 @@ def write_recorded(config: BaxterPnPEnvConfig, root: str | Path) -> Path:
     return path
 
 
+CHECKPOINT_RECORDED_FILE = "baxter_pnp_env.json"  # the task a checkpoint was trained in, in pretrained_model/
+
+
+def check_recorded(data: Any, path: str | Path) -> dict:
+    """A recorded task, validated: a JSON object of this env's type, every number finite, the whole a valid
+    config (a contradictory or corrupt record is one ConfigError naming the file)."""
+    if not isinstance(data, dict) or data.get("type", ENV_TYPE) != ENV_TYPE:
+        raise ConfigError(f"the recorded env config {path} is not a {ENV_TYPE} env config")
+    bad = sorted(k for k, v in data.items() if _not_finite(v))
+    if bad:
+        raise ConfigError(f"the recorded env config {path} has non-finite values in {bad}")
+    try:
+        known = {f.name for f in fields(BaxterPnPEnvConfig)}  # a field removed since is not a contradiction
+        BaxterPnPEnvConfig.from_dict(
+            {k: v for k, v in data.items() if k in known} | {"preset": data.get("preset") or "paper"}
+        )
+    except (ConfigError, TypeError) as err:
+        raise ConfigError(f"the recorded env config {path} is invalid: {err}") from None
+    return data
+
+
+def _not_finite(value: Any) -> bool:
+    if isinstance(value, float):
+        return not math.isfinite(value)
+    return isinstance(value, list | tuple) and any(_not_finite(v) for v in value)
+
+
+def copy_recorded(dataset_root: str | Path, directory: str | Path) -> Path:
+    """Copy a dataset's recorded task into a checkpoint folder, validated first (a bad one is not copied)."""
+    source = Path(dataset_root) / RECORDED_FILE
+    data = check_recorded(_read_json(source), source)
+    path = Path(directory) / CHECKPOINT_RECORDED_FILE
+    path.write_text(json.dumps(data, indent=2))
+    return path
+
+
 def read_recorded(source: str | Path) -> dict | None:
     """The env config recorded with a dataset folder, or with the dataset a checkpoint was trained on.
 
@@ -463,18 +510,24 @@ def read_recorded(source: str | Path) -> dict | None:
     Returns None when nothing is recorded there.
     """
     source = Path(source).expanduser()
-    candidates = [source / RECORDED_FILE, source / "baxter_pnp_env.json"]
+    candidates = [source / RECORDED_FILE, source / CHECKPOINT_RECORDED_FILE]
     for path in candidates:
         if path.is_file():
-            return _read_json(path)
+            return check_recorded(_read_json(path), path)
     for train_cfg in (source / "train_config.json", source / "checkpoints/last/pretrained_model/train_config.json"):
         if train_cfg.is_file():
-            dataset = _read_json(train_cfg).get("dataset") or {}
-            if dataset.get("root") and (Path(dataset["root"]) / RECORDED_FILE).is_file():
-                return _read_json(Path(dataset["root"]) / RECORDED_FILE)
+            # the env the training resolved when it started comes first: the dataset root may hold another
+            # task by now (regenerated since)
             env = _read_json(train_cfg).get("env") or {}
             if env.get("type") == ENV_TYPE:
-                return env
+                return check_recorded(env, train_cfg)
+            dataset = _read_json(train_cfg).get("dataset") or {}
+            if dataset.get("root") and (Path(dataset["root"]) / RECORDED_FILE).is_file():
+                path = Path(dataset["root"]) / RECORDED_FILE
+                logging.getLogger(__name__).warning(
+                    "%s records no task: using the task its dataset %s holds now", train_cfg.parent, path.parent.parent
+                )
+                return check_recorded(_read_json(path), path)
     return None
 
 

@@ -155,8 +155,37 @@ def load_policy(path: str | Path, device: str = "cpu") -> LoadedPolicy:
         )
     except Exception as err:
         raise PolicyLoadError(f"cannot load the policy from {ckpt}: {err}") from err
+    check_checkpoint_values(ckpt, policy, (preprocessor, postprocessor))
     policy.eval()
     return LoadedPolicy(policy, preprocessor, postprocessor, ckpt, config.type)
+
+
+def check_checkpoint_values(ckpt: Path, policy: Any, processors: tuple) -> None:
+    """A checkpoint whose weights or normalisation stats hold NaN/inf is the checkpoint's fault, named here
+    (otherwise it surfaces steps later as a NaN action); a stat with std 0 is flagged (any change of that
+    feature is then amplified by 1/eps)."""
+    import logging
+
+    import torch
+
+    for name, tensor in policy.state_dict().items():
+        if tensor.is_floating_point() and not bool(torch.isfinite(tensor).all()):
+            raise PolicyLoadError(f"the checkpoint {ckpt} is corrupt: its weights {name!r} contain NaN/inf")
+    for proc in processors:
+        for step in getattr(proc, "steps", []):
+            used = getattr(step, "features", None) or {}  # the features it normalises (not task_index, ...)
+            for feature, stats in (getattr(step, "stats", None) or {}).items():
+                for stat, value in stats.items():
+                    array = np.asarray(value.cpu() if hasattr(value, "cpu") else value, dtype=np.float64)
+                    if not np.all(np.isfinite(array)):
+                        raise PolicyLoadError(
+                            f"the checkpoint {ckpt} is corrupt: its normalisation stats {feature}.{stat} contain NaN/inf"
+                        )
+                    if stat == "std" and feature in used and np.any(array == 0):
+                        logging.getLogger(__name__).warning(
+                            "checkpoint %s: %s has std 0 in dims %s (constant in its training data)",
+                            ckpt, feature, np.flatnonzero(array.reshape(-1) == 0).tolist(),
+                        )  # fmt: skip
 
 
 def policy_action(loaded: LoadedPolicy, obs: dict, task: str) -> np.ndarray:

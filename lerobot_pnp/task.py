@@ -98,8 +98,13 @@ class PickPlaceTask:
         self.place_xy = _uniform(rng, c.place_low, c.place_high)
         mass, friction = _uniform(rng, *c.mass_range), _uniform(rng, *c.friction_range)
         size = float(_uniform(rng, *c.size_range))
-        object_pos[2] = physics.object_rest_z(size)
+        given_z, object_pos[2] = object_pos[2], physics.object_rest_z(size)
         if "object_pos" in options:  # checked before anything in the model changes
+            if given_z != 0.0 and abs(given_z - object_pos[2]) > 1e-3:
+                raise ResetOptionError(
+                    f"reset option 'object_pos' z={given_z:.4f} is not the object's rest height {object_pos[2]:.4f} "
+                    "(it starts resting on the table): pass z = 0 or the rest height"
+                )
             self._check_object_option(physics, object_pos, size)
         if (mass, friction) != physics.object_properties():
             physics.set_object_properties(float(mass), float(friction))

@@ -64,7 +64,7 @@ def test_finished_evaluations_are_reused_unless_their_suite_changed(study):
     files = {p: p.stat().st_mtime_ns for p in (out / "evals").rglob("*.json")}
     stale = out / "evals/phase_told_mlp/seed1000/grasp_miss.json"
     data = json.loads(stale.read_text())
-    data["env_parts"][0]["grasp_miss_prob"] = 0.5  # as if the suite had been defined otherwise
+    data["parts"]["env_parts"][0]["grasp_miss_prob"] = 0.5  # as if the suite had been defined otherwise
     stale.write_text(json.dumps(data))
     files[stale] = stale.stat().st_mtime_ns
     run_study(StudyConfig(**cfg))
@@ -79,7 +79,7 @@ def _timed_job(job, log_dir):
     from pathlib import Path
 
     start = time.time()
-    time.sleep(0.3 if job.method == "recovering" else 0.05)
+    time.sleep(1.5 if job.method == "recovering" else 0.05)  # long enough for the other worker to start under load
     Path(log_dir, f"{job.method}_{job.tag}").write_text(f"{start} {time.time()}")
     return job.method
 

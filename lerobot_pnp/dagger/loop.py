@@ -23,6 +23,17 @@ import logging
 import time
 from pathlib import Path
 
+from lerobot_pnp.cache import (
+    CHECKPOINT_FILES,
+    DATASET_FILES,
+    STAGE_FILE,
+    Stage,
+    code_versions,
+    digest_files,
+    lock_output,
+    remove,
+    write_json_atomic,
+)
 from lerobot_pnp.rollout import load_policy
 
 from .config import DaggerConfig
@@ -32,6 +43,7 @@ from .writer import aggregate, write_episodes
 
 logger = logging.getLogger(__name__)
 ROUND_SEED_STRIDE = 1_000_000
+ROLLOUT_SUMMARY = ("episodes", "frames", "policy_successes")  # in rollouts.json, beside the stage's key
 
 
 def _tqdm(total: int, desc: str, enabled: bool):
@@ -48,19 +60,28 @@ def _base_env_cfg(cfg: DaggerConfig):
     return BaxterPnPEnvConfig(preset=cfg.preset, **cfg.env_changes)
 
 
-def _demos(cfg: DaggerConfig, out: Path, env_cfg) -> tuple[Path, str, str]:
-    """(root, repo_id, test range) of the round-0 data, written once."""
+def _stage(record: Path, what: str, **parts) -> Stage:
+    """A DAgger stage keyed by ``parts`` and the code versions (see ``lerobot_pnp.cache``)."""
+    return Stage(record, {"stage": what, **parts, "versions": code_versions()})
+
+
+def _demos(cfg: DaggerConfig, out: Path, env_cfg) -> tuple[Path, str, str, str]:
+    """(root, repo_id, test range, key) of the round-0 data, written once per key."""
     if cfg.base_root:
         from lerobot.datasets.io_utils import load_info
 
         info = load_info(Path(cfg.base_root))
         n = int(info.total_episodes)
         test = (info.splits or {}).get("test") or f"{n - max(1, round(cfg.test_fraction * n))}:{n}"
-        return Path(cfg.base_root), cfg.base_repo_id, test
+        key = _stage(Path(), "base", content=digest_files(Path(cfg.base_root), DATASET_FILES), test=test).key
+        return Path(cfg.base_root), cfg.base_repo_id, test, key
     root, repo_id = out / "demos", f"{cfg.base_repo_id}_demos"
     n = cfg.num_demos
     test = f"{n - max(1, round(cfg.test_fraction * n))}:{n}"
-    if not root.is_dir():
+    stage = _stage(root / STAGE_FILE, "demos", env=env_cfg.to_dict(), num_demos=n, test=test, seed=cfg.seed,
+                   repo_id=repo_id)  # fmt: skip
+    if not stage.done("dagger demos"):
+        stage.invalidate()
         env = suite_env(env_cfg, "full")
         episodes, seed = [], cfg.seed
         with _tqdm(n, "expert demos", cfg.progress) as bar:
@@ -72,15 +93,20 @@ def _demos(cfg: DaggerConfig, out: Path, env_cfg) -> tuple[Path, str, str]:
                     bar.update(1)
         env.close()
         write_episodes(root, repo_id, env_cfg, episodes, {"test": test})
-    return root, repo_id, test
+        stage.commit()
+    return root, repo_id, test, stage.key
 
 
-def _rollouts(cfg: DaggerConfig, rnd: int, ckpt: Path, out: Path, env_cfg) -> tuple[Path, str, dict]:
+def _rollouts(cfg: DaggerConfig, rnd: int, ckpt: tuple[Path, str], out: Path, env_cfg) -> tuple[Path, str, dict, str]:
+    """Round ``rnd``'s expert-labelled rollouts of the checkpoint ``ckpt`` (its path and key)."""
     root, repo_id = out / f"round_{rnd:02d}" / "rollouts", f"{cfg.base_repo_id}_dagger{rnd:02d}"
-    summary_file = root.parent / "rollouts.json"
-    if root.is_dir() and summary_file.is_file():
-        return root, repo_id, json.loads(summary_file.read_text())
-    policy = load_policy(ckpt)
+    stage = _stage(root.parent / "rollouts.json", "rollouts", policy=ckpt[1], env=env_cfg.to_dict(),
+                   episodes=cfg.rollouts_per_round, suites=cfg.rollout_suites, seed=cfg.seed + ROUND_SEED_STRIDE * rnd,
+                   repo_id=repo_id)  # fmt: skip
+    if stage.done(f"dagger round {rnd} rollouts"):
+        return root, repo_id, {k: stage.stored()[k] for k in ROLLOUT_SUMMARY}, stage.key
+    stage.invalidate()
+    policy = load_policy(ckpt[0])
     envs = {s: suite_env(env_cfg, s) for s in cfg.rollout_suites}
     episodes = []
     with _tqdm(cfg.rollouts_per_round, f"round {rnd} rollouts", cfg.progress) as bar:
@@ -92,27 +118,41 @@ def _rollouts(cfg: DaggerConfig, rnd: int, ckpt: Path, out: Path, env_cfg) -> tu
     for env in envs.values():
         env.close()
     write_episodes(root, repo_id, env_cfg, episodes)
-    summary = {
-        "episodes": len(episodes),
-        "frames": int(sum(len(e.actions) for e in episodes)),
-        "policy_successes": int(sum(e.success for e in episodes)),
-    }
-    summary_file.write_text(json.dumps(summary, indent=2))
-    return root, repo_id, summary
+    counts = (len(episodes), int(sum(len(e.actions) for e in episodes)), int(sum(e.success for e in episodes)))
+    summary = dict(zip(ROLLOUT_SUMMARY, counts, strict=True))
+    stage.commit(**summary)
+    return root, repo_id, summary, stage.key
 
 
-def _train(cfg: DaggerConfig, root: Path, repo_id: str, test: str, out_dir: Path) -> Path:
+def _aggregate(inputs: list[tuple[Path, str, str]], data_root: Path, repo_id: str, env_cfg, test: str) -> str:
+    """The merge of ``inputs`` ((root, repo_id, key) each) into ``data_root``, rebuilt when an input changed."""
+    stage = _stage(data_root / STAGE_FILE, "aggregate", inputs=[k for _, _, k in inputs], test=test,
+                   repo_id=repo_id)  # fmt: skip
+    if not stage.done(f"dagger {data_root.parent.name} aggregate"):
+        stage.invalidate()
+        aggregate([r for r, _, _ in inputs], [i for _, i, _ in inputs], data_root, repo_id, env_cfg, {"test": test})
+        stage.commit()
+    return stage.key
+
+
+def _train(cfg: DaggerConfig, data: tuple[Path, str, str], test: str, out_dir: Path) -> tuple[Path, str]:
+    """Train on ``data`` (root, repo_id, key); the checkpoint (its path and key). ``done.json`` records the
+    checkpoint relative to the training folder, so a moved output folder reads its own checkpoint."""
+    import draccus
+
     from lerobot_pnp.train_fast import TrainFastConfig, train_fast
 
-    done = out_dir / "done.json"
-    if done.is_file():
-        return Path(json.loads(done.read_text())["checkpoint"])
-    policy_cfg = copy.deepcopy(cfg.policy)
+    root, repo_id, data_key = data
+    stage = _stage(out_dir / "done.json", "train", data=data_key, test=test, policy=draccus.encode(cfg.policy),
+                   epochs=cfg.epochs, batch_size=cfg.batch_size, seed=cfg.seed)  # fmt: skip
+    if stage.done(f"dagger {out_dir.parent.name} training"):
+        return out_dir / stage.stored()["checkpoint"], stage.key
+    stage.invalidate()  # a training killed midway leaves no record that a later run could match
     result = train_fast(
         TrainFastConfig(
             dataset_repo_id=repo_id,
             dataset_root=str(root),
-            policy=policy_cfg,
+            policy=copy.deepcopy(cfg.policy),
             epochs=cfg.epochs,
             batch_size=cfg.batch_size,
             seed=cfg.seed,
@@ -122,21 +162,33 @@ def _train(cfg: DaggerConfig, root: Path, repo_id: str, test: str, out_dir: Path
             progress=cfg.progress,
         )
     )
-    done.write_text(json.dumps({**result.summary(), "checkpoint": str(result.checkpoint_dir)}, indent=2))
-    return result.checkpoint_dir
+    summary = {k: v for k, v in result.summary().items() if k not in ("checkpoint", "output_dir")}
+    stage.commit(**summary, checkpoint=str(Path(result.checkpoint_dir).resolve().relative_to(out_dir.resolve())))
+    return Path(result.checkpoint_dir), stage.key
 
 
-def evaluate_checkpoint(cfg: DaggerConfig, ckpt: Path, env_cfg, out_file: Path) -> dict:
-    """Success per eval suite on seeds ``eval_seed + i`` (the same for every round); cached in ``out_file``."""
-    if out_file.is_file():
+def checkpoint_key(ckpt: Path) -> str:
+    """The key of a checkpoint passed in by path: its content (config, weights, processors, task)."""
+    return _stage(Path(), "checkpoint", content=digest_files(Path(ckpt), CHECKPOINT_FILES)).key
+
+
+def evaluate_checkpoint(cfg: DaggerConfig, ckpt: Path, env_cfg, out_file: Path, ckpt_key: str | None = None) -> dict:
+    """Success per eval suite on seeds ``eval_seed + i`` (the same for every round); cached in ``out_file``
+    (its record ``<name>.stage.json`` keys it by the checkpoint, the env and the evaluation settings)."""
+    stage = _stage(out_file.with_suffix(".stage.json"), "eval", policy=ckpt_key or checkpoint_key(ckpt),
+                   env=env_cfg.to_dict(), suites=cfg.eval_suites, episodes=cfg.eval_episodes,
+                   eval_seed=cfg.eval_seed)  # fmt: skip
+    if out_file.is_file() and stage.done(f"dagger {out_file.parent.name} evaluation"):
         return json.loads(out_file.read_text())
+    stage.invalidate()
     policy = load_policy(ckpt)
     seeds = [cfg.eval_seed + i for i in range(cfg.eval_episodes)]
     results = {}
     with _tqdm(len(seeds) * len(cfg.eval_suites), f"eval {out_file.parent.name}", cfg.progress) as bar:
         for suite in cfg.eval_suites:
             results[suite] = evaluate(policy, env_cfg, suite, seeds, bar)
-    out_file.write_text(json.dumps(results, indent=2))
+    write_json_atomic(out_file, results)
+    stage.commit()
     return results
 
 
@@ -168,20 +220,26 @@ def write_table(rows: list[tuple[str, dict]], suites: list[str], out: Path) -> s
 
 
 def run_dagger(cfg: DaggerConfig) -> dict:
-    """``lerobot-pnp dagger``: see ``DaggerConfig`` and the module docstring. Returns the summary table."""
+    """``lerobot-pnp dagger``: see ``DaggerConfig`` and the module docstring. Returns the summary table.
+
+    The output folder is locked for the whole run (a second run on it fails at once)."""
+    out = Path(cfg.output_dir)
+    with lock_output(out, "lerobot-pnp dagger"):
+        return _run_rounds(cfg, out)
+
+
+def _run_rounds(cfg: DaggerConfig, out: Path) -> dict:
     import torch
 
     torch.set_num_threads(1)
-    out = Path(cfg.output_dir)
-    out.mkdir(parents=True, exist_ok=True)
     env_cfg = _base_env_cfg(cfg)
     t0 = time.perf_counter()
     timings: dict[str, float] = {}
-    demo_root, demo_repo, test = _demos(cfg, out, env_cfg)
+    demo_root, demo_repo, test, demo_key = _demos(cfg, out, env_cfg)
     timings["demos_s"] = time.perf_counter() - t0
 
-    rows, roots, repos = [], [demo_root], [demo_repo]
-    data_root, data_repo = demo_root, demo_repo
+    rows, inputs = [], [(demo_root, demo_repo, demo_key)]
+    data = (demo_root, demo_repo, demo_key)
     ckpt = None
     rollout_summaries = {}
     for rnd in range(cfg.rounds + 1):
@@ -189,25 +247,34 @@ def run_dagger(cfg: DaggerConfig) -> dict:
         rdir.mkdir(exist_ok=True)
         t = time.perf_counter()
         if rnd > 0:
-            root, repo, summary = _rollouts(cfg, rnd, ckpt, out, env_cfg)
+            root, repo, summary, key = _rollouts(cfg, rnd, ckpt, out, env_cfg)
             rollout_summaries[rnd] = summary
-            roots.append(root)
-            repos.append(repo)
+            inputs.append((root, repo, key))
             data_root, data_repo = rdir / "data", f"{cfg.base_repo_id}_aggregate{rnd:02d}"
-            if not (data_root / "meta" / "info.json").is_file():
-                aggregate(roots, repos, data_root, data_repo, env_cfg, {"test": test})
+            data = (data_root, data_repo, _aggregate(inputs, data_root, data_repo, env_cfg, test))
         timings[f"round{rnd}_data_s"] = time.perf_counter() - t
         t = time.perf_counter()
         if rnd == 0 and cfg.round0_checkpoint:
-            ckpt = Path(cfg.round0_checkpoint)
+            ckpt = (Path(cfg.round0_checkpoint), checkpoint_key(Path(cfg.round0_checkpoint)))
         else:
-            ckpt = _train(cfg, data_root, data_repo, test, rdir / "train")
+            ckpt = _train(cfg, data, test, rdir / "train")
         timings[f"round{rnd}_train_s"] = time.perf_counter() - t
         if cfg.eval_episodes > 0:
-            rows.append((f"round {rnd}", evaluate_checkpoint(cfg, ckpt, env_cfg, rdir / "eval.json")))
+            rows.append((f"round {rnd}", evaluate_checkpoint(cfg, ckpt[0], env_cfg, rdir / "eval.json", ckpt[1])))
             write_table(rows, cfg.eval_suites, out)
+    _remove_later_rounds(out, cfg.rounds)
     table = write_table(rows, cfg.eval_suites, out) if rows else ""
-    summary = {"output_dir": str(out), "final_checkpoint": str(ckpt), "rollouts": rollout_summaries,
+    final = ckpt[0].resolve()
+    summary = {"final_checkpoint": str(final.relative_to(out.resolve())) if final.is_relative_to(out.resolve())
+               else str(final), "rollouts": rollout_summaries,
                "timings_s": {k: round(v, 1) for k, v in timings.items()}, "table": table}  # fmt: skip
-    (out / "summary.json").write_text(json.dumps(summary, indent=2))
-    return summary
+    write_json_atomic(out / "summary.json", summary)
+    # the returned summary names folders as this process sees them (the file: relative to the output folder)
+    return {**summary, "output_dir": str(out), "final_checkpoint": str(ckpt[0])}
+
+
+def _remove_later_rounds(out: Path, rounds: int) -> None:
+    """Rounds beyond ``rounds`` left by an earlier run with more rounds would sit beside this run's table."""
+    for rdir in out.glob("round_*"):
+        if rdir.is_dir() and rdir.name[6:].isdigit() and int(rdir.name[6:]) > rounds:
+            remove(rdir)

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from lerobot_pnp.dataset.episodes import frames_from_arrays
+from lerobot_pnp.dataset.merge import fix_index_stats
 
 
 @dataclass
@@ -79,6 +80,7 @@ def aggregate(roots: list[Path], repo_ids: list[str], out_root: Path, repo_id: s
     if tmp.exists():
         shutil.rmtree(tmp)
     aggregate_datasets(repo_ids=repo_ids, aggr_repo_id=repo_id, roots=[Path(r) for r in roots], aggr_root=tmp)
+    fix_index_stats(tmp)
     return _commit(tmp, out_root, env_cfg, dict(splits))
 
 

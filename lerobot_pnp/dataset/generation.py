@@ -188,7 +188,12 @@ def _generate_locked(cfg: GenerateConfig, root: Path, t_start: float) -> dict:
     tasks = run["tasks"]
     logs = Path(cfg.logging_dir).resolve() if cfg.logging_dir else None
     if cfg.executor == "slurm":
-        return _submit(cfg, root, run, logs or root.with_name(root.name + ".logs"))
+        try:
+            return _submit(cfg, root, run, logs or root.with_name(root.name + ".logs"))
+        except DatasetError:
+            if state == "empty":  # nothing of this run was submitted: leave the root as it was (no run.json)
+                shutil.rmtree(work, ignore_errors=True)
+            raise
     logs = logs or work / "logs"
 
     # Completed ranks whose shard does not validate (or stale records) are redone.

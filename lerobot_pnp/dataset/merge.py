@@ -74,6 +74,7 @@ def merge_and_commit(root: Path) -> dict:
             aggr_root=merged,
             concatenate_data=False,  # one data file per shard: a linear-time merge (no rewrites)
         )
+        fix_index_stats(merged)
     info = load_info(merged)
     info.splits = split_of(n, run["train_fraction"])
     write_info(info, merged)
@@ -113,6 +114,35 @@ def merge_and_commit(root: Path) -> dict:
         "simulate_cpu_s": round(sum(r.get("sim_s", 0) for r in records), 2),
         "write_cpu_s": round(sum(r.get("write_s", 0) for r in records), 2),
     }
+
+
+INDEX_COLUMNS = ("episode_index", "index")  # numbered afresh by a merge
+
+
+def fix_index_stats(root: Path) -> None:
+    """Recompute ``meta/stats.json``'s ``episode_index`` and ``index`` from a merged dataset's data.
+
+    LeRobot's ``aggregate_datasets`` aggregates the sources' dataset-level stats, which describe each
+    source's own numbering (0..), not the merged one (the per-episode stats it does shift)."""
+    import numpy as np
+    import pyarrow.dataset as pads
+    from lerobot.datasets.compute_stats import get_feature_stats
+    from lerobot.datasets.io_utils import load_stats, write_stats
+
+    stats = load_stats(root)
+    names = [n for n in INDEX_COLUMNS if stats and n in stats]
+    if not names:
+        return
+    files = sorted(str(p) for p in (root / "data").rglob("*.parquet"))
+    table = pads.dataset(files, format="parquet").to_table(columns=names)
+    for name in names:
+        values = table[name].to_numpy().astype(np.float64).reshape(-1, 1)
+        fresh = get_feature_stats(values, axis=0, keepdims=False)
+        stats[name] = {
+            k: np.asarray(fresh[k], dtype=np.asarray(old).dtype).reshape(np.shape(old)) if k in fresh else old
+            for k, old in stats[name].items()
+        }
+    write_stats(stats, root)
 
 
 class MergeShards(PipelineStep):

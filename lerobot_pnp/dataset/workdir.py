@@ -54,10 +54,12 @@ def _busy(root: Path) -> DatasetError:
 
 
 class RootLock:
-    """An exclusive, non-blocking ``flock`` on the root directory (released when the process dies)."""
+    """An exclusive, non-blocking ``flock`` on the root directory (released when the process dies).
 
-    def __init__(self, root: Path):
-        self.root = root
+    ``busy`` is the one-line message when another process holds it (default: a generation's)."""
+
+    def __init__(self, root: Path, busy: str | None = None):
+        self.root, self.busy = root, busy
         try:
             root.mkdir(parents=True, exist_ok=True)
         except OSError as err:
@@ -74,7 +76,7 @@ class RootLock:
                 # e.g. NFS, where flock is emulated with POSIX locks that need a writable descriptor
                 self._lock_file(root)
                 return
-            raise _busy(root) from None
+            raise self._busy() from None
 
     def _lock_file(self, root: Path) -> None:
         self.fd = os.open(root / LOCK_FILE, os.O_RDWR | os.O_CREAT, 0o644)
@@ -83,7 +85,10 @@ class RootLock:
         except OSError:
             os.close(self.fd)
             self.fd = None
-            raise _busy(root) from None
+            raise self._busy() from None
+
+    def _busy(self) -> DatasetError:
+        return DatasetError(self.busy) if self.busy else _busy(self.root)
 
     def close(self) -> None:
         if self.fd is not None:

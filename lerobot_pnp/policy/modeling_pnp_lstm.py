@@ -24,6 +24,7 @@ for the whole episode, a learned PICK/PLACE switch); the policy API, processors 
 
 from __future__ import annotations
 
+import json
 import logging
 from pathlib import Path
 from typing import Any
@@ -71,6 +72,7 @@ class PnpLstmPolicy(PreTrainedPolicy):
                 dataset_meta, config.episode_length, exact=not config.recovering, max_length=config.window_length
             )
             config.dataset_fps = int(dataset_meta.fps)
+        self.recorded_task = _recorded_task(dataset_meta)
 
         self.input_keys: list[str] = config.model_input_keys
         input_dim = sum(int(config.input_features[k].shape[0]) for k in self.input_keys)
@@ -87,6 +89,16 @@ class PnpLstmPolicy(PreTrainedPolicy):
         return self.model.subtask_nets
 
     # ---- checkpoints ----------------------------------------------------------------------------
+
+    def _save_pretrained(self, save_directory: Path, state_dict: dict[str, Tensor] | None = None) -> None:
+        """LeRobot's save (``lerobot-train``'s checkpoints included), plus the task the policy was trained in
+        (``baxter_pnp_env.json``, read when training started), so the checkpoint carries its task even after
+        the dataset root is regenerated with another one."""
+        super()._save_pretrained(save_directory, state_dict)
+        if self.recorded_task is not None:
+            from lerobot_pnp.env_config import CHECKPOINT_RECORDED_FILE
+
+            (Path(save_directory) / CHECKPOINT_RECORDED_FILE).write_text(json.dumps(self.recorded_task, indent=2))
 
     @classmethod
     def from_pretrained(cls, pretrained_name_or_path, *, config: PnpLstmConfig | None = None, **kwargs):
@@ -332,6 +344,20 @@ def _check_same_shapes(path: Path, config: PnpLstmConfig, saved: PnpLstmConfig) 
 
 def _subtask_names(n: int) -> list[str]:
     return ["pick", "place"] if n == 2 else [f"subtask{i}" for i in range(n)]
+
+
+def _recorded_task(dataset_meta: Any) -> dict | None:
+    """The task recorded with the training dataset (validated), None without a dataset or a record."""
+    root = getattr(dataset_meta, "root", None)
+    if root is None:
+        return None
+    from lerobot_pnp.env_config import RECORDED_FILE, check_recorded, read_recorded
+
+    return (
+        check_recorded(read_recorded(root), Path(root) / RECORDED_FILE)
+        if (Path(root) / RECORDED_FILE).is_file()
+        else None
+    )
 
 
 def _check_keyframe_episodes(

@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import json
 import random
-import shutil
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -34,6 +33,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from lerobot_pnp.env_config import copy_recorded
 from lerobot_pnp.errors import DatasetError
 
 # ACT sized to the task: an expert dense episode is ~140-160 steps (7-8 s at 20 fps) with a keyframe reached
@@ -225,7 +225,7 @@ def train_act(dataset_root: Path, output_dir: Path, seed: int, budget: ActBudget
     ckpt = get_step_checkpoint_dir(output_dir, budget.steps, budget.steps)
     save_checkpoint(ckpt, budget.steps, train_cfg, policy, optimizer, scheduler, preprocessor, postprocessor)
     # the dense task travels with the checkpoint (lerobot-eval --policy.path picks it up)
-    shutil.copyfile(dataset_root / "meta" / "baxter_pnp_env.json", ckpt / "pretrained_model" / "baxter_pnp_env.json")
+    copy_recorded(dataset_root, ckpt / "pretrained_model")
     update_last_checkpoint(ckpt)
     tail = losses[-max(1, len(losses) // 10) :]
     summary = {

@@ -28,21 +28,18 @@ def generate_dataset(
     control_mode: str = "keyframe",
     env_changes: dict | None = None,
 ) -> dict:
-    """Generate (or finish, or reuse) an expert dataset of ``num_episodes`` in ``root``; returns its summary.
+    """Generate (or finish, or verify and reuse) an expert dataset of ``num_episodes`` in ``root``; returns
+    its summary.
 
     ``control_mode="dense"`` records the same demonstrations (same seeds, same object positions) at the
     control rate (ACT's training data); ``env_changes`` sets env fields on top of the preset (e.g.
     ``observe_phase``: the same demonstrations with the phase one-hot observed; a ``control_mode`` there wins).
     """
-    from lerobot_pnp.dataset import GenerateConfig, generate, validate_dataset
+    from lerobot_pnp.dataset import GenerateConfig, generate
     from lerobot_pnp.env_config import BaxterPnPEnvConfig
 
-    if root.exists() and (root / "meta" / "info.json").exists():
-        try:
-            validate_dataset(root)
-            return {"root": str(root), "status": "reused"}
-        except PnPError:
-            pass
+    # an existing dataset is resumed or, when complete, verified against its record of how it was made (a
+    # ConfigError names the setting that differs)
     cfg = GenerateConfig(
         repo_id=f"local/{root.name}",
         root=str(root),

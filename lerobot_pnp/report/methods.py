@@ -33,6 +33,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+from lerobot_pnp.cache import STAGE_FILE, Stage, code_versions, remove
 from lerobot_pnp.dagger import RECOVERING_RECIPE
 from lerobot_pnp.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.errors import ConfigError
@@ -52,6 +53,7 @@ class TrainContext:
     n_demos: int | None = None  # keep only the first n training episodes (data efficiency); None = all
     dense_root: Path | None = None  # the dense recording of the same demonstrations (methods with data="dense")
     act_steps: int | None = None  # ACT's training steps (None = act_baseline.ActBudget's default)
+    data_keys: dict[str, str] = field(default_factory=dict)  # recording -> its dataset's stage key
 
 
 @dataclass(frozen=True)
@@ -93,7 +95,7 @@ _EPISODES: dict[tuple[str, int | None], adapters.Episodes] = {}
 def _lookup_eval(artifact, ctx, env_cfg, n, start_seed, batch_size):
     from lerobot_pnp.report.baselines import LookupTablePolicy, identity_processors
 
-    key = (str(ctx.dataset_root), ctx.n_demos)
+    key = (str(ctx.dataset_root), ctx.data_keys.get("keyframe"), ctx.n_demos)
     if key not in _EPISODES:  # one read per dataset and subset, not one per suite
         _EPISODES[key] = adapters.load_train_episodes(ctx.dataset_root, limit=ctx.n_demos)
     episodes = _EPISODES[key]
@@ -140,7 +142,7 @@ def _dagger_train(ctx: TrainContext) -> Path:
     if ctx.n_demos is not None:
         raise ConfigError("method 'recovering_dagger' has no data-efficiency variant")
     base = METHODS["recovering_dagger"].continues
-    round0 = METHODS[base].train(replace(ctx, train_dir=ctx.train_dir.parent.parent / base / ctx.train_dir.name))
+    round0, _ = keyed_train(METHODS[base], _continued(ctx, base))
     summary = run_dagger(
         DaggerConfig(
             output_dir=str(ctx.train_dir),
@@ -263,6 +265,48 @@ METHODS: dict[str, Method] = {
         ),
     )
 }
+
+
+def _continued(ctx: TrainContext, base: str) -> TrainContext:
+    """The context of the run of the same seed that a method continues (``Method.continues``)."""
+    return replace(ctx, train_dir=ctx.train_dir.parent.parent / base / ctx.train_dir.name)
+
+
+def train_stage(method: Method, ctx: TrainContext) -> Stage:
+    """The key of a learned method's training: the method (its policy settings), the key of the recording
+    it trains on, seed, epochs, demonstrations, ACT's steps, the run it continues, the code versions."""
+    parts = {
+        "stage": "train",
+        "method": method.name,
+        "overrides": method.policy_overrides,
+        "data": ctx.data_keys.get(method.data),
+        "seed": ctx.seed,
+        "epochs": ctx.epochs,
+        "n_demos": ctx.n_demos,
+        "act_steps": ctx.act_steps if method.data == "dense" else None,
+        "continues": train_stage(METHODS[method.continues], _continued(ctx, method.continues)).key
+        if method.continues
+        else None,
+        "versions": code_versions(),
+    }
+    return Stage(ctx.train_dir / STAGE_FILE, parts)
+
+
+def keyed_train(method: Method, ctx: TrainContext) -> tuple[Path | None, bool]:
+    """``method.train(ctx)`` unless a training of the same key is on disk: (artefact, trained now).
+
+    A training folder without a matching record (another key, or killed midway) is deleted and trained
+    again: what is in it is never trusted by its existence alone."""
+    if not method.learned:
+        return method.train(ctx), False
+    stage = train_stage(method, ctx)
+    if stage.done(f"training {method.name} {ctx.train_dir.name}"):
+        return ctx.train_dir / stage.stored()["artifact"], False
+    stage.invalidate()
+    remove(ctx.train_dir)
+    artifact = Path(method.train(ctx))
+    stage.commit(artifact=str(artifact.resolve().relative_to(ctx.train_dir.resolve())))
+    return artifact, True
 
 
 def get_methods(names: list[str]) -> list[Method]:

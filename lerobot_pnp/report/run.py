@@ -17,18 +17,19 @@ from __future__ import annotations
 import json
 import os
 import platform
-import shutil
 import sys
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+from lerobot_pnp.cache import MANIFEST_FILE, STAGE_FILE, Manifest, Stage, code_versions, lock_output, remove
+from lerobot_pnp.dataset.workdir import remove_generation
 from lerobot_pnp.env_config import PAPER_TASK, BaxterPnPEnvConfig, read_recorded
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.report import adapters
 from lerobot_pnp.report.adapters import check_same_demonstrations
 from lerobot_pnp.report.evaluation import records_from_json, records_to_json
-from lerobot_pnp.report.methods import TrainContext, get_methods
+from lerobot_pnp.report.methods import TrainContext, get_methods, keyed_train, train_stage
 from lerobot_pnp.report.suites import get_suites
 
 # The recordings a method can train on besides the keyframe dataset (``Method.data``): what they are and the
@@ -196,13 +197,44 @@ def _stage(text: str) -> None:
 
 # ---------------------------------------------------------------------------------------------------- stages
 def run_study(cfg: StudyConfig) -> dict:
-    """Run every stage that is not finished yet; return a short summary (the report path and headline)."""
+    """Run every stage that is not finished yet; return a short summary (the report path and headline).
+
+    The output folder is locked for the whole run (a second study on it fails at once); the top-level
+    entries the study writes are listed in its manifest, so ``--fresh`` deletes only those."""
+    out = Path(cfg.output_dir)
+    with lock_output(out, "lerobot-pnp report"):
+        manifest = Manifest(out, "lerobot-pnp report")
+        if cfg.fresh:
+            manifest.clear()
+        return _run_locked(cfg, out, manifest)
+
+
+def _dataset(out: Path, name: str, cfg: StudyConfig, changes: dict | None = None) -> tuple[dict, str]:
+    """Generate (or finish, or reuse) the recording ``name``, keyed by what determines it; (summary, key).
+
+    A dataset of other settings (or one without a record) is verified by the generator against its own
+    record of how it was made, and replaced when that differs."""
+    root = out / name
+    stage = Stage(root / STAGE_FILE, {"stage": "dataset", "num_episodes": cfg.num_episodes,
+                                      "seed": cfg.dataset_seed, "changes": changes or {}, "versions": code_versions()})  # fmt: skip
+    if stage.done(f"dataset {name}"):
+        return {"root": str(root), "status": "reused"}, stage.key
+    stage.invalidate()
+    try:
+        summary = adapters.generate_dataset(root, cfg.num_episodes, cfg.dataset_seed, cfg.workers, env_changes=changes)
+    except ConfigError as err:  # made with other settings: not this study's dataset any more
+        print(f"  dataset {name}: regenerated ({err})", flush=True)
+        remove_generation(root)
+        summary = adapters.generate_dataset(root, cfg.num_episodes, cfg.dataset_seed, cfg.workers, env_changes=changes)
+    stage.commit()
+    return summary, stage.key
+
+
+def _run_locked(cfg: StudyConfig, out: Path, manifest: Manifest) -> dict:
     from lerobot_pnp.report.writer import write_report
 
-    out = Path(cfg.output_dir)
-    if cfg.fresh and out.exists():
-        shutil.rmtree(out)
-    out.mkdir(parents=True, exist_ok=True)
+    before = {p.name for p in out.iterdir()}
+    manifest.claim("study_config.json", "dataset", "train", "evals", "lerobot_eval_cli")
     _write_json(out / "study_config.json", asdict(cfg))
     timings: dict[str, float] = {}
     started = time.perf_counter()
@@ -211,7 +243,8 @@ def run_study(cfg: StudyConfig) -> dict:
     _stage(f"1/4 dataset: {cfg.num_episodes} expert demonstrations")
     t = time.perf_counter()
     root = out / "dataset"
-    generation = adapters.generate_dataset(root, cfg.num_episodes, cfg.dataset_seed, cfg.workers)
+    keys: dict[str, str] = {}  # recording -> its dataset's stage key
+    generation, keys["keyframe"] = _dataset(out, "dataset", cfg)
     timings["dataset"] = time.perf_counter() - t
     base_env = BaxterPnPEnvConfig.from_dict(read_recorded(root) or {})
     roots = {"keyframe": root}
@@ -222,9 +255,8 @@ def run_study(cfg: StudyConfig) -> dict:
         _stage(f"1b/4 {data} dataset: the same {cfg.num_episodes} demonstrations {what}")
         t = time.perf_counter()
         roots[data] = out / f"dataset_{data}"
-        generation[data] = adapters.generate_dataset(
-            roots[data], cfg.num_episodes, cfg.dataset_seed, cfg.workers, env_changes=changes
-        )
+        manifest.claim(roots[data].name)
+        generation[data], keys[data] = _dataset(out, roots[data].name, cfg, changes)
         check_same_demonstrations(root, roots[data])
         timings[f"dataset_{data}"] = time.perf_counter() - t
 
@@ -237,7 +269,7 @@ def run_study(cfg: StudyConfig) -> dict:
         f"(method x training seed) in {processes} process{'es' if processes > 1 else ''}",
         flush=True,
     )
-    finished = dict(_run_jobs(jobs, (cfg, out, roots, base_env), processes))
+    finished = dict(_run_jobs(jobs, (cfg, out, roots, base_env, keys), processes))
     results: dict[str, dict[str, dict[str, list]]] = {}  # method -> tag -> suite -> records, in job order
     for job in jobs:
         records, job_timings = finished[job]
@@ -245,12 +277,14 @@ def run_study(cfg: StudyConfig) -> dict:
         for suite, recs in records.items():
             results.setdefault(job.method, {}).setdefault(job.tag, {})[suite] = recs
 
-    cli_check = _cli_check(cfg, methods, results, out, timings)
+    cli_check = _cli_check(cfg, methods, results, (out, roots, keys), timings)
     timings["run/wall_clock"] = time.perf_counter() - started  # this invocation, all processes together
     timings["run/processes"] = processes
 
     _stage("4/4 report")
+    manifest.claim("report.md", "summary.json", "figures")
     summary = write_report(out, cfg, methods, results, base_env, generation, timings, machine(), _command(), cli_check)
+    manifest.claim(*({p.name for p in out.iterdir()} - before - {MANIFEST_FILE}))  # whatever else it wrote
     print(f"\nreport: {out / 'report.md'}")
     return summary
 
@@ -292,7 +326,13 @@ def _run_jobs(jobs: list[Job], context: tuple, processes: int, fn=None):
     names = {(j.method, j.tag) for j in jobs}
     done: set[tuple[str, str]] = set()
     pending, running = list(jobs), {}
-    with ProcessPoolExecutor(processes, mp_context=mp.get_context("spawn")) as pool:
+    from lerobot_pnp.dataset.executors import die_with_parent
+
+    # a worker dies with this process (kill -9 included), as the generation's do: no orphan writes on
+    pool = ProcessPoolExecutor(
+        processes, mp_context=mp.get_context("spawn"), initializer=die_with_parent, initargs=(os.getpid(),)
+    )
+    with pool:
         while pending or running:
             for job in [j for j in pending if j.after() not in names or j.after() in done]:
                 if len(running) >= processes:
@@ -306,42 +346,48 @@ def _run_jobs(jobs: list[Job], context: tuple, processes: int, fn=None):
                 yield job, future.result()
 
 
-def run_job(job: Job, cfg: StudyConfig, out: Path, roots: dict[str, Path], base_env) -> tuple[dict, dict]:
+def _context(job: Job, method, cfg: StudyConfig, out: Path, roots: dict[str, Path], keys: dict[str, str]):
+    seed = int(cfg.train_seeds[0] if not job.tag.isdigit() else job.tag)
+    data_root = roots["keyframe"] if method.data == "dense" else roots[method.data]  # ACT reads ctx.dense_root
+    return TrainContext(data_root, out / "train" / method.name / f"seed{job.tag}", seed, cfg.epochs, job.n_demos,
+                        roots.get("dense"), cfg.act_steps, dict(keys))  # fmt: skip
+
+
+def _eval_stage(path: Path, method, ctx, suite, n_episodes: int, env_parts: list, cfg: StudyConfig) -> Stage:
+    """An evaluation's key: the trained artefact's (or the data's), the suite as defined now, its episodes
+    and seeds. A task field added since it ran counts as unchanged when its value is the paper's (off)."""
+    parts = {"stage": "eval", "train": train_stage(method, ctx).key if method.learned else None,
+             "data": ctx.data_keys.get(method.data), "suite": suite.name, "env_parts": env_parts,
+             "n_episodes": n_episodes, "eval_seed": cfg.eval_seed, "versions": code_versions()}  # fmt: skip
+    return Stage(path, parts, compare={"env_parts": _same_parts})
+
+
+def run_job(job: Job, cfg: StudyConfig, out: Path, roots: dict[str, Path], base_env, keys: dict[str, str]):
     """Train ``job`` if one of its evaluations is missing or stale, run those evaluations; return the records
     per suite and the stage timings. Everything it finishes is on disk, so an interrupted study resumes."""
     import torch
 
     torch.set_num_threads(1)
     (method,) = get_methods([job.method])
-    seed = int(cfg.train_seeds[0] if not job.tag.isdigit() else job.tag)
-    data_root = roots["keyframe"] if method.data == "dense" else roots[method.data]  # ACT reads ctx.dense_root
-    ctx = TrainContext(
-        data_root,
-        out / "train" / method.name / f"seed{job.tag}",
-        seed,
-        cfg.epochs,
-        job.n_demos,
-        roots.get("dense"),
-        cfg.act_steps,
-    )
+    ctx = _context(job, method, cfg, out, roots, keys)
     records, timings, artifact, trained = {}, {}, None, False
     for suite, n_episodes in _suites_for(cfg, job.n_demos, method):
         path = out / "evals" / method.name / f"seed{job.tag}" / f"{suite.name}.json"
         env_parts = [method.env_config(c, ctx).to_dict() for c in suite.env_configs(base_env)]
-        cached = json.loads(path.read_text()) if path.is_file() else None
-        if cached is not None and _same_parts(cached.get("env_parts"), env_parts):
-            data = cached  # finished earlier, as the suite is defined now
+        stage = _eval_stage(path, method, ctx, suite, n_episodes, env_parts, cfg)
+        if stage.done(f"evaluation {method.name} {job.tag} {suite.name}"):
+            data = stage.stored()  # finished earlier, with these settings and this trained artefact
         elif cfg.report_only:
             continue
         else:
             if not trained:
-                t, existed = time.perf_counter(), any(ctx.train_dir.rglob("model.safetensors"))
-                artifact, trained = method.train(ctx), True
-                if method.learned and not existed:  # trained now, not found from an earlier run
+                t = time.perf_counter()
+                (artifact, fresh), trained = keyed_train(method, ctx), True
+                if fresh:  # trained now, not found from an earlier run
                     _write_json(ctx.train_dir / TRAIN_TIME, {"wall_s": time.perf_counter() - t})
                     print(f"  trained {method.name} seed {job.tag}: {time.perf_counter() - t:.0f} s", flush=True)
             data = _evaluate(method, artifact, ctx, suite, n_episodes, base_env, cfg)
-            _write_json(path, data)
+            stage.commit(**data)  # the record and the episodes in one atomic write
             ok = sum(e["success"] for e in data["episodes"])
             print(
                 f"  {method.name:<13} {job.tag:>5} {suite.name:<16} {ok}/{len(data['episodes'])} ({data['wall_s']:.0f} s)",
@@ -382,8 +428,9 @@ def _same_parts(stored: list[dict] | None, current: list[dict]) -> bool:
     )
 
 
-def _cli_check(cfg: StudyConfig, methods, results, out: Path, timings: dict) -> dict | None:
-    """The first seeds of the nominal suite through the `lerobot-eval` CLI, compared episode by episode."""
+def _cli_check(cfg: StudyConfig, methods, results, where: tuple, timings: dict) -> dict | None:
+    """The first seeds of the nominal suite through the `lerobot-eval` CLI, compared episode by episode
+    (``where``: the output folder, the recordings' roots and keys); re-run when its checkpoint changed."""
     from lerobot_pnp.report.cli_eval import EvalSpec, run_eval
 
     learned = [m for m in methods if m.learned]
@@ -393,10 +440,16 @@ def _cli_check(cfg: StudyConfig, methods, results, out: Path, timings: dict) -> 
         or "nominal" not in results.get(learned[0].name, {}).get(tag := str(cfg.train_seeds[0]), {})
     ):
         return None
+    out, roots, keys = where
     n = min(cfg.cli_check_episodes, len(results[learned[0].name][tag]["nominal"]))
     cli_dir = out / "lerobot_eval_cli" / "nominal"
-    if cfg.report_only and not (cli_dir / "eval_info.json").is_file():
-        return None
+    ctx = _context(Job(learned[0].name, tag, None), learned[0], cfg, out, roots, keys)
+    stage = Stage(cli_dir / STAGE_FILE, {"stage": "cli_check", "train": train_stage(learned[0], ctx).key, "n": n,
+                                         "eval_seed": cfg.eval_seed, "versions": code_versions()})  # fmt: skip
+    if not stage.done("lerobot-eval cross-check"):
+        if cfg.report_only:
+            return None
+        remove(cli_dir)
     _stage(f"3b cross-check: {n} nominal episodes of {learned[0].name} seed {tag} through the lerobot-eval CLI")
     t = time.perf_counter()
     cli = run_eval(
@@ -406,6 +459,7 @@ def _cli_check(cfg: StudyConfig, methods, results, out: Path, timings: dict) -> 
         cfg.eval_seed,
         cfg.eval_batch_size,
     )
+    stage.commit()
     timings["cli_check"] = time.perf_counter() - t
     ours = {r.seed: r.success for r in results[learned[0].name][tag]["nominal"] if r.seed < cfg.eval_seed + n}
     theirs = cli["per_episode"]

@@ -11,7 +11,6 @@ import json
 import logging
 import math
 import random
-import shutil
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -98,10 +97,8 @@ class _Run:
             postprocessor=self.postprocessor,
             batch_size=cfg.batch_size,
         )
-        # The task the data was recorded in travels with the checkpoint, so lerobot-eval finds it from any folder.
-        recorded = Path(cfg.dataset_root or "") / "meta" / "baxter_pnp_env.json"
-        if cfg.dataset_root and recorded.is_file():
-            shutil.copyfile(recorded, ckpt / "pretrained_model" / "baxter_pnp_env.json")
+        # The task the data was recorded in travels with the checkpoint (written, validated, by the policy's
+        # save: PnpLstmPolicy._save_pretrained), so lerobot-eval finds it from any folder.
         update_last_checkpoint(ckpt)
         return ckpt / "pretrained_model"
 

@@ -1,0 +1,218 @@
+"""Cached stages that cannot lie: keys, stage records, the output folder's lock and the study's manifest.
+
+A cached stage (a dataset, a training, an evaluation) is reused only when its **key** matches: the sha256 of
+the canonical JSON of everything that determines it (config fields, seeds, the keys or content digests of its
+inputs, the code versions). The key and its parts are recorded with the stage (``Stage.commit``), after the
+stage itself is complete, so a stage folder without a matching record is never trusted by existence alone,
+and a mismatch names the parts that changed. Paths never enter a key (a moved folder keeps its keys) and the
+records hold only paths relative to their output folder.
+
+The lock is the dataset generation's ``RootLock`` (an ``flock`` on the folder, released when the process
+dies); ``Manifest`` lists the top-level entries a command wrote into its output folder, so ``--fresh``
+deletes only those and refuses a folder that holds anything else.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import math
+import shutil
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from lerobot_pnp.errors import ConfigError
+
+logger = logging.getLogger(__name__)
+STAGE_FILE = "stage.json"  # the record of a stage kept in a folder
+MANIFEST_FILE = ".pnp_manifest.json"
+
+
+def canonical(value: Any) -> Any:
+    """``value`` as plain JSON values (tuples -> lists, paths -> str, dataclasses -> dicts); rejects NaN."""
+    text = json.dumps(value, sort_keys=True, default=_default, allow_nan=True)
+    data = json.loads(text)
+    if _has_nan(data):
+        raise ConfigError(f"a stage key part is not finite: {text[:200]}")
+    return data
+
+
+def _default(value: Any) -> Any:
+    if isinstance(value, Path):
+        return str(value)
+    if hasattr(value, "__dataclass_fields__"):
+        from dataclasses import asdict
+
+        return asdict(value)
+    raise TypeError(f"cannot key a {type(value).__name__}: {value!r}")
+
+
+def _has_nan(value: Any) -> bool:
+    if isinstance(value, float):
+        return not math.isfinite(value)
+    if isinstance(value, dict):
+        return any(_has_nan(v) for v in value.values())
+    if isinstance(value, list):
+        return any(_has_nan(v) for v in value)
+    return False
+
+
+def key_of(parts: dict) -> str:
+    """The stage key: sha256 of the canonical JSON of ``parts``."""
+    return hashlib.sha256(json.dumps(canonical(parts), sort_keys=True).encode()).hexdigest()
+
+
+def code_versions() -> dict[str, str]:
+    """The versions of the code a stage's result depends on (this package and LeRobot)."""
+    import importlib.metadata as md
+
+    import lerobot_pnp
+
+    try:
+        lerobot = md.version("lerobot")
+    except md.PackageNotFoundError:  # pragma: no cover - lerobot is a dependency
+        lerobot = "?"
+    return {"lerobot_pnp": lerobot_pnp.__version__, "lerobot": lerobot}
+
+
+def digest_files(root: Path, patterns: tuple[str, ...]) -> str:
+    """Content digest of the files under ``root`` matching ``patterns`` (relative names + bytes).
+
+    The key of an input that no stage of this folder produced (a dataset or a checkpoint passed in by
+    path): what it holds, not where it is."""
+    root = Path(root)
+    h = hashlib.sha256()
+    files = sorted({p for pattern in patterns for p in root.glob(pattern) if p.is_file()})
+    for path in files:
+        h.update(str(path.relative_to(root)).encode() + b"\0")
+        with open(path, "rb") as f:
+            for block in iter(lambda: f.read(1 << 20), b""):
+                h.update(block)
+        h.update(b"\0")
+    return h.hexdigest()
+
+
+DATASET_FILES = ("meta/*.json", "meta/**/*.parquet", "data/**/*.parquet")
+CHECKPOINT_FILES = ("*.json", "*.safetensors")
+
+
+def write_json_atomic(path: Path, data: Any) -> None:
+    """Write ``data`` as JSON into ``path`` through a temporary file and a rename (whole or absent)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(data, indent=1, default=str))
+    tmp.replace(path)
+
+
+def _same(old: Any, new: Any) -> bool:
+    return old == new
+
+
+class Stage:
+    """A cached stage's record: its key and the key's parts, in ``record`` (a JSON file).
+
+    ``compare`` maps a part's name to how an old value is compared with the new one (default: equal), for
+    parts with a compatibility rule (e.g. env fields added later that had their paper value then).
+    """
+
+    def __init__(self, record: Path, parts: dict, compare: dict[str, Callable[[Any, Any], bool]] | None = None):
+        self.record = Path(record)
+        self.parts = canonical(parts)
+        self.key = key_of(self.parts)
+        self.compare = compare or {}
+
+    def stored(self) -> dict | None:
+        """The record on disk, or None when absent or unreadable (an unreadable record is not trusted)."""
+        try:
+            data = json.loads(self.record.read_text())
+        except (OSError, ValueError):
+            return None
+        return data if isinstance(data, dict) and isinstance(data.get("parts"), dict) else None
+
+    def changes(self) -> list[str] | None:
+        """None when no record exists; else the names of the parts that differ from the record's."""
+        stored = self.stored()
+        if stored is None:
+            return None
+        old = stored["parts"]
+        names = sorted(set(old) | set(self.parts))
+        return [n for n in names if n not in old or n not in self.parts or not self._same(n, old[n])]
+
+    def _same(self, name: str, old: Any) -> bool:
+        return self.compare.get(name, _same)(old, self.parts[name])
+
+    def done(self, what: str = "") -> bool:
+        """Whether the stage was finished with these parts; logs what changed when it was not."""
+        changed = self.changes()
+        if changed and what:
+            logger.warning("%s: re-run (changed since it was made: %s)", what, ", ".join(changed))
+            print(f"  {what}: re-run (changed since it was made: {', '.join(changed)})", flush=True)
+        return changed == []
+
+    def commit(self, **extra: Any) -> None:
+        """Record the stage as finished (after its outputs are complete); ``extra`` is stored alongside."""
+        extra = json.loads(json.dumps(extra, default=_default))
+        write_json_atomic(self.record, {"key": self.key, "parts": self.parts, **extra})
+
+    def invalidate(self) -> None:
+        self.record.unlink(missing_ok=True)
+
+
+def remove(path: Path) -> None:
+    """Delete a stage's output (a folder or a file), if present."""
+    if path.is_dir() and not path.is_symlink():
+        shutil.rmtree(path)
+    elif path.exists() or path.is_symlink():
+        path.unlink()
+
+
+def lock_output(out: Path, command: str):
+    """The output folder's lock (the generation's ``RootLock``), taken before anything is read or written;
+    a second command on the same folder fails at once with one line."""
+    from lerobot_pnp.dataset.workdir import RootLock
+
+    return RootLock(Path(out), busy=f"another `{command}` is using {out}; wait for it to finish (or stop it)")
+
+
+class Manifest:
+    """The top-level entries of ``out`` that a command wrote (``.pnp_manifest.json``), so that ``--fresh``
+    deletes exactly those and never a file of the user's."""
+
+    def __init__(self, out: Path, command: str):
+        self.out, self.command = Path(out), command
+        self.path = self.out / MANIFEST_FILE
+        try:
+            self.entries: set[str] = set(json.loads(self.path.read_text())["entries"])
+        except (OSError, ValueError, KeyError, TypeError):
+            self.entries = set()
+
+    def claim(self, *names: str) -> None:
+        """Record top-level entries as this command's, before they are written."""
+        new = {Path(n).parts[0] for n in names} - self.entries
+        if new:
+            self.entries |= new
+            write_json_atomic(self.path, {"command": self.command, "entries": sorted(self.entries)})
+
+    def foreign(self) -> list[str]:
+        """Entries of ``out`` this command did not write (besides its lock and manifest files)."""
+        from lerobot_pnp.dataset.workdir import LOCK_FILE
+
+        own = self.entries | {MANIFEST_FILE, LOCK_FILE}
+        return sorted(p.name for p in self.out.iterdir() if p.name.removesuffix(".tmp") not in own)
+
+    def clear(self) -> None:
+        """``--fresh``: delete every entry this command wrote; refuse (one line) if ``out`` holds another."""
+        foreign = self.foreign()
+        if foreign:
+            raise ConfigError(
+                f"--fresh: {self.out} holds {self.out / foreign[0]}, which `{self.command}` did not write "
+                f"({len(foreign)} such entr{'y' if len(foreign) == 1 else 'ies'}); move it or choose another "
+                "--output_dir"
+            )
+        for name in sorted(self.entries):
+            remove(self.out / name)
+            remove(self.out / f"{name}.tmp")
+        self.entries = set()
+        self.path.unlink(missing_ok=True)
