@@ -16,6 +16,9 @@ Task fields default to ``None``, which means "not set here". They are resolved o
    non-default task is evaluated on that task with no extra flag),
 3. fields given explicitly.
 
+The observation setup (``cameras``, ``image_height``, ``image_width``) and the control mode follow the same
+rule, so ``lerobot-eval --policy.path=...`` of a policy trained on camera images renders the same cameras.
+
 A generated dataset stores the resolved config in ``meta/baxter_pnp_env.json`` (``write_recorded``).
 """
 
@@ -153,6 +156,9 @@ FULL_TASK: dict[str, Any] = {
 }
 PRESETS: dict[str, dict[str, Any]] = {"paper": PAPER_TASK, "full": FULL_TASK}
 TASK_FIELDS = tuple(PAPER_TASK)
+# The observation setup (not part of any preset): rendered cameras and their image size. Like the control mode it
+# is read back from the recorded task, so a policy trained on camera images is evaluated with the same cameras.
+OBSERVATION_DEFAULTS: dict[str, Any] = {"cameras": [], "image_height": 240, "image_width": 320}
 _PAIRS = (
     ("object_low", "object_high"),
     ("object_exclude_low", "object_exclude_high"),
@@ -176,9 +182,10 @@ class BaxterPnPEnvConfig(EnvConfig):
     # keyframe (one step = move to a joint keyframe) | dense (one control period); None = the recorded one, else keyframe
     control_mode: str | None = None
     episode_length: int | None = None  # env steps before truncation; default keyframe_budget (dense: 3 s per keyframe)
-    cameras: list[str] = field(default_factory=list)  # rendered camera observations: front, overhead, wrist
-    image_height: int = 240
-    image_width: int = 320
+    # ---- observation setup (None = the recorded one, else OBSERVATION_DEFAULTS): what an image policy consumes
+    cameras: list[str] | None = None  # rendered camera observations: front, overhead, wrist
+    image_height: int | None = None
+    image_width: int | None = None
     speed: float = 1.0  # fraction of Baxter's joint velocity limits used by the interpolator
     straight_paths: bool = True  # keyframe moves keep the gripper on a straight line (else joint-linear)
     # ---- task (None = from the preset / recorded task; see PAPER_TASK for meanings and defaults)
@@ -277,6 +284,9 @@ class BaxterPnPEnvConfig(EnvConfig):
                 setattr(self, name, base[name])
         if self.preset is None:
             self.preset = recorded.get("preset", "paper")
+        for name, default in OBSERVATION_DEFAULTS.items():
+            if getattr(self, name) is None:
+                setattr(self, name, recorded.get(name, default))
         self._resolve_control(recorded)
         self.task_source = None  # resolved: the config now stands on its own
 
@@ -315,7 +325,10 @@ class BaxterPnPEnvConfig(EnvConfig):
             raise ConfigError(
                 f"env.episode_length must be an integer in [1, {MAX_EPISODE_LENGTH}], got {self.episode_length!r}"
             )
-        if not (8 <= self.image_height <= 4096 and 8 <= self.image_width <= 4096):
+        if not all(
+            isinstance(v, int) and not isinstance(v, bool) and 8 <= v <= 4096
+            for v in (self.image_height, self.image_width)
+        ):
             raise ConfigError(
                 f"env.image_height/width must be in [8, 4096], got {self.image_height}x{self.image_width}"
             )

@@ -5,7 +5,8 @@ This mirrors the per-step pipeline of ``lerobot-eval``'s rollout (gym observatio
 episode, so the viewer (``lerobot_pnp.viz``) can watch exactly what ``lerobot-eval`` would run.
 
 ``load_policy`` checks that the checkpoint fits this env (``observation.state`` (8,),
-``observation.environment_state`` (3,), ``action`` (8,), no image inputs) and raises
+``observation.environment_state`` (3,) unless it sees the scene through cameras, images
+``observation.images.<camera>`` only of the env's cameras, ``action`` (8,)) and raises
 ``IncompatiblePolicyError`` otherwise. Set ``env.unwrapped.physics.on_control_tick`` before ``run_policy_episode`` to
 observe the continuous motion between steps.
 """
@@ -18,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from lerobot.utils.constants import ACTION, OBS_STATE
+from lerobot.utils.constants import ACTION, OBS_IMAGES, OBS_STATE
 from lerobot.utils.constants import OBS_ENV_STATE as OBS_ENV
 
 from lerobot_pnp import robot
@@ -98,13 +99,37 @@ ENV_STATE_WIDTHS = tuple(
 )
 
 
-def check_policy_features(config: Any, env_state_dim: int | None = None) -> None:
+def image_inputs(config: Any) -> dict[str, tuple[int, int]]:
+    """The camera inputs of a policy: ``{camera: (height, width)}`` from its ``observation.images.<camera>``."""
+    prefix = f"{OBS_IMAGES}."
+    feats = (config.input_features or {}).items()
+    return {k[len(prefix) :]: tuple(ft.shape)[-2:] for k, ft in feats if k.startswith(prefix) and len(ft.shape) == 3}
+
+
+def check_policy_features(
+    config: Any, env_state_dim: int | None = None, cameras: dict[str, tuple[int, int]] | None = None
+) -> None:
     """Raise ``IncompatiblePolicyError`` unless the policy's features are those of this env (with an
-    ``environment_state`` of ``env_state_dim``, or of any width a task can give when None)."""
+    ``environment_state`` of ``env_state_dim``, or of any width a task can give when None; camera inputs
+    among the env's cameras, of the size ``cameras`` renders them at when given)."""
+    from lerobot_pnp.physics import CAMERAS
+
     inputs = dict(config.input_features or {})
     outputs = dict(config.output_features or {})
+    images = image_inputs(config)
     expected_in = {OBS_STATE: (robot.STATE_DIM,), OBS_ENV: (env_state_dim or robot.OBJECT_DIM,)}
+    if images and OBS_ENV not in inputs:
+        del expected_in[OBS_ENV]  # an image policy may see the object only through its cameras
     problems = []
+    for cam, size in images.items():
+        if cam not in CAMERAS:
+            problems.append(f"image input '{OBS_IMAGES}.{cam}': the env's cameras are {list(CAMERAS)}")
+        elif cameras is not None and cameras.get(cam) != size:
+            got = f"renders it at {cameras[cam]}" if cam in cameras else "does not render it"
+            problems.append(f"image input '{OBS_IMAGES}.{cam}' is {size[0]}x{size[1]}; the env {got}")
+    inputs = {
+        k: v for k, v in inputs.items() if not k.startswith(f"{OBS_IMAGES}.") or k[len(OBS_IMAGES) + 1 :] not in images
+    }
     for key, shape in expected_in.items():
         if key not in inputs:
             problems.append(f"missing input feature '{key}' (shape {shape})")
@@ -193,7 +218,8 @@ def policy_action(loaded: LoadedPolicy, obs: dict, task: str) -> np.ndarray:
     import torch
     from lerobot.envs.utils import preprocess_observation
 
-    batch = preprocess_observation({k: v for k, v in obs.items() if k != "pixels"})
+    keep_pixels = bool(image_inputs(loaded.policy.config))  # state policies never see the env's renders
+    batch = preprocess_observation({k: v for k, v in obs.items() if k != "pixels" or keep_pixels})
     batch["task"] = [task]
     batch = loaded.preprocessor(batch)
     with torch.inference_mode():

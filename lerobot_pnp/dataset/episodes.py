@@ -19,7 +19,8 @@ def slot_seed(base_seed: int, num_episodes: int, slot: int, retry: int) -> int:
 
 
 class PixelRecorder:
-    """Keeps the camera images of every observation the expert sees (reset + each step).
+    """Keeps the camera images (when the env renders any) and the ``info`` of every observation (reset + each
+    step): the frames a dataset records, and what the viewer shows of a run (cameras, perturbations, failure).
 
     A plain gymnasium wrapper, created lazily so importing this module does not import gymnasium."""
 
@@ -29,12 +30,13 @@ class PixelRecorder:
         class _Recorder(gym.Wrapper):
             def reset(self, **kwargs):
                 obs, info = self.env.reset(**kwargs)
-                self.pixels = [obs["pixels"]]
+                self.pixels, self.infos = [obs.get("pixels")], [info]
                 return obs, info
 
             def step(self, action):
                 out = self.env.step(action)
-                self.pixels.append(out[0]["pixels"])
+                self.pixels.append(out[0].get("pixels"))
+                self.infos.append(out[4])
                 return out
 
         return _Recorder(env)

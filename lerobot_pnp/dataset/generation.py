@@ -19,6 +19,7 @@ import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
+from lerobot_pnp.dataset.annotations import annotate_subtasks
 from lerobot_pnp.dataset.executors import (
     ProgressBar,
     active_slurm_jobs,
@@ -78,6 +79,9 @@ class GenerateConfig:
     overwrite: bool = False  # delete the dataset (or interrupted run) in root first; other files are kept
     allow_huge: bool = False  # allow num_episodes above 10 million
     progress: bool = True  # one tqdm bar (datatrove's logs go to the logging folder)
+    # the FSM phases as LeRobot subtask annotations (language_persistent rows; dataset/annotations.py); opt-in
+    # because the extra columns change the data files (the paper dataset's hash is fixed)
+    subtask_annotations: bool = False
 
     def __post_init__(self):
         if isinstance(self.env, dict):
@@ -105,6 +109,10 @@ class GenerateConfig:
             raise ConfigError("pass either --resume or --overwrite, not both")
         if "/" not in self.repo_id:
             raise ConfigError(f"repo_id must look like 'user/name', got {self.repo_id!r}")
+        if self.subtask_annotations and self.executor != "local":
+            raise ConfigError(
+                f"subtask_annotations is written after the local merge; not available with executor={self.executor!r}"
+            )
 
     @property
     def output_root(self) -> Path:
@@ -169,6 +177,8 @@ def _generate_locked(cfg: GenerateConfig, root: Path, t_start: float) -> dict:
         info = validate_dataset(root)
         record = read_json(root / GENERATION_FILE, "generation record")
         _check_same_run(record.get("generation", {}), cfg, read_json(root / "meta/baxter_pnp_env.json", "env"))
+        if cfg.subtask_annotations:
+            annotate_subtasks(root)
         return {"root": str(root), "status": "already complete", "episodes": info["total_episodes"],
                 "frames": info["total_frames"], "splits": info.get("splits")}  # fmt: skip
 
@@ -215,6 +225,8 @@ def _generate_locked(cfg: GenerateConfig, root: Path, t_start: float) -> dict:
         sim_wall = time.perf_counter() - t_sim
         t_merge = time.perf_counter()
         summary = merge_and_commit(root)
+        if cfg.subtask_annotations:
+            summary["subtask_rows"] = annotate_subtasks(root)
     merge_wall = time.perf_counter() - t_merge
     summary.update(
         status="resumed" if reused else "generated",

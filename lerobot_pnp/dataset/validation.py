@@ -131,7 +131,7 @@ def _check_data(root: Path, info: dict, lengths: np.ndarray) -> None:
         raise DatasetError(f"{root}: the frame index column is not 0..{n - 1} (rows removed, duplicated or reordered)")
     frame = table.column("frame_index").to_numpy() if "frame_index" in table.column_names else None
     for key, ft in info["features"].items():
-        if ft.get("dtype") in ("video", "image", "string"):
+        if ft.get("dtype") in ("video", "image", "string", "language"):  # language: LeRobot's annotation rows
             continue
         if key not in table.column_names:
             raise DatasetError(f"{root}: info.json feature {key!r} has no column in the data files")

@@ -9,7 +9,7 @@ from pathlib import Path
 
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.viz.config import VizConfig
-from lerobot_pnp.viz.recording import log_policy_comparison, log_run, make_blueprint
+from lerobot_pnp.viz.recording import log_cameras_and_events, log_policy_comparison, log_run, make_blueprint
 from lerobot_pnp.viz.screenshot import take_screenshot
 
 APPLICATION_ID = "lerobot_pnp"
@@ -43,11 +43,13 @@ def visualize(cfg: VizConfig) -> dict:
         replay_cfg = replay_config(ds)
     loaded, policy_cfg = None, None
     if cfg.policy_path is not None:
-        from lerobot_pnp.rollout import check_policy_features, load_policy
+        from lerobot_pnp.rollout import check_policy_features, image_inputs, load_policy
 
         loaded = load_policy(cfg.policy_path, device=cfg.device)
-        policy_cfg = rollout_config(str(loaded.path), cfg.task_source, cfg.control_mode, cfg.env_changes)
-        check_policy_features(loaded.policy.config, len(policy_cfg.environment_state_names))  # fits this task
+        cams = image_inputs(loaded.policy.config)
+        policy_cfg = rollout_config(str(loaded.path), cfg.task_source, cfg.control_mode, cfg.env_changes, cams)
+        rendered = {c: (policy_cfg.image_height, policy_cfg.image_width) for c in policy_cfg.cameras}
+        check_policy_features(loaded.policy.config, len(policy_cfg.environment_state_names), rendered)  # fits
     seeds = [cfg.seed + i for i in range(cfg.n_rollouts)] if loaded is not None else []
 
     runs = [replay_episode(ep, replay_cfg, cfg.log_hz) for ep in episodes]
@@ -59,7 +61,7 @@ def visualize(cfg: VizConfig) -> dict:
     with tempfile.TemporaryDirectory(prefix="lerobot_pnp_viz_") as tmp:
         rrd = Path(cfg.save).expanduser() if cfg.save else Path(tmp) / "recording.rrd"
         rec = rr.RecordingStream(APPLICATION_ID, recording_id=None)
-        blueprint = make_blueprint([(run.name, run.is_rollout) for run in runs])
+        blueprint = make_blueprint([(run.name, run.is_rollout, list(run.images)) for run in runs])
         if cfg.save is not None or cfg.screenshot is not None:
             rrd.parent.mkdir(parents=True, exist_ok=True)
             rec.save(str(rrd), default_blueprint=blueprint)
@@ -71,6 +73,7 @@ def visualize(cfg: VizConfig) -> dict:
         for run in runs:
             run.scene.log_static(rec, run.name, _posed_data(run))
             log_run(rec, run)
+            log_cameras_and_events(rec, run)
             if run.is_rollout:
                 log_policy_comparison(rec, run)
                 run.info["policy"] = str(loaded.path)

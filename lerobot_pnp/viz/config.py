@@ -8,8 +8,13 @@ from typing import Any
 
 import numpy as np
 
-from lerobot_pnp.env_config import CONTROL_MODES, TASK_FIELDS
+from lerobot_pnp.env_config import CONTROL_MODES, OBSERVATION_DEFAULTS, TASK_FIELDS
 from lerobot_pnp.errors import ConfigError
+
+ENV_CHANGE_FIELDS = (*TASK_FIELDS, *OBSERVATION_DEFAULTS)
+# The study's first evaluation seed (report.run.StudyConfig.eval_seed): disjoint from the seeds a dataset's
+# episodes are generated with (seed 0 + slot, retries above), so a rollout shows the policy on a new episode.
+UNSEEN_SEED = 100_000
 
 
 @dataclass
@@ -40,11 +45,12 @@ class VizConfig:
     # checkpoint's own, i.e. the task of the dataset it was trained on).
     task_source: str | None = None
     control_mode: str | None = None  # env mode for rollouts (default: the recorded one, else keyframe)
-    # task fields changed for the rollouts, on top of that task, e.g. '{"drop_prob": 1.0, "keyframe_budget": 20}'
-    # to watch a planner re-pick a dropped cube
+    # task fields (and cameras / image size) changed for the rollouts, on top of that task, e.g.
+    # '{"drop_prob": 1.0, "keyframe_budget": 20}' to watch a planner re-pick a dropped cube, '{"cameras": ["front"]}'
     env_changes: dict[str, Any] = field(default_factory=dict)
     n_rollouts: int = 1  # policy rollouts, seeds seed .. seed + n_rollouts - 1
-    seed: int = 0
+    # first rollout seed; default UNSEEN_SEED, an episode the policy was not trained on (datasets use seeds 0..)
+    seed: int | None = None
     compare_expert: bool = True  # run the FSM expert from each rollout's start state and log the differences
     log_hz: float = 25.0  # rate of the continuous samples (simulated time)
     device: str = "cpu"
@@ -57,8 +63,10 @@ class VizConfig:
         self.policy_path = self.policy_path or self.policy.path
         self.policy.path = self.policy_path
         self.episode_index = episode_list(self.episode_index)
-        if bad := sorted(set(self.env_changes) - set(TASK_FIELDS)):
-            raise ConfigError(f"env_changes has unknown task fields {bad}; valid: {sorted(TASK_FIELDS)}")
+        if bad := sorted(set(self.env_changes) - set(ENV_CHANGE_FIELDS)):
+            raise ConfigError(f"env_changes has unknown fields {bad}; valid: {sorted(ENV_CHANGE_FIELDS)}")
+        if self.seed is None:
+            self.seed = UNSEEN_SEED
         if self.n_rollouts < 1:
             raise ConfigError(f"n_rollouts must be >= 1, got {self.n_rollouts}")
         if not 1 <= self.log_hz <= 500:

@@ -234,13 +234,17 @@ def log_policy_comparison(rec, run: Run) -> None:
     log_keyframes(rec, f"{name}/world/keyframes", pred_ee, reached)
     if expert is None or "actions" not in expert:
         return
-    ref = expert["actions"]
-    ref_ee = np.array([run.scene.ee_position(run.qpos, a, scratch) for a in ref]).reshape(-1, 3)
-    ref_phases = [min(k + 1, robot.N_KEYFRAMES - 1) for k in range(len(ref))]
-    log_keyframes(rec, f"{name}/world/expert_keyframes", ref_ee, ref_phases, color=EXPERT_COLOR, labelled=False)
+    own = expert["actions"]  # the expert's own run from the same start: its keyframes and path in 3D
+    own_ee = np.array([run.scene.ee_position(run.qpos, a, scratch) for a in own]).reshape(-1, 3)
+    own_phases = [min(k + 1, robot.N_KEYFRAMES - 1) for k in range(len(own))]
+    log_keyframes(rec, f"{name}/world/expert_keyframes", own_ee, own_phases, color=EXPERT_COLOR, labelled=False)
     if len(expert["ee_path"]):
         path = rr.LineStrips3D([expert["ee_path"]], colors=[EXPERT_COLOR], radii=[0.002])
         rec.log(f"{name}/world/expert_ee_path", path, static=True)
+    # The panels compare each prediction with the expert's label at the state the policy was in (after a
+    # recovery or a perturbation the two runs are in different states, and step k of one says nothing of the other).
+    ref = expert["labels"] if expert.get("labels") is not None else own
+    ref_ee = np.array([_ee_or_nan(run, a, scratch) for a in ref]).reshape(-1, 3)
     m = min(n, len(ref))
     if m == 0:
         return
@@ -257,17 +261,46 @@ def log_policy_comparison(rec, run: Run) -> None:
     _scalars(rec, f"{name}/policy/error/gripper", idx, err[:, robot.N_JOINTS])
     ee_err = np.linalg.norm(pred_ee[:m] - ref_ee[:m], axis=1)
     _scalars(rec, f"{name}/policy/error/ee_pos", idx, ee_err)
-    run.info["mean_joint_error_rad"] = float(err[:, : robot.N_JOINTS].mean())
-    run.info["mean_ee_error_m"] = float(ee_err.mean())
-    run.info["max_ee_error_m"] = float(ee_err.max())
+    labelled = np.isfinite(ee_err)
+    if labelled.any():
+        run.info["mean_joint_error_rad"] = float(err[labelled, : robot.N_JOINTS].mean())
+        run.info["mean_ee_error_m"] = float(ee_err[labelled].mean())
+        run.info["max_ee_error_m"] = float(ee_err[labelled].max())
 
 
-def make_blueprint(runs: list[tuple[str, bool]]):
-    """One tab per run: the 3D view framed on the workspace, and plots titled with what they show."""
+def _ee_or_nan(run: Run, action: np.ndarray, scratch) -> np.ndarray:
+    if not np.all(np.isfinite(action)):
+        return np.full(3, np.nan)
+    return run.scene.ee_position(run.qpos, action, scratch)
+
+
+def log_cameras_and_events(rec, run: Run) -> None:
+    """The camera images of each frame (``<run>/cameras/<camera>``) and the run's events (``<run>/events``)."""
+    import rerun as rr
+
+    t = run.samples["t"][run.frames.sample]
+    for cam, images in run.images.items():
+        for k, image in enumerate(images[: len(t)]):
+            rec.set_time("frame_index", sequence=int(run.frames.frame_index[k]))
+            rec.set_time("time", duration=float(t[k]))
+            rec.log(f"{run.name}/cameras/{cam}", rr.Image(image))
+    if run.events:
+        ks = np.array([k for k, _, _ in run.events])
+        rec.send_columns(
+            f"{run.name}/events",
+            indexes=_indexes(t[ks], run.frames.frame_index[ks]),
+            columns=rr.TextLog.columns(text=[e[2] for e in run.events], level=[e[1] for e in run.events]),
+        )
+    rec.reset_time()
+
+
+def make_blueprint(runs: list[tuple[str, bool, list[str]]]):
+    """One tab per run (name, is a policy rollout, cameras): the 3D view framed on the workspace with the camera
+    images and the event log beside it, and plots titled with what they show."""
     import rerun.blueprint as rrb
 
     tabs = []
-    for run, is_policy in runs:
+    for run, is_policy, cameras in runs:
         phase = rrb.Tabs(
             rrb.TimeSeriesView(
                 origin=f"{run}/plots/phase_index",
@@ -306,7 +339,10 @@ def make_blueprint(runs: list[tuple[str, bool]]):
             background=(28, 32, 38),
             eye_controls=rrb.EyeControls3D(position=EYE_POSITION, look_target=EYE_TARGET, eye_up=(0, 0, 1)),
         )
-        tabs.append(rrb.Horizontal(view3d, rrb.Vertical(*plots), column_shares=[3, 2], name=run))
+        side = [rrb.Spatial2DView(origin=f"{run}/cameras/{cam}", name=f"camera: {cam}") for cam in cameras]
+        side.append(rrb.TextLogView(origin=f"{run}/events", name="events: perturbations, failure cause, success"))
+        left = rrb.Vertical(view3d, rrb.Horizontal(*side), row_shares=[3, 1])
+        tabs.append(rrb.Horizontal(left, rrb.Vertical(*plots), column_shares=[3, 2], name=run))
     return rrb.Blueprint(
         rrb.Tabs(*tabs),
         rrb.BlueprintPanel(state="collapsed"),

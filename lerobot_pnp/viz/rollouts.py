@@ -1,9 +1,12 @@
-"""Policy rollouts for the viewer, each beside the FSM expert run from the same start.
+"""Policy rollouts for the viewer, each beside the FSM expert.
 
 A checkpoint is run closed loop in the task it was trained on (``task_source`` = the checkpoint: its
-training config names the dataset, whose recorded task is read back), seeded like ``lerobot-eval``. The
-expert is run in a second env from the same seed (same start pose and object), so its keyframes are what the
-policy should have commanded; the viewer logs both and their differences.
+training config names the dataset, whose recorded task is read back, cameras included), seeded like
+``lerobot-eval``. At every state the policy visits, the expert's label for that state (the DAgger teacher,
+``dagger.rollouts.Teacher``) is what the policy should have commanded there, so the comparison stays
+meaningful after a recovery or a perturbation. The expert is also run in a second env from the same seed
+(same start pose and object), for its own path in 3D. The camera images the env rendered, the perturbations
+that fired and the failure cause are kept for the viewer.
 """
 
 from __future__ import annotations
@@ -15,50 +18,66 @@ import numpy as np
 from lerobot_pnp import robot
 from lerobot_pnp.env_config import BaxterPnPEnvConfig, make_env, read_recorded
 from lerobot_pnp.errors import PnPError
-from lerobot_pnp.viz.sampling import Frames, Run, Sampler
+from lerobot_pnp.viz.sampling import Frames, Run, Sampler, run_events
 from lerobot_pnp.viz.scene import SceneModel
 
 logger = logging.getLogger(__name__)
 
 
 def rollout_config(
-    checkpoint: str, task_source: str | None, control_mode: str | None, env_changes: dict | None = None
+    checkpoint: str,
+    task_source: str | None,
+    control_mode: str | None,
+    env_changes: dict | None = None,
+    policy_cameras: dict[str, tuple[int, int]] | None = None,
 ) -> BaxterPnPEnvConfig:
     """The env a policy is shown in: the recorded task of ``task_source`` (default: the checkpoint's), with
-    ``env_changes`` (task fields) on top."""
+    ``env_changes`` (task fields, cameras, image size) on top. The cameras a policy reads (``policy_cameras``,
+    camera -> (height, width)) are always rendered, at the size it was trained on."""
     source = task_source or checkpoint
     recorded = read_recorded(source)
+    changes = dict(env_changes or {})
+    if policy_cameras:
+        cams = list(changes.get("cameras", recorded.get("cameras", []) if recorded else []))
+        changes["cameras"] = cams + [c for c in policy_cameras if c not in cams]
+        (height, width) = next(iter(policy_cameras.values()))
+        changes.setdefault("image_height", height)
+        changes.setdefault("image_width", width)
     if recorded is None:
         logger.warning("viz: %s records no task (no dataset env config found): rollouts use the paper's task", source)
-        return BaxterPnPEnvConfig(
-            preset="paper", control_mode=control_mode or "keyframe", cameras=[], **(env_changes or {})
-        )
-    changes = dict(env_changes or {})
+        return BaxterPnPEnvConfig(preset="paper", control_mode=control_mode or "keyframe", **changes)
     if control_mode is not None and control_mode != recorded.get("control_mode"):
         # a deliberate look at the policy in another control mode: that mode's own rate and episode length
         changes["control_mode"] = control_mode
     # with_changes derives the rate and episode length of a changed mode or keyframe budget
-    return BaxterPnPEnvConfig.from_dict(recorded, cameras=[]).with_changes(**changes)
+    return BaxterPnPEnvConfig.from_dict(recorded).with_changes(**changes)
 
 
 def rollout_with_expert(
     loaded, config: BaxterPnPEnvConfig, seed: int, hz: float, compare_expert: bool, name: str = "rollout_0"
 ) -> Run:
     """Run the policy from ``seed`` (sampled continuously) and, optionally, the expert from the same start."""
+    from lerobot_pnp.dagger.rollouts import Teacher
+    from lerobot_pnp.dataset.episodes import PixelRecorder
     from lerobot_pnp.rollout import run_policy_episode
 
-    env = make_env(config, render_mode=None)
+    env = PixelRecorder(make_env(config, render_mode=None))
     base = env.unwrapped
     physics = base.physics
     scene = SceneModel(physics.model)
     sampler = Sampler(physics, scene, base.is_success, hz)
     frame_samples: list[int] = []
+    labels: list[np.ndarray] = []
+    teacher: list = []
 
     def on_step(k, obs, action):
         if k == 0:
             sampler.start()
             physics.on_control_tick = sampler
+            teacher.append(Teacher(env) if compare_expert and config.control_mode == "keyframe" else None)
         frame_samples.append(sampler.sample())
+        if teacher[0] is not None:
+            labels.append(_label(teacher[0]))
 
     try:
         pe = run_policy_episode(env, loaded, seed, on_step=on_step)
@@ -86,17 +105,30 @@ def rollout_with_expert(
         success=np.concatenate([[0.0], pe.successes.astype(float)]),
     )
     info = {"seed": seed, "steps": n, "success": pe.success, "place_target": place_target}
+    events = run_events(env.infos)
+    info["events"] = [f"frame {k}: {text}" for k, _, text in events]
+    images = {cam: [p[cam] for p in env.pixels] for cam in config.cameras}
     expert = None
     if compare_expert and config.control_mode == "keyframe":
         expert = expert_reference(config, seed, hz)
+        expert["labels"] = np.asarray(labels, np.float32).reshape(-1, robot.ACTION_DIM)
         info["expert_success"] = expert["success"]
         if expert.get("error"):
             info["expert_error"] = expert["error"]
     samples = sampler.arrays()
     info["samples"] = len(samples["t"])
     return Run(
-        name=name, scene=scene, qpos=qpos, samples=samples, frames=frames, info=info, is_rollout=True, expert=expert
-    )
+        name=name, scene=scene, qpos=qpos, samples=samples, frames=frames, info=info, is_rollout=True,
+        expert=expert, images=images, events=events,
+    )  # fmt: skip
+
+
+def _label(teacher) -> np.ndarray:
+    """The expert's keyframe for the visited state (NaN where it has no IK solution: the object was pushed away)."""
+    try:
+        return np.asarray(teacher.label()[0], np.float32)
+    except PnPError:
+        return np.full(robot.ACTION_DIM, np.nan, np.float32)
 
 
 def expert_reference(config: BaxterPnPEnvConfig, seed: int, hz: float) -> dict:

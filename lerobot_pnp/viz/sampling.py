@@ -45,6 +45,29 @@ class Run:
     info: dict = field(default_factory=dict)
     is_rollout: bool = False  # a policy rollout (else a dataset episode)
     expert: dict | None = None  # policy rollouts: the FSM expert's reference from the same start
+    images: dict[str, list[np.ndarray]] = field(default_factory=dict)  # camera -> one HWC image per frame
+    events: list[tuple[int, str, str]] = field(default_factory=list)  # (frame, level, text): perturbations, failure
+
+
+def run_events(infos: list[dict]) -> list[tuple[int, str, str]]:
+    """Perturbations as they fire and the outcome, from the env's ``info`` of each frame (reset + steps).
+
+    ``info["perturbations"]`` lists what fired so far (``task.PickPlaceTask.step_info``), so a new name at frame
+    ``k`` fired during the step that led to it; the last frame carries ``failure_cause`` when the episode ended
+    unsolved."""
+    events, seen = [], []
+    for k, info in enumerate(infos):
+        fired = [p for p in str(info.get("perturbations") or "").split(",") if p]
+        for name in fired[len(seen) :]:
+            events.append((k, "WARN", f"perturbation: {name}"))
+        seen = fired
+    if infos:
+        last = infos[-1]
+        if last.get("failure_cause"):
+            events.append((len(infos) - 1, "ERROR", f"failure: {last['failure_cause']}"))
+        elif last.get("is_success"):
+            events.append((len(infos) - 1, "INFO", "success"))
+    return events
 
 
 class Sampler:

@@ -1,0 +1,125 @@
+"""Stock LeRobot image policies on this env: the recorded observation setup, the shipped configs, offline.
+
+Fast tests: a dataset's cameras and image size are read back like its task (so ``lerobot-eval`` needs no camera
+flag), an explicit flag still wins, and the shipped configs parse and are offline (no backbone download). The
+``slow`` test runs the stock CLIs: ``lerobot-pnp generate`` with a camera -> ``lerobot-train --config_path
+configs/train_act_images.json`` (a few steps, in-training eval included) -> ``lerobot-eval`` with no camera flag.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from lerobot_pnp.env_config import BaxterPnPEnvConfig, write_recorded
+
+REPO = Path(__file__).resolve().parents[1]
+BIN = Path(sys.executable).parent
+ENV = {
+    **os.environ,
+    "OMP_NUM_THREADS": "1",
+    "HF_HUB_OFFLINE": "1",
+    "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl"),
+    "PYTHONPATH": os.pathsep.join(p for p in (str(REPO), os.environ.get("PYTHONPATH")) if p),
+}
+IMAGE_CONFIGS = ("train_act_images.json", "train_diffusion_images.json")
+
+
+def _exe(name: str) -> str:
+    path = BIN / name
+    if not path.exists():
+        pytest.skip(f"{name} is not installed next to {sys.executable}")
+    return str(path)
+
+
+def _run(cmd: list[str], cwd: Path, timeout: float = 180) -> subprocess.CompletedProcess:
+    return subprocess.run(cmd, cwd=cwd, env=ENV, capture_output=True, text=True, timeout=timeout)
+
+
+# ---------------------------------------------------------------------------------------------- fast
+def test_recorded_cameras_are_read_back(tmp_path):
+    recorded = BaxterPnPEnvConfig(cameras=["front", "wrist"], image_height=48, image_width=64)
+    write_recorded(recorded, tmp_path)
+    cfg = BaxterPnPEnvConfig(task_source=str(tmp_path))
+    assert cfg.cameras == ["front", "wrist"] and (cfg.image_height, cfg.image_width) == (48, 64)
+    assert cfg.features["pixels/front"].shape == (48, 64, 3)
+    assert cfg.features_map["pixels/wrist"] == "observation.images.wrist"
+
+
+def test_explicit_camera_flags_win_and_defaults_stay(tmp_path):
+    write_recorded(BaxterPnPEnvConfig(cameras=["front"], image_height=48, image_width=64), tmp_path)
+    cfg = BaxterPnPEnvConfig(task_source=str(tmp_path), cameras=[], image_width=80)
+    assert cfg.cameras == [] and (cfg.image_height, cfg.image_width) == (48, 80)
+    plain = BaxterPnPEnvConfig()
+    assert plain.cameras == [] and (plain.image_height, plain.image_width) == (240, 320)
+    assert not any(k.startswith("pixels/") for k in plain.features)
+
+
+def test_bad_image_size_is_one_clear_error():
+    from lerobot_pnp.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="image_height/width must be in"):
+        BaxterPnPEnvConfig(image_height=4)
+    with pytest.raises(ConfigError, match="image_height/width must be in"):
+        BaxterPnPEnvConfig(image_width="64")
+
+
+@pytest.mark.parametrize("name", IMAGE_CONFIGS)
+def test_shipped_image_configs_are_offline(name):
+    """The configs parse as LeRobot policy configs and name no downloadable backbone."""
+    from lerobot.configs.policies import PreTrainedConfig
+
+    raw = json.loads((REPO / "configs" / name).read_text())
+    policy = dict(raw["policy"])
+    assert policy["pretrained_backbone_weights"] is None
+    cls = PreTrainedConfig.get_choice_class(policy.pop("type"))
+    policy.pop("input_features")
+    cfg = cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in policy.items()})
+    assert cfg.pretrained_backbone_weights is None
+    assert raw["eval"]["use_async_envs"] is False and raw["env"] == {"type": "baxter_pnp"}
+
+
+# ---------------------------------------------------------------------------------------------- slow
+@pytest.mark.slow
+def test_act_on_images_stock_train_then_eval_without_camera_flags(tmp_path):
+    pnp, train, evaluate = _exe("lerobot-pnp"), _exe("lerobot-train"), _exe("lerobot-eval")
+    ds = tmp_path / "ds"
+    gen = [pnp, "generate", "--repo_id=local/img", f"--root={ds}", "--num_episodes=3", "--workers=1"]
+    cams = ["--env.cameras=[front]", "--env.image_height=64", "--env.image_width=64", "--progress=false"]
+    proc = _run([*gen, *cams], tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+
+    out = tmp_path / "train"
+    proc = _run(
+        [
+            train,
+            f"--config_path={REPO / 'configs' / 'train_act_images.json'}",
+            "--dataset.repo_id=local/img",
+            f"--dataset.root={ds}",
+            "--steps=3",
+            "--save_freq=3",
+            "--env_eval_freq=3",
+            "--log_freq=1",
+            "--batch_size=4",
+            "--eval.n_episodes=1",
+            "--eval.batch_size=1",
+            f"--output_dir={out}",
+        ],
+        tmp_path,
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "Suite overall aggregated" in proc.stdout + proc.stderr  # the in-training eval ran in the camera env
+    ckpt = out / "checkpoints" / "last" / "pretrained_model"
+    assert json.loads((ckpt / "config.json").read_text())["input_features"]["observation.images.front"]
+
+    ev = tmp_path / "eval"
+    cmd = [evaluate, f"--policy.path={ckpt}", "--env.type=baxter_pnp", "--eval.n_episodes=2"]
+    proc = _run([*cmd, "--eval.batch_size=2", "--policy.device=cpu", f"--output_dir={ev}"], tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    overall = json.loads((ev / "eval_info.json").read_text())["overall"]
+    assert overall["n_episodes"] == 2 and 0 <= overall["pc_success"] <= 100
