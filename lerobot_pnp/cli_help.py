@@ -80,7 +80,7 @@ def _default_of(field: dataclasses.Field, instance) -> str:
 
 def _describe(cls: type, field: dataclasses.Field, docs: dict[str, str]) -> str:
     text = docs.get(field.name) or _comment_help(cls, field.name)
-    text = " ".join(text.split())
+    text = " ".join(text.split()).lstrip("-# ")  # a section divider comment above the field is no description
     if field.name == "preset":
         presets = getattr(sys.modules.get(cls.__module__), "PRESETS", None)
         if isinstance(presets, dict):

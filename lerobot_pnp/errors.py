@@ -62,8 +62,9 @@ def one_line_message(err: BaseException) -> str | None:
     """The one line a LeRobot CLI user should see for ``err``, or None when it is not ours to shorten.
 
     Ours: a ``PnPError`` anywhere in the exception chain (raised inside LeRobot's own code, e.g. by the env
-    config or the policy, and perhaps wrapped), and Hugging Face's ``OfflineModeIsEnabled`` (a dataset or model
-    that is neither on disk nor reachable with ``HF_HUB_OFFLINE=1``).
+    config or the policy, and perhaps wrapped); Hugging Face's ``OfflineModeIsEnabled`` (a dataset or model
+    that is neither on disk nor reachable with ``HF_HUB_OFFLINE=1``); and its ``HFValidationError`` for a
+    ``--policy.path`` that names a folder which does not exist.
     """
     seen: set[int] = set()
     while err is not None and id(err) not in seen:
@@ -72,7 +73,9 @@ def one_line_message(err: BaseException) -> str | None:
             return " ".join(str(err).split()) or type(err).__name__
         if type(err).__name__ == "OfflineModeIsEnabled":
             return _offline_line(str(err))
-        err = err.__cause__ or err.__context__
+        if type(err).__name__ == "HFValidationError" and (path := _missing_local_path(str(err))):
+            return f"{path!r} is neither a folder on disk nor a Hub repo id (a checkpoint is a pretrained_model folder)"
+        err = err.__cause__ or (None if err.__suppress_context__ else err.__context__)  # the chain Python prints
     return None
 
 
@@ -91,6 +94,17 @@ def _offline_line(message: str) -> str:
     else:
         fix = "pass --policy.path=<local checkpoint folder>"
     return f"{kind} {repo!r} is not on disk and the Hub is offline (HF_HUB_OFFLINE=1): {fix}, or unset HF_HUB_OFFLINE"
+
+
+def _missing_local_path(message: str) -> str | None:
+    """The path-like repo id of a Hub validation error (a mistyped ``--policy.path``), if it is not on disk."""
+    import re
+    from pathlib import Path
+
+    found = re.search(r"'([^']*/[^']*)'", message)
+    if found is None or not found.group(1).startswith(("/", ".", "~")) or Path(found.group(1)).expanduser().exists():
+        return None
+    return found.group(1)
 
 
 def install_cli_excepthook() -> None:

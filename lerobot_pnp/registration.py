@@ -14,7 +14,6 @@ def register_all() -> None:
     import gymnasium as gym
 
     import lerobot_pnp.policy  # noqa: F401
-
     from lerobot_pnp.errors import install_cli_excepthook
 
     install_cli_excepthook()
