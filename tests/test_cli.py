@@ -288,3 +288,19 @@ def test_end_to_end_real_clis(tmp_path):
     # The policy's pre-processor names the feature and both shapes (not a bare tensor-size error).
     assert "observation 'observation.state' has shape (2, 8)" in proc.stderr, proc.stderr[-3000:]
     assert "trained on (14,)" in proc.stderr
+
+
+def test_in_process_eval_keeps_one_progress_bar_and_none_in_a_log(capsys):
+    from lerobot.scripts import lerobot_eval
+
+    from lerobot_pnp.progress import quiet_rollout_bars
+
+    stock = lerobot_eval.trange
+    with quiet_rollout_bars():
+        rollout = lerobot_eval.trange(3, desc="Running rollout with at most 3 steps", leave=False)
+        batches = lerobot_eval.trange(2, desc="Stepping through eval batches", disable=False)
+        assert rollout.disable, "the per-rollout bar must be off"
+        assert batches.disable, "stderr is captured (no terminal): tqdm hides the batches bar"
+        list(rollout), list(batches)
+    assert lerobot_eval.trange is stock
+    assert "Running rollout" not in capsys.readouterr().err
