@@ -91,12 +91,28 @@ def test_lerobot_discovers_the_plugin_by_distribution_name():
     assert out.stdout.split()[-3:] == ["True", "True", "True"], out.stderr[-2000:]
 
 
-@pytest.mark.slow
-def test_async_vector_envs_through_the_lerobot_config():
+def test_keyframe_eval_envs_are_sync_with_a_warning(caplog):
+    import gymnasium as gym
+
     from lerobot_pnp.env_config import BaxterPnPEnvConfig
 
-    envs = BaxterPnPEnvConfig().create_envs(n_envs=2, use_async_envs=True)["baxter_pnp"][0]
+    with caplog.at_level("WARNING"):
+        envs = BaxterPnPEnvConfig().create_envs(n_envs=2, use_async_envs=True)["baxter_pnp"][0]
+    envs.close()
+    assert isinstance(envs, gym.vector.SyncVectorEnv)
+    assert "keyframe control runs its 2 eval envs in this process" in caplog.text
+
+
+@pytest.mark.slow
+def test_async_vector_envs_through_the_lerobot_config():
+    import gymnasium as gym
+
+    from lerobot_pnp.env_config import BaxterPnPEnvConfig
+
+    # dense control keeps async envs (worker processes re-import the plugin)
+    envs = BaxterPnPEnvConfig(control_mode="dense").create_envs(n_envs=2, use_async_envs=True)["baxter_pnp"][0]
     try:
+        assert isinstance(envs, gym.vector.AsyncVectorEnv)
         obs, info = envs.reset(seed=[3, 4])
         assert obs["agent_pos"].shape == (2, 8) and obs["environment_state"].shape == (2, 3)
         obs, reward, terminated, truncated, info = envs.step(obs["agent_pos"])  # hold the start pose
