@@ -11,6 +11,7 @@ import importlib
 import json
 import signal
 import sys
+import tempfile
 import typing
 from pathlib import Path
 
@@ -124,6 +125,30 @@ def _split_config_path(args: list[str]) -> tuple[str | None, list[str]]:
     return None, args
 
 
+def _translated_config_file(config_cls, config_path: str | None, tmp_dir: str) -> str | None:
+    """The config file as the command's parser reads it: a class with ``translate_config_file`` (the train
+    command reads ``lerobot-train``'s files) gets a translated copy written to ``tmp_dir``; others, the file."""
+    translate = getattr(config_cls, "translate_config_file", None)
+    if config_path is None or translate is None:
+        return config_path
+    from draccus import cfgparsing
+
+    from lerobot_pnp.errors import ConfigError
+
+    try:
+        with open(config_path, encoding="utf-8") as f:
+            data = cfgparsing.load_config(f, file=config_path)
+    except Exception as err:  # a malformed JSON/YAML file
+        raise ConfigError(f"--config_path {config_path!r}: not a readable JSON/YAML config ({_one_line(err)})") from err
+    if not isinstance(data, dict):
+        raise ConfigError(
+            f"--config_path {config_path!r}: expected a mapping of config keys, got {type(data).__name__}"
+        )
+    out = Path(tmp_dir) / "config.json"
+    out.write_text(json.dumps(translate(data)))
+    return str(out)
+
+
 def _os_error_line(err: OSError, name: str) -> str:
     """One line for an operating-system failure (disk full, read-only, permission), with what to do next."""
     what = {errno.ENOSPC: "disk full", errno.EROFS: "read-only file system", errno.EACCES: "permission denied"}
@@ -154,13 +179,20 @@ def main(argv: list[str] | None = None) -> int:
         print(f"lerobot-pnp: unknown command {name!r}\n\n{_usage()}", file=sys.stderr)
         return 2
     signal.signal(signal.SIGTERM, _sigterm_as_interrupt)
-    config_ref, func_ref, _ = COMMANDS[name]
+    config_ref, func_ref, summary = COMMANDS[name]
     try:
         config_cls, func = _load(config_ref), _load(func_ref)
+        if "-h" in args or "--help" in args:
+            from lerobot_pnp.cli_help import command_help
+
+            print(command_help(name, summary, config_cls))
+            return 0
         config_path, args = _split_config_path(args)
         args = normalize_args(config_cls, args)
         try:
-            cfg = draccus.parse(config_class=config_cls, config_path=config_path, args=args)
+            with tempfile.TemporaryDirectory(prefix="lerobot_pnp_cfg_") as tmp:
+                config_path = _translated_config_file(config_cls, config_path, tmp)
+                cfg = draccus.parse(config_class=config_cls, config_path=config_path, args=args)
         except (draccus.utils.ParsingError, ValueError, TypeError, OverflowError) as err:
             # a config dataclass rejected a value (its message names the field), or a value has the wrong type
             cause = err.__cause__ if isinstance(err.__cause__, PnPError) else err

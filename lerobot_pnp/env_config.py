@@ -417,6 +417,25 @@ class BaxterPnPEnvConfig(EnvConfig):
     def package_name(self) -> str:
         return GYM_NAMESPACE
 
+    def create_envs(self, n_envs: int, use_async_envs: bool = False):
+        """LeRobot's vector envs (what ``lerobot-eval`` and in-training eval build), sync for keyframe control.
+
+        ``lerobot-eval`` asks for async envs by default; a keyframe step is short, so one worker process per env
+        (each importing LeRobot and MuJoCo) costs far more start-up time and memory than it saves. Keyframe
+        control gets a ``SyncVectorEnv`` with a warning; dense control keeps what was asked for.
+        """
+        if use_async_envs and n_envs > 1 and self.control_mode == "keyframe":
+            import logging
+
+            logging.getLogger(__name__).warning(
+                "baxter_pnp: keyframe control runs its %d eval envs in this process (SyncVectorEnv) instead of "
+                "%d async worker processes, which would only add start-up time and memory",
+                n_envs,
+                n_envs,
+            )
+            use_async_envs = False
+        return super().create_envs(n_envs, use_async_envs=use_async_envs)
+
     @property
     def gym_kwargs(self) -> dict:
         """What ``gym.make`` receives: the resolved config as JSON values (the env truncates at ``episode_length``)."""

@@ -1,4 +1,6 @@
-"""The one place with import side effects: register the gymnasium envs and LeRobot's env and policy configs."""
+"""The one place with import side effects: register the gymnasium envs and LeRobot's env and policy configs, and,
+inside a stock ``lerobot-*`` script only, a ``sys.excepthook`` that prints our errors as one line
+(``errors.install_cli_excepthook``; ``LEROBOT_PNP_DEBUG=1`` keeps the traceback)."""
 
 from __future__ import annotations
 
@@ -12,7 +14,9 @@ def register_all() -> None:
     import gymnasium as gym
 
     import lerobot_pnp.policy  # noqa: F401
+    from lerobot_pnp.errors import install_cli_excepthook
 
+    install_cli_excepthook()
     # LeRobot config registries (draccus choice registries) are filled by importing the modules.
     from lerobot_pnp import env_config
 

@@ -47,6 +47,54 @@ def test_help_subprocess(tmp_path):
     assert "usage: lerobot-pnp" in proc.stdout and "generate" in proc.stdout
 
 
+@pytest.mark.parametrize("name", list(cli.COMMANDS))
+def test_command_help_documents_every_field(name, capsys):
+    import dataclasses
+
+    from lerobot_pnp.cli_help import field_rows
+
+    assert cli.main([name, "--help"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith(f"usage: lerobot-pnp {name}")
+    config_cls = cli._load(cli.COMMANDS[name][0])
+    flags = [flag for flag, _, _ in field_rows(config_cls)]
+    assert flags and len(flags) == len(set(flags)), "a flag is listed twice"
+    for field in dataclasses.fields(config_cls):
+        assert f"--{field.name} " in out or f"--{field.name}." in out, f"--{field.name} missing"
+    assert "def __post_init__" not in out and "--policy str" not in out
+
+
+def test_help_names_every_preset(capsys):
+    from lerobot_pnp.env_config import PRESETS
+
+    assert cli.main(["generate", "--help"]) == 0
+    line = next(row for row in capsys.readouterr().out.split("\n  --") if row.startswith("env.preset "))
+    assert all(name in line for name in PRESETS), line
+
+
+def test_train_reads_a_lerobot_train_config_file(monkeypatch, tmp_path):
+    import lerobot_pnp.train_fast as train_fast
+
+    seen = []
+    monkeypatch.setattr(train_fast, "train_fast", seen.append)
+    config = Path(__file__).resolve().parents[1] / "configs" / "train_pnp_lstm_full.json"
+    out = tmp_path / "out"
+    assert cli.main(["train", "--config_path", str(config), f"--output_dir={out}", "--policy.hidden_size=32"]) == 0
+    (cfg,) = seen
+    stock = json.loads(config.read_text())
+    assert cfg.dataset_repo_id == stock["dataset"]["repo_id"] and cfg.dataset_root == stock["dataset"]["root"]
+    assert cfg.policy.mode == "recovering" and cfg.policy.max_episode_length == stock["policy"]["max_episode_length"]
+    assert cfg.policy.hidden_size == 32 and cfg.batch_size == stock["batch_size"]  # a flag overrides the file
+    assert cfg.output_dir == str(out)
+
+
+def test_train_refuses_another_policy_type_in_a_lerobot_train_config(tmp_path, capsys):
+    config = tmp_path / "act.json"
+    config.write_text(json.dumps({"dataset": {"repo_id": "local/x"}, "policy": {"type": "act"}}))
+    assert cli.main(["train", "--config_path", str(config)]) == 2
+    assert "the fast path trains pnp_lstm only; the config's policy type is 'act'" in capsys.readouterr().err
+
+
 def test_unknown_command_exits_2(capsys):
     assert cli.main(["frobnicate"]) == 2
     err = capsys.readouterr().err
@@ -240,3 +288,19 @@ def test_end_to_end_real_clis(tmp_path):
     # The policy's pre-processor names the feature and both shapes (not a bare tensor-size error).
     assert "observation 'observation.state' has shape (2, 8)" in proc.stderr, proc.stderr[-3000:]
     assert "trained on (14,)" in proc.stderr
+
+
+def test_in_process_eval_keeps_one_progress_bar_and_none_in_a_log(capsys):
+    from lerobot.scripts import lerobot_eval
+
+    from lerobot_pnp.progress import quiet_rollout_bars
+
+    stock = lerobot_eval.trange
+    with quiet_rollout_bars():
+        rollout = lerobot_eval.trange(3, desc="Running rollout with at most 3 steps", leave=False)
+        batches = lerobot_eval.trange(2, desc="Stepping through eval batches", disable=False)
+        assert rollout.disable, "the per-rollout bar must be off"
+        assert batches.disable, "stderr is captured (no terminal): tqdm hides the batches bar"
+        list(rollout), list(batches)
+    assert lerobot_eval.trange is stock
+    assert "Running rollout" not in capsys.readouterr().err

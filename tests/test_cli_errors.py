@@ -93,3 +93,54 @@ def test_lerobot_eval_rejects_bad_env_flags_before_loading_the_policy(tmp_path):
         )  # fmt: skip
         assert proc.returncode != 0 and message in proc.stderr, proc.stderr[-2000:]
         assert not (tmp_path / "o" / "eval_info.json").exists()
+
+
+# ------------------------------------------------------------------------ errors through stock lerobot-* CLIs
+_FAKE_CLI = """
+import sys
+import lerobot_pnp
+from lerobot_pnp.errors import ConfigError
+try:
+    raise ConfigError("env.speed must be in (0, 1], got 7")
+except ConfigError as err:
+    if sys.argv[1:] == ["other"]:
+        raise ValueError("not ours") from None
+    raise RuntimeError("LeRobot wrapped it") from err
+"""
+
+
+@pytest.mark.parametrize(
+    ("script", "extra_env", "arg", "one_line"),
+    [
+        ("lerobot-fake", {}, "ours", True),
+        ("lerobot-fake", {"LEROBOT_PNP_DEBUG": "1"}, "ours", False),  # the debug switch keeps the traceback
+        ("lerobot-fake", {}, "other", False),  # an error that is not ours keeps its traceback
+        ("my_script.py", {}, "ours", False),  # only stock lerobot-* scripts are affected
+    ],
+)
+def test_our_errors_are_one_line_in_a_lerobot_script(tmp_path, script, extra_env, arg, one_line):
+    path = tmp_path / script
+    path.write_text(_FAKE_CLI)
+    env = {**ENV, **extra_env, "PYTHONPATH": os.pathsep.join(sys.path)}
+    proc = subprocess.run([sys.executable, str(path), arg], cwd=tmp_path, env=env, capture_output=True, text=True)
+    assert proc.returncode == 1
+    if one_line:
+        assert "Traceback" not in proc.stderr, proc.stderr
+        assert "lerobot-fake: error: env.speed must be in (0, 1], got 7" in proc.stderr.splitlines()[-2]
+        assert "LEROBOT_PNP_DEBUG=1" in proc.stderr.splitlines()[-1]
+    else:
+        assert "Traceback" in proc.stderr, proc.stderr
+
+
+@pytest.mark.slow
+def test_lerobot_train_on_a_missing_dataset_offline_is_one_line(tmp_path):
+    exe = BIN / "lerobot-train"
+    if not exe.exists():
+        pytest.skip(f"lerobot-train is not installed next to {sys.executable}")
+    missing = tmp_path / "no_dataset"
+    cmd = [str(exe), "--dataset.repo_id=local/nothing", f"--dataset.root={missing}", "--policy.type=pnp_lstm"]
+    cmd += ["--policy.push_to_hub=false", "--steps=1", f"--output_dir={tmp_path / 'out'}"]
+    proc = subprocess.run(cmd, cwd=tmp_path, env=ENV, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 1
+    assert "Traceback" not in proc.stderr and "OfflineModeIsEnabled" not in proc.stderr, proc.stderr[-3000:]
+    assert f"--dataset.root '{missing}' holds no dataset" in proc.stderr

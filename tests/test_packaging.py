@@ -1,5 +1,10 @@
-"""Packaging: LeRobot discovers the plugin with no flags, the MJCF ships in the wheel, async vector envs work."""
+"""Packaging: the built wheel is the product. It is built once, installed apart from the source tree, and every
+command runs from it; LeRobot discovers the plugin with no flags; async vector envs work."""
 
+from __future__ import annotations
+
+import json
+import os
 import subprocess
 import sys
 import zipfile
@@ -8,6 +13,67 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
+
+
+def _wheel_env(site: Path) -> dict[str, str]:
+    """The environment of a user who installed the wheel: only the install folder on the path, no source tree."""
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    return {**env, "PYTHONPATH": str(site), "OMP_NUM_THREADS": "1", "HF_HUB_OFFLINE": "1", "MUJOCO_GL": "egl"}
+
+
+@pytest.fixture(scope="session")
+def wheel(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("wheel")
+    cmd = [sys.executable, "-m", "pip", "wheel", str(ROOT), "--no-deps", "--no-build-isolation", "-q", "-w", str(out)]
+    proc = subprocess.run(cmd, capture_output=True, text=True, cwd=out)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    (path,) = out.glob("lerobot_policy_pnp_lstm-*.whl")
+    return path
+
+
+@pytest.fixture(scope="session")
+def installed(wheel, tmp_path_factory) -> Path:
+    """The wheel installed into its own folder (``pip install --target``), not the editable source tree."""
+    site = tmp_path_factory.mktemp("site")
+    cmd = [sys.executable, "-m", "pip", "install", "--no-deps", "--no-index", "-q", "--target", str(site), str(wheel)]
+    proc = subprocess.run(cmd, capture_output=True, text=True, cwd=site)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return site
+
+
+@pytest.mark.slow
+def test_wheel_holds_every_package_of_the_source_tree(wheel):
+    names = set(zipfile.ZipFile(wheel).namelist())
+    assert "lerobot_pnp/assets/baxter_pnp.xml" in names
+    assert "lerobot_policy_pnp_lstm.py" in names
+    sources = {p.relative_to(ROOT).as_posix() for p in (ROOT / "lerobot_pnp").rglob("*.py")}
+    assert sources and sources <= names, f"missing from the wheel: {sorted(sources - names)}"
+
+
+@pytest.mark.slow
+def test_every_command_runs_from_the_installed_wheel(installed, tmp_path):
+    env, script = _wheel_env(installed), installed / "bin" / "lerobot-pnp"
+    code = (
+        "import json, lerobot_pnp, lerobot_pnp.assets\n"
+        "from importlib.resources import files\n"
+        "from lerobot_pnp import cli\n"
+        "rcs = {name: cli.main([name, '--help']) for name in cli.COMMANDS}\n"
+        "print(json.dumps({'pkg': lerobot_pnp.__file__, 'scene': str(files('lerobot_pnp.assets')), 'rcs': rcs}))\n"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path, env=env)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    result = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert Path(result["pkg"]).is_relative_to(installed), result["pkg"]  # not the editable source tree
+    assert Path(result["scene"]).is_relative_to(installed), result["scene"]
+    assert result["rcs"] == dict.fromkeys(result["rcs"], 0) and len(result["rcs"]) >= 8, result["rcs"]
+
+    proc = subprocess.run([str(script), "--help"], capture_output=True, text=True, cwd=tmp_path, env=env)
+    assert proc.returncode == 0 and "generate" in proc.stdout, proc.stderr[-3000:]
+    ds = tmp_path / "ds"
+    gen = [str(script), "generate", "--repo_id=local/wheel", f"--root={ds}", "--num_episodes=2", "--workers=1"]
+    proc = subprocess.run([*gen, "--progress=false"], capture_output=True, text=True, cwd=tmp_path, env=env)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert json.loads((ds / "meta" / "info.json").read_text())["total_episodes"] == 2
 
 
 def test_lerobot_discovers_the_plugin_by_distribution_name():
@@ -25,38 +91,28 @@ def test_lerobot_discovers_the_plugin_by_distribution_name():
     assert out.stdout.split()[-3:] == ["True", "True", "True"], out.stderr[-2000:]
 
 
-@pytest.mark.slow
-def test_wheel_ships_the_scene(tmp_path):
-    subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "pip",
-            "wheel",
-            str(ROOT),
-            "--no-deps",
-            "--no-build-isolation",
-            "-q",
-            "-w",
-            str(tmp_path),
-        ],
-        check=True,
-        capture_output=True,
-        cwd=tmp_path,
-    )
-    (wheel,) = tmp_path.glob("lerobot_policy_pnp_lstm-*.whl")
-    names = zipfile.ZipFile(wheel).namelist()
-    assert "lerobot_pnp/assets/baxter_pnp.xml" in names
-    assert "lerobot_policy_pnp_lstm.py" in names
-    assert "lerobot_pnp/policy/modeling_pnp_lstm.py" in names
+def test_keyframe_eval_envs_are_sync_with_a_warning(caplog):
+    import gymnasium as gym
+
+    from lerobot_pnp.env_config import BaxterPnPEnvConfig
+
+    with caplog.at_level("WARNING"):
+        envs = BaxterPnPEnvConfig().create_envs(n_envs=2, use_async_envs=True)["baxter_pnp"][0]
+    envs.close()
+    assert isinstance(envs, gym.vector.SyncVectorEnv)
+    assert "keyframe control runs its 2 eval envs in this process" in caplog.text
 
 
 @pytest.mark.slow
 def test_async_vector_envs_through_the_lerobot_config():
+    import gymnasium as gym
+
     from lerobot_pnp.env_config import BaxterPnPEnvConfig
 
-    envs = BaxterPnPEnvConfig().create_envs(n_envs=2, use_async_envs=True)["baxter_pnp"][0]
+    # dense control keeps async envs (worker processes re-import the plugin)
+    envs = BaxterPnPEnvConfig(control_mode="dense").create_envs(n_envs=2, use_async_envs=True)["baxter_pnp"][0]
     try:
+        assert isinstance(envs, gym.vector.AsyncVectorEnv)
         obs, info = envs.reset(seed=[3, 4])
         assert obs["agent_pos"].shape == (2, 8) and obs["environment_state"].shape == (2, 3)
         obs, reward, terminated, truncated, info = envs.step(obs["agent_pos"])  # hold the start pose

@@ -108,13 +108,15 @@ def eval_lerobot_policy(
     from lerobot.envs.factory import make_env_pre_post_processors
     from lerobot.scripts.lerobot_eval import eval_policy
 
+    from lerobot_pnp.progress import quiet_rollout_bars
+
     batch_size = max(1, min(batch_size, n_episodes))
     vec = env_cfg.create_envs(n_envs=batch_size, use_async_envs=False)[env_cfg.type][0]
     sink: list[EpisodeRecord] = []
     vec.envs = [EpisodeRecorder(e, sink) for e in vec.envs]
     env_pre, env_post = make_env_pre_post_processors(env_cfg=env_cfg, policy_cfg=policy.config)
     try:
-        with torch.no_grad():
+        with torch.no_grad(), quiet_rollout_bars():  # one aggregated bar, none in a log
             info = eval_policy(
                 env=vec,
                 policy=policy,

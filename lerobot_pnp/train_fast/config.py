@@ -114,27 +114,44 @@ class TrainFastConfig:
 
     @classmethod
     def from_train_config(cls, path: str | Path, **overrides: Any) -> TrainFastConfig:
-        """Take dataset, policy, batch size, seed and output dir from a ``lerobot-train`` config JSON.
-
-        ``steps`` is not taken over (a ``lerobot-train`` step is a batch of windows, a fast-path step a batch
-        of whole episodes); the fast path trains for ``epochs`` unless ``steps`` is given in ``overrides``.
-        """
-        data = json.loads(Path(path).read_text())
-        kwargs: dict[str, Any] = {}
-        ds = data.get("dataset") or {}
-        if ds.get("repo_id"):
-            kwargs["dataset_repo_id"] = ds["repo_id"]
-        if ds.get("root"):
-            kwargs["dataset_root"] = ds["root"]
-        if data.get("policy"):
-            kwargs["policy"] = policy_config_from_dict(data["policy"])
-        for key in ("batch_size", "seed"):
-            if data.get(key) is not None:
-                kwargs[key] = data[key]
-        if data.get("output_dir"):
-            kwargs["output_dir"] = str(data["output_dir"]) + "_fast"
+        """Build from a ``lerobot-train`` config JSON (see ``translate_config_file``), then ``overrides``."""
+        kwargs: dict[str, Any] = cls.translate_config_file(json.loads(Path(path).read_text()))
+        if "policy" in kwargs:
+            kwargs["policy"] = policy_config_from_dict(kwargs["policy"])
         kwargs.update(overrides)
         return cls(**kwargs)
+
+    @classmethod
+    def translate_config_file(cls, data: dict[str, Any]) -> dict[str, Any]:
+        """This config's keys from a config file, so ``lerobot-pnp train`` reads ``lerobot-train``'s files too.
+
+        A ``lerobot-train`` config (it has a ``dataset`` block) gives dataset, policy (its ``type`` must be
+        ``pnp_lstm``), batch size, seed and output dir (+ ``_fast``); keys of the stock trainer alone (``env``,
+        ``eval``, ``num_workers``, ``log_freq`` ...) are dropped. ``steps`` is not taken over (a
+        ``lerobot-train`` step is a batch of windows, a fast-path step a batch of whole episodes): the fast
+        path trains for ``epochs`` unless ``--steps`` is given. A file in this config's own keys is returned
+        as it is.
+        """
+        if not isinstance(data.get("dataset"), dict):
+            return data
+        out: dict[str, Any] = {}
+        ds = data["dataset"]
+        if ds.get("repo_id"):
+            out["dataset_repo_id"] = ds["repo_id"]
+        if ds.get("root"):
+            out["dataset_root"] = str(ds["root"])
+        if data.get("policy"):
+            policy = dict(data["policy"])
+            ptype = policy.pop("type", "pnp_lstm")
+            if ptype != "pnp_lstm":
+                raise ConfigError(f"the fast path trains pnp_lstm only; the config's policy type is {ptype!r}")
+            out["policy"] = policy
+        for key in ("batch_size", "seed"):
+            if data.get(key) is not None:
+                out[key] = data[key]
+        if data.get("output_dir"):
+            out["output_dir"] = str(data["output_dir"]) + "_fast"
+        return out
 
 
 def _is_int(value: Any) -> bool:

@@ -1,0 +1,142 @@
+"""``lerobot-pnp <command> --help``: every option of a command's config dataclass, one entry per field.
+
+Why not draccus's own ``--help``: it builds argparse help from source comments, so a literal ``%`` in a comment
+crashes it, a Google-style ``Args:`` line in a class docstring is mistaken for a field (it then prints the
+class source), nested configs list ``--policy str`` twice, and the ``Args:`` descriptions (this project's
+convention) are not shown per field. This module reads the same dataclasses: a field's description is its
+``Args:`` entry in the class docstring (or an inherited class's), else the comment draccus would show (above,
+inline or a docstring below the field). Nested dataclass fields are listed with their dotted flag
+(``--policy.hidden_size``). A field named ``preset`` lists the keys of its module's ``PRESETS``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import inspect
+import re
+import shutil
+import sys
+import textwrap
+import typing
+
+_ARG_LINE = re.compile(r"^(\s*)(\w+)(?: \([^)]*\))?:\s*(.*)$")
+
+
+def args_section(cls: type) -> dict[str, str]:
+    """Field name -> description from the ``Args:`` sections of ``cls``'s and its bases' docstrings."""
+    docs: dict[str, str] = {}
+    for klass in reversed(cls.__mro__):
+        doc = inspect.cleandoc(klass.__dict__.get("__doc__") or "")
+        lines, inside, name, indent = doc.splitlines(), False, None, 0
+        for line in lines:
+            if line.strip() in ("Args:", "Attributes:"):
+                inside, name = True, None
+                continue
+            if not inside:
+                continue
+            if line and not line[0].isspace():
+                inside = False  # the section ended (an unindented line)
+                continue
+            match = _ARG_LINE.match(line)
+            if match and (name is None or len(match.group(1)) <= indent):
+                indent, name = len(match.group(1)), match.group(2)
+                docs[name] = match.group(3).strip()
+            elif name is not None and line.strip():
+                docs[name] += " " + line.strip()
+    return docs
+
+
+def _comment_help(cls: type, name: str) -> str:
+    """The help text draccus itself would find in the source (comments or a docstring below the field)."""
+    from draccus.wrappers import docstring
+
+    try:
+        text = docstring.get_preferred_help_text(docstring.get_attribute_docstring(cls, name))
+    except (OSError, TypeError, RuntimeWarning):
+        return ""
+    return text or ""
+
+
+def _type_name(tp) -> str:
+    args = [a for a in typing.get_args(tp) if a is not type(None)]
+    if typing.get_origin(tp) in (typing.Union, getattr(__import__("types"), "UnionType", None)) and len(args) == 1:
+        return _type_name(args[0])
+    if isinstance(tp, type) and not typing.get_args(tp):
+        return tp.__name__
+    return str(tp).replace("typing.", "").replace("NoneType", "None")
+
+
+def _default_of(field: dataclasses.Field, instance) -> str:
+    if instance is not None and hasattr(instance, field.name):
+        value = getattr(instance, field.name)
+    elif field.default is not dataclasses.MISSING:
+        value = field.default
+    else:
+        return ""
+    if dataclasses.is_dataclass(value):
+        return ""
+    return "none" if value is None else str(value).lower() if isinstance(value, bool) else repr(value)
+
+
+def _describe(cls: type, field: dataclasses.Field, docs: dict[str, str]) -> str:
+    text = docs.get(field.name) or _comment_help(cls, field.name)
+    text = " ".join(text.split()).lstrip("-# ")  # a section divider comment above the field is no description
+    if field.name == "preset":
+        presets = getattr(sys.modules.get(cls.__module__), "PRESETS", None)
+        if isinstance(presets, dict):
+            text += f" (one of: {', '.join(sorted(presets))})"
+    return text
+
+
+def field_rows(cls: type, prefix: str = "", instance=None) -> list[tuple[str, str, str]]:
+    """``(flag, type, description with default)`` for every field of ``cls``, nested dataclasses flattened."""
+    hints = typing.get_type_hints(cls)
+    docs = args_section(cls)
+    rows: list[tuple[str, str, str]] = []
+    for field in dataclasses.fields(cls):
+        if not field.init:
+            continue
+        tp = hints.get(field.name, field.type)
+        flag = f"--{prefix}{field.name}"
+        if dataclasses.is_dataclass(tp):
+            child = getattr(instance, field.name, None) if instance is not None else None
+            rows += field_rows(tp, f"{prefix}{field.name}.", child)
+            continue
+        text = _describe(cls, field, docs)
+        default = _default_of(field, instance)
+        rows.append((flag, _type_name(tp), f"{text} [default: {default}]".strip() if default else text))
+    return rows
+
+
+def _default_instance(cls: type):
+    """The config with its defaults, for showing them; None if defaults alone do not make a valid config."""
+    try:
+        return cls()
+    except Exception:  # a config that needs a value, or validates against files: show the field defaults
+        return None
+
+
+def command_help(name: str, summary: str, cls: type) -> str:
+    """The text of ``lerobot-pnp <name> --help``."""
+    width = max(80, min(shutil.get_terminal_size((120, 24)).columns, 140))
+    rows = field_rows(cls, instance=_default_instance(cls))
+    left = min(max(len(f"  {flag} {tp}") for flag, tp, _ in rows) + 2, 40)
+    out = [
+        f"usage: lerobot-pnp {name} [--config_path FILE] [--field value ...]",
+        "",
+        summary,
+        "",
+        "--config_path FILE: a JSON or YAML file with the same keys (nested as objects); flags override it.",
+        "",
+        "options:",
+    ]
+    for flag, tp, text in rows:
+        head = f"  {flag} {tp}"
+        body = textwrap.wrap(text, width - left) or [""]
+        if len(head) + 2 > left:
+            out.append(head)
+            out += [" " * left + line for line in body if line]
+        else:
+            out.append(head.ljust(left) + body[0])
+            out += [" " * left + line for line in body[1:]]
+    return "\n".join(out)
