@@ -526,13 +526,23 @@ def _not_finite(value: Any) -> bool:
     return isinstance(value, list | tuple) and any(_not_finite(v) for v in value)
 
 
+def dataset_task(dataset_root: str | Path) -> dict | None:
+    """The task recorded with a dataset folder, validated; None when it records none."""
+    source = Path(dataset_root) / RECORDED_FILE
+    return check_recorded(_read_json(source), source) if source.is_file() else None
+
+
+def write_checkpoint_task(task: dict, directory: str | Path) -> Path:
+    """Record ``task`` in a checkpoint's ``pretrained_model`` folder (``baxter_pnp_env.json``)."""
+    path = Path(directory) / CHECKPOINT_RECORDED_FILE
+    path.write_text(json.dumps(check_recorded(task, path), indent=2))
+    return path
+
+
 def copy_recorded(dataset_root: str | Path, directory: str | Path) -> Path:
     """Copy a dataset's recorded task into a checkpoint folder, validated first (a bad one is not copied)."""
     source = Path(dataset_root) / RECORDED_FILE
-    data = check_recorded(_read_json(source), source)
-    path = Path(directory) / CHECKPOINT_RECORDED_FILE
-    path.write_text(json.dumps(data, indent=2))
-    return path
+    return write_checkpoint_task(check_recorded(_read_json(source), source), directory)
 
 
 def read_recorded(source: str | Path) -> dict | None:

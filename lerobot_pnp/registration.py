@@ -19,6 +19,10 @@ def register_all() -> None:
     install_cli_excepthook()
     # LeRobot config registries (draccus choice registries) are filled by importing the modules.
     from lerobot_pnp import env_config
+    from lerobot_pnp.policy.modeling_pnp_lstm import TaskRecord
+
+    # a pnp_lstm checkpoint records the task of its training dataset (the policy package knows no env)
+    TaskRecord.read, TaskRecord.write = env_config.dataset_task, env_config.write_checkpoint_task
 
     if env_config.GYM_ID not in gym.registry:
         gym.register(

@@ -24,8 +24,8 @@ for the whole episode, a learned PICK/PLACE switch); the policy API, processors 
 
 from __future__ import annotations
 
-import json
 import logging
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -49,6 +49,15 @@ logger = logging.getLogger(__name__)
 
 # Checkpoints written before the network became its own module stored its weights at the policy's top level.
 _LEGACY_PREFIX = "subtask_nets."
+
+
+class TaskRecord:
+    """How a checkpoint records the task it was trained in, set by ``lerobot_pnp.registration`` (the policy
+    package knows no env): ``read(dataset_root)`` -> the validated recorded task or None, ``write(task,
+    directory)`` writes it into a checkpoint folder."""
+
+    read: Callable[[Path], dict | None] | None = None
+    write: Callable[[dict, Path], None] | None = None
 
 
 class PnpLstmPolicy(PreTrainedPolicy):
@@ -95,10 +104,8 @@ class PnpLstmPolicy(PreTrainedPolicy):
         (``baxter_pnp_env.json``, read when training started), so the checkpoint carries its task even after
         the dataset root is regenerated with another one."""
         super()._save_pretrained(save_directory, state_dict)
-        if self.recorded_task is not None:
-            from lerobot_pnp.env_config import CHECKPOINT_RECORDED_FILE
-
-            (Path(save_directory) / CHECKPOINT_RECORDED_FILE).write_text(json.dumps(self.recorded_task, indent=2))
+        if self.recorded_task is not None and TaskRecord.write is not None:
+            TaskRecord.write(self.recorded_task, Path(save_directory))
 
     @classmethod
     def from_pretrained(cls, pretrained_name_or_path, *, config: PnpLstmConfig | None = None, **kwargs):
@@ -349,15 +356,7 @@ def _subtask_names(n: int) -> list[str]:
 def _recorded_task(dataset_meta: Any) -> dict | None:
     """The task recorded with the training dataset (validated), None without a dataset or a record."""
     root = getattr(dataset_meta, "root", None)
-    if root is None:
-        return None
-    from lerobot_pnp.env_config import RECORDED_FILE, check_recorded, read_recorded
-
-    return (
-        check_recorded(read_recorded(root), Path(root) / RECORDED_FILE)
-        if (Path(root) / RECORDED_FILE).is_file()
-        else None
-    )
+    return None if root is None or TaskRecord.read is None else TaskRecord.read(Path(root))
 
 
 def _check_keyframe_episodes(
