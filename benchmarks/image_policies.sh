@@ -6,7 +6,8 @@
 set -euo pipefail
 OUT=${1:-outputs/bench_images}
 N=${N:-200}                # demonstrations (episodes)
-STEPS=${STEPS:-1500}       # lerobot-train steps for each ACT / Diffusion run
+STATE_STEPS=${STATE_STEPS:-1500}  # lerobot-train steps of state-only ACT (about 0.05 s a step here)
+STEPS=${STEPS:-450}        # lerobot-train steps of image ACT and Diffusion (1-2 s a step on 2 busy cores)
 EVAL_N=${EVAL_N:-100}      # evaluation episodes (seeds EVAL_SEED ...)
 EVAL_SEED=${EVAL_SEED:-100000}
 export HF_HUB_OFFLINE=1 MUJOCO_GL=${MUJOCO_GL:-egl} OMP_NUM_THREADS=${OMP_NUM_THREADS:-1}
@@ -25,16 +26,16 @@ ACT_FLAGS=(--policy.type act --policy.device cpu --policy.push_to_hub false --po
   --policy.chunk_size 10 --policy.n_action_steps 1 --policy.dim_model 128 --policy.n_heads 4
   --policy.dim_feedforward 512 --policy.n_encoder_layers 2 --policy.n_decoder_layers 1 --policy.use_vae false
   --policy.dropout 0.0 --policy.optimizer_lr 0.0003)
-COMMON=(--num_workers 0 --batch_size 16 --steps "$STEPS" --save_freq "$STEPS" --log_freq 100 --env.type baxter_pnp
-  --env_eval_freq "$STEPS" --eval.n_episodes 10 --eval.batch_size 10 --eval.use_async_envs false)
+common() { echo --num_workers 0 --batch_size 16 --steps "$1" --save_freq "$1" --log_freq 50 --env.type baxter_pnp \
+  --env_eval_freq "$1" --eval.n_episodes 10 --eval.batch_size 10 --eval.use_async_envs false; }
 [ -d "$OUT/planner" ] || timed train_planner lerobot-pnp train --dataset_repo_id local/keyframe_state \
   --dataset_root "$STATE" --epochs 300 --output_dir "$OUT/planner"
 [ -d "$OUT/act_state" ] || timed train_act_state lerobot-train --dataset.repo_id local/keyframe_state \
-  --dataset.root "$STATE" "${ACT_FLAGS[@]}" "${COMMON[@]}" --output_dir "$OUT/act_state"
+  --dataset.root "$STATE" "${ACT_FLAGS[@]}" $(common "$STATE_STEPS") --output_dir "$OUT/act_state"
 [ -d "$OUT/act_images" ] || timed train_act_images lerobot-train --config_path configs/train_act_images.json \
-  "${COMMON[@]}" --output_dir "$OUT/act_images"
+  $(common "$STEPS") --output_dir "$OUT/act_images"
 [ -d "$OUT/diffusion_images" ] || timed train_diffusion_images lerobot-train \
-  --config_path configs/train_diffusion_images.json "${COMMON[@]}" --output_dir "$OUT/diffusion_images"
+  --config_path configs/train_diffusion_images.json $(common "$STEPS") --output_dir "$OUT/diffusion_images"
 
 for run in planner act_state act_images diffusion_images; do
   [ -f "$OUT/eval_$run/eval_info.json" ] || timed "eval_$run" lerobot-eval \

@@ -175,6 +175,7 @@ def test_dataset_episodes_recording(dataset, tmp_path):
     summary = visualize(VizConfig(repo_id=REPO_ID, root=str(dataset["root"]), episode_index=[0, 1], save=str(out)))
     assert out.is_file()
     assert [r["run"] for r in summary["runs"]] == ["episode_0", "episode_1"]
+    assert all(r["events"] == [f"frame {robot.N_KEYFRAMES - 1}: success"] for r in summary["runs"])  # no perturbation
     for run, ep in zip(summary["runs"], dataset["episodes"]):
         assert run["mode"] == "replay" and run["frames"] == ep.num_frames and run["success"]
         assert run["replay_max_state_error"] < 1e-5  # the seed + actions re-simulate the episode exactly

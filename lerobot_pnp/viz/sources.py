@@ -25,7 +25,7 @@ from lerobot_pnp import robot
 from lerobot_pnp.env_config import BaxterPnPEnvConfig, make_env, read_recorded
 from lerobot_pnp.errors import DatasetError
 from lerobot_pnp.rollout import ENV_STATE_WIDTHS
-from lerobot_pnp.viz.sampling import Frames, Run, Sampler
+from lerobot_pnp.viz.sampling import Frames, Run, Sampler, run_events
 from lerobot_pnp.viz.scene import SceneModel
 
 logger = logging.getLogger(__name__)
@@ -158,12 +158,15 @@ def load_episode(ds, episode_index: int) -> EpisodeData:
 
 def replay_episode(ep: EpisodeData, config: BaxterPnPEnvConfig, hz: float) -> Run:
     """Re-simulate (or pose) a dataset episode in the env of ``config``, sampled at ``hz`` (see module doc)."""
-    env = make_env(config, render_mode=None)
+    from lerobot_pnp.dataset.episodes import PixelRecorder
+
+    env = PixelRecorder(make_env(config, render_mode=None))
     base = env.unwrapped
     physics = base.physics
     scene = SceneModel(physics.model)
     sampler = Sampler(physics, scene, base.is_success, hz)
     n = len(ep.frame_index)
+    events: list = []
     info: dict = {"frames": n, "place_target": physics.place_target().round(4).tolist()}
     frame_samples = []
     try:
@@ -180,6 +183,7 @@ def replay_episode(ep: EpisodeData, config: BaxterPnPEnvConfig, hz: float) -> Ru
             physics.on_control_tick = None
             err = float(np.max(np.abs(np.stack(replayed) - np.concatenate([ep.state, ep.object], axis=1))))
             info.update(mode="replay", seed=ep.seed, replay_max_state_error=err)
+            events = run_events(env.infos)  # the perturbations the re-simulation applied, the outcome
             if err > REPLAY_TOLERANCE:
                 logger.warning(
                     "viz: episode %d re-simulated with seed %d deviates from the dataset by up to %.3g; the 3D "
@@ -211,4 +215,7 @@ def replay_episode(ep: EpisodeData, config: BaxterPnPEnvConfig, hz: float) -> Ru
     info["success"] = bool(ep.success[-1] > 0.5) if len(ep.success) else False
     samples = sampler.arrays()
     info["samples"] = len(samples["t"])
-    return Run(name=f"episode_{ep.index}", scene=scene, qpos=qpos, samples=samples, frames=frames, info=info)
+    info["events"] = [f"frame {k}: {text}" for k, _, text in events]
+    return Run(
+        name=f"episode_{ep.index}", scene=scene, qpos=qpos, samples=samples, frames=frames, info=info, events=events
+    )
