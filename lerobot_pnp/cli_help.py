@@ -19,31 +19,44 @@ import sys
 import textwrap
 import typing
 
-_ARG_LINE = re.compile(r"^(\s*)(\w+)(?: \([^)]*\))?:\s*(.*)$")
+# "name: text", "name (type): text" or "a / b / c: text" (one text for several fields)
+_ARG_LINE = re.compile(r"^(\s*)(\w+(?: / \w+)*)(?: \([^)]*\))?:\s*(.*)$")
 
 
 def args_section(cls: type) -> dict[str, str]:
-    """Field name -> description from the ``Args:`` sections of ``cls``'s and its bases' docstrings."""
+    """Field name -> description from the ``Args:`` section of ``cls``'s own docstring."""
     docs: dict[str, str] = {}
-    for klass in reversed(cls.__mro__):
-        doc = inspect.cleandoc(klass.__dict__.get("__doc__") or "")
-        lines, inside, name, indent = doc.splitlines(), False, None, 0
-        for line in lines:
-            if line.strip() in ("Args:", "Attributes:"):
-                inside, name = True, None
-                continue
-            if not inside:
-                continue
-            if line and not line[0].isspace():
-                inside = False  # the section ended (an unindented line)
-                continue
-            match = _ARG_LINE.match(line)
-            if match and (name is None or len(match.group(1)) <= indent):
-                indent, name = len(match.group(1)), match.group(2)
-                docs[name] = match.group(3).strip()
-            elif name is not None and line.strip():
-                docs[name] += " " + line.strip()
+    inside, name, indent = False, None, 0
+    for line in inspect.cleandoc(cls.__dict__.get("__doc__") or "").splitlines():
+        if line.strip() in ("Args:", "Attributes:"):
+            inside, name = True, None
+            continue
+        if not inside:
+            continue
+        if line and not line[0].isspace():
+            inside = False  # the section ended (an unindented line)
+            continue
+        match = _ARG_LINE.match(line)
+        if match and (name is None or len(match.group(1)) <= indent):
+            indent, name = len(match.group(1)), match.group(2).split(" / ")
+            for one in name:
+                docs[one] = match.group(3).strip()
+        elif name is not None and line.strip():
+            for one in name:
+                docs[one] += " " + line.strip()
     return docs
+
+
+def field_doc(cls: type, name: str) -> str:
+    """The description of field ``name``: from the class that (re)defines it nearest to ``cls``, its ``Args:``
+    entry, else the comment or attribute docstring draccus would show."""
+    for klass in cls.__mro__:
+        if name not in inspect.get_annotations(klass):
+            continue
+        text = args_section(klass).get(name) or _comment_help(klass, name)
+        if text:
+            return text
+    return ""
 
 
 def _comment_help(cls: type, name: str) -> str:
@@ -78,8 +91,8 @@ def _default_of(field: dataclasses.Field, instance) -> str:
     return "none" if value is None else str(value).lower() if isinstance(value, bool) else repr(value)
 
 
-def _describe(cls: type, field: dataclasses.Field, docs: dict[str, str]) -> str:
-    text = docs.get(field.name) or _comment_help(cls, field.name)
+def _describe(cls: type, field: dataclasses.Field) -> str:
+    text = field_doc(cls, field.name)
     text = " ".join(text.split()).lstrip("-# ")  # a section divider comment above the field is no description
     if field.name == "preset":
         presets = getattr(sys.modules.get(cls.__module__), "PRESETS", None)
@@ -91,7 +104,6 @@ def _describe(cls: type, field: dataclasses.Field, docs: dict[str, str]) -> str:
 def field_rows(cls: type, prefix: str = "", instance=None) -> list[tuple[str, str, str]]:
     """``(flag, type, description with default)`` for every field of ``cls``, nested dataclasses flattened."""
     hints = typing.get_type_hints(cls)
-    docs = args_section(cls)
     rows: list[tuple[str, str, str]] = []
     for field in dataclasses.fields(cls):
         if not field.init:
@@ -102,7 +114,7 @@ def field_rows(cls: type, prefix: str = "", instance=None) -> list[tuple[str, st
             child = getattr(instance, field.name, None) if instance is not None else None
             rows += field_rows(tp, f"{prefix}{field.name}.", child)
             continue
-        text = _describe(cls, field, docs)
+        text = _describe(cls, field)
         default = _default_of(field, instance)
         rows.append((flag, _type_name(tp), f"{text} [default: {default}]".strip() if default else text))
     return rows

@@ -304,3 +304,11 @@ def test_in_process_eval_keeps_one_progress_bar_and_none_in_a_log(capsys):
         list(rollout), list(batches)
     assert lerobot_eval.trange is stock
     assert "Running rollout" not in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_stock_lerobot_train_help_documents_the_policy_fields(tmp_path):
+    """Our field docs are attribute docstrings, the form draccus (LeRobot's parser) shows; no '%' crash."""
+    proc = _run([_exe("lerobot-train"), "--policy.type=pnp_lstm", "--help"], tmp_path, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert "LSTM hidden units." in proc.stdout and "Recovering mode: the longest episode" in proc.stdout

@@ -45,71 +45,17 @@ class PnpLstmConfig(PreTrainedConfig):
     Architecture (paper defaults): one LSTM + Linear head per subtask (``shared_network=False``), the
     PICK net runs on frames ``0..steps_per_subtask-1`` and the PLACE net on the rest, starting from a
     zero hidden state. Loss: MSE on MEAN_STD-normalised actions.
-
-    Args:
-        n_obs_steps: LeRobot's observation history length; must be 1 (the LSTM state is the history).
-        device: Torch device of the policy. ``"cpu"``: a ~150k-parameter LSTM is as fast on one CPU thread
-            as on a GPU (LeRobot's default ``None`` auto-selects and logs a warning).
-        push_to_hub: LeRobot's default is True, which makes ``lerobot-train`` demand a ``--policy.repo_id``;
-            here it is opt-in.
-        normalization_mapping: MEAN_STD for the robot state, the object position (ENV) and the action.
-        steps_per_subtask: Keyframes per subtask FSM (the paper's 5 states).
-        n_subtasks: Number of subtasks (pick, place). An episode has ``n_subtasks * steps_per_subtask``
-            frames.
-        hidden_size: LSTM hidden units.
-        num_layers: Stacked LSTM layers (1 or 2).
-        dropout: Dropout between stacked LSTM layers and before the Linear head (training only).
-        shared_network: One LSTM for all subtasks instead of one per subtask; a subtask one-hot is then
-            appended to the input.
-        carry_hidden_across_subtasks: Only with ``shared_network``: keep the hidden state across the
-            subtask switch instead of resetting it to zero.
-        recurrent: ``False`` gives the memoryless ablation: the same layers, but the hidden state is reset
-            to zero before every step (same parameter count, no memory).
-        input_noise_std: Std of Gaussian noise added to the normalised inputs during training only.
-        latency_augment_prob: Training only: the probability that a training episode's observations are
-            shown one step late (frame ``t`` gets the observation of frame ``t-1``, frame 0 its own), with
-            the actions unchanged. A policy trained on current observations only loses sync with its own
-            history when they arrive a step late (the recovering LSTM: 1 % under ``obs_latency=1``); with
-            both kinds of episode it learns to tell them apart from the first two frames (a delayed episode
-            shows the start pose twice) and to act on stale observations. Works for the fast path and for
-            ``lerobot-train`` (it acts on the whole-episode windows).
-        balance_window_loss: Ignored; kept so that configs and checkpoints written before every training
-            window became a whole episode still load. (It weighted the frames of windows that ended at a
-            uniformly drawn frame.)
-        torch_num_threads: If set and the policy runs on CPU, ``torch.set_num_threads`` is called with it
-            when the policy is built. This tiny model is ~100x slower with several intra-op threads on a
-            small CPU; ``None`` leaves torch alone.
-        dataset_fps: Frame rate of the dataset the policy was trained on, recorded from the dataset's
-            metadata when the policy is built for training (``None``: not recorded, e.g. checkpoints
-            written before it was). A keyframe dataset has one frame per FSM state; evaluating on an env
-            whose control rate differs (``--env.control_mode dense``) cannot work, and whoever builds the
-            env can compare its ``fps`` with this (see ``check_env_fps``).
-        optimizer_lr / optimizer_weight_decay / optimizer_grad_clip_norm: Adam preset.
-        lr_scheduler: ``"none"`` or ``"cosine"`` (linear warm-up, then cosine annealing to zero over the run).
-        scheduler_warmup_steps: Warm-up steps of the cosine schedule.
-        mode: ``"clocked"`` (default; the paper: steps 0-4 PICK net, 5-9 PLACE net, fixed 10-frame episodes) or
-            ``"recovering"`` (``recovering.RecoveringNet``: one trunk over the whole variable-length episode,
-            no clock, state carried across the switch, PICK/PLACE heads mixed by a learned subtask classifier;
-            runs until the env ends the episode). In recovering mode ``recurrent=False`` is the memoryless
-            control with an MLP trunk of about the LSTM trunk's parameter count; ``shared_network``,
-            ``carry_hidden_across_subtasks``, ``num_layers`` and the subtask structure fields are not used.
-        max_episode_length: Recovering mode: the longest episode a training window holds (the env's keyframe
-            budget + the final observed state: 41 in the ``full`` task). Windows are ``-(L-1) .. L-1`` around any frame, so each holds its
-            whole episode; every frame is sampled (no ``drop_n_last_frames``), which weights episodes by length.
-        binary_gripper: The post-processor snaps the gripper command to fully open or closed (threshold half
-            way), as every demonstration commands it (``processor_pnp_lstm.BinaryGripperStep``). Off by default:
-            the paper's planner regresses it.
-        subtask_loss_weight / phase_loss_weight: Recovering mode: weights of the cross-entropy of the subtask
-            switch (``phase.subtask``) and of the auxiliary phase classifier (``phase.index``) next to the
-            action MSE; used when the batch carries per-frame labels (the fast path and DAgger; stock
-            ``lerobot-train`` windows only observations and actions, so there the switch learns from the action
-            loss alone).
     """
 
     n_obs_steps: int = 1
+    """LeRobot's observation history length; must be 1 (the LSTM state is the history)."""
     device: str | None = "cpu"
+    """Torch device of the policy. ``"cpu"``: a ~150k-parameter LSTM is as fast on one CPU thread as on a GPU
+    (LeRobot's default ``None`` auto-selects and logs a warning)."""
     push_to_hub: bool = False
+    """LeRobot's default is True, which makes ``lerobot-train`` demand a ``--policy.repo_id``; here it is opt-in."""
 
+    # MEAN_STD for the robot state, the object position (ENV) and the action.
     normalization_mapping: dict[str, NormalizationMode] = field(
         default_factory=lambda: {
             "STATE": NormalizationMode.MEAN_STD,
@@ -120,38 +66,87 @@ class PnpLstmConfig(PreTrainedConfig):
 
     # Task structure.
     steps_per_subtask: int = 5
+    """Keyframes per subtask FSM (the paper's 5 states)."""
     n_subtasks: int = 2
+    """Number of subtasks (pick, place). An episode has ``n_subtasks * steps_per_subtask`` frames."""
 
     # Architecture.
     hidden_size: int = 128
+    """LSTM hidden units."""
     num_layers: int = 1
+    """Stacked LSTM layers (1 or 2)."""
     dropout: float = 0.0
+    """Dropout between stacked LSTM layers and before the Linear head (training only)."""
     shared_network: bool = False
+    """One LSTM for all subtasks instead of one per subtask; a subtask one-hot is then appended to the input."""
     carry_hidden_across_subtasks: bool = False
+    """Only with ``shared_network``: keep the hidden state across the subtask switch instead of resetting it to zero."""
     recurrent: bool = True
+    """``False`` gives the memoryless ablation: the same layers, but the hidden state is reset to zero before every
+    step (same parameter count, no memory)."""
 
     # Training.
     input_noise_std: float = 0.0
+    """Std of Gaussian noise added to the normalised inputs during training only."""
     latency_augment_prob: float = 0.0
+    """Training only: the probability that a training episode's observations are shown one step late (frame ``t``
+    gets the observation of frame ``t-1``, frame 0 its own), with the actions unchanged. A policy trained on
+    current observations only loses sync with its own history when they arrive a step late (the recovering LSTM: 1
+    percent under ``obs_latency=1``); with both kinds of episode it learns to tell them apart from the first two frames
+    (a delayed episode shows the start pose twice) and to act on stale observations. Works for the fast path and
+    for ``lerobot-train`` (it acts on the whole-episode windows)."""
     balance_window_loss: bool = True
+    """Ignored; kept so that configs and checkpoints written before every training window became a whole episode
+    still load. (It weighted the frames of windows that ended at a uniformly drawn frame.)"""
     torch_num_threads: int | None = 1
+    """If set and the policy runs on CPU, ``torch.set_num_threads`` is called with it when the policy is built. This
+    tiny model is ~100x slower with several intra-op threads on a small CPU; ``None`` leaves torch alone."""
 
     # Recorded from the training dataset.
     dataset_fps: int | None = None
+    """Frame rate of the dataset the policy was trained on, recorded from the dataset's metadata when the policy is
+    built for training (``None``: not recorded, e.g. checkpoints written before it was). A keyframe dataset has
+    one frame per FSM state; evaluating on an env whose control rate differs (``--env.control_mode dense``) cannot
+    work, and whoever builds the env can compare its ``fps`` with this (see ``check_env_fps``)."""
 
     # Optimiser preset (Adam, as in most LSTM work of the time).
     optimizer_lr: float = 1e-3
+    """Adam preset."""
     optimizer_weight_decay: float = 0.0
+    """Adam preset."""
     optimizer_grad_clip_norm: float = 10.0
+    """Adam preset."""
     lr_scheduler: str = "none"
+    """``"none"`` or ``"cosine"`` (linear warm-up, then cosine annealing to zero over the run)."""
     scheduler_warmup_steps: int = 0
+    """Warm-up steps of the cosine schedule."""
 
     # Recovering mode (see recovering.py).
     mode: str = "clocked"
+    """``"clocked"`` (default; the paper: steps 0-4 PICK net, 5-9 PLACE net, fixed 10-frame episodes) or
+    ``"recovering"`` (``recovering.RecoveringNet``: one trunk over the whole variable-length episode, no clock,
+    state carried across the switch, PICK/PLACE heads mixed by a learned subtask classifier; runs until the env
+    ends the episode). In recovering mode ``recurrent=False`` is the memoryless control with an MLP trunk of about
+    the LSTM trunk's parameter count; ``shared_network``, ``carry_hidden_across_subtasks``, ``num_layers`` and the
+    subtask structure fields are not used."""
     max_episode_length: int = 41
+    """Recovering mode: the longest episode a training window holds (the env's keyframe budget + the final observed
+    state: 41 in the ``full`` task). Windows are ``-(L-1) .. L-1`` around any frame, so each holds its whole
+    episode; every frame is sampled (no ``drop_n_last_frames``), which weights episodes by length."""
     binary_gripper: bool = False
+    """The post-processor snaps the gripper command to fully open or closed (threshold half way), as every
+    demonstration commands it (``processor_pnp_lstm.BinaryGripperStep``). Off by default: the paper's planner
+    regresses it."""
     subtask_loss_weight: float = 0.1
+    """Recovering mode: weights of the cross-entropy of the subtask switch (``phase.subtask``) and of the auxiliary
+    phase classifier (``phase.index``) next to the action MSE; used when the batch carries per-frame labels (the
+    fast path and DAgger; stock ``lerobot-train`` windows only observations and actions, so there the switch
+    learns from the action loss alone)."""
     phase_loss_weight: float = 0.1
+    """Recovering mode: weights of the cross-entropy of the subtask switch (``phase.subtask``) and of the auxiliary
+    phase classifier (``phase.index``) next to the action MSE; used when the batch carries per-frame labels (the
+    fast path and DAgger; stock ``lerobot-train`` windows only observations and actions, so there the switch
+    learns from the action loss alone)."""
 
     def __post_init__(self) -> None:
         super().__post_init__()

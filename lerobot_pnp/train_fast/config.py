@@ -25,41 +25,39 @@ class TrainFastConfig:
     """Configuration of :func:`lerobot_pnp.train_fast.train_fast`.
 
     Defaults live here; ``from_train_config`` reads a ``lerobot-train`` JSON.
-
-    Args:
-        dataset_repo_id: LeRobot repo id of the keyframe dataset.
-        dataset_root: Local dataset folder; ``None``: LeRobot's cache / the Hub.
-        policy: The ``pnp_lstm`` hyper-parameters (``--policy.hidden_size=64`` ...).
-        epochs: Passes over the training episodes (ignored when ``steps`` is set).
-        steps: Total optimiser steps; overrides ``epochs`` when set.
-        batch_size: Episodes per batch.
-        lr: Learning rate; overrides ``policy.optimizer_lr`` when set.
-        seed: Seed of the initialisation and of the episode order.
-        output_dir: Where the checkpoints, loss curve and held-out error are written; must not exist (or be
-            empty) unless ``overwrite``.
-        overwrite: Allow an existing ``output_dir`` (its files are replaced).
-        test_episodes: ``"start:stop"``: held-out episodes, overriding the dataset's test split.
-        eval_every_epochs: Held-out MSE every N epochs (the loss curve's resolution).
-        save_every_epochs: Extra checkpoints every N epochs; 0: only the final one.
-        num_threads: ``torch.set_num_threads``; this model is far faster on 1 thread.
-        progress: tqdm progress bar.
     """
 
     dataset_repo_id: str = "local/baxter_pnp_keyframe"
+    """LeRobot repo id of the keyframe dataset."""
     dataset_root: str | None = None
+    """Local dataset folder; ``None``: LeRobot's cache / the Hub."""
     policy: PnpLstmConfig = field(default_factory=PnpLstmConfig)
+    """The ``pnp_lstm`` hyper-parameters (``--policy.hidden_size=64`` ...)."""
     epochs: int = 300
+    """Passes over the training episodes (ignored when ``steps`` is set)."""
     steps: int | None = None
+    """Total optimiser steps; overrides ``epochs`` when set."""
     batch_size: int = 64
+    """Episodes per batch."""
     lr: float | None = None
+    """Learning rate; overrides ``policy.optimizer_lr`` when set."""
     seed: int = 1000
+    """Seed of the initialisation and of the episode order."""
     output_dir: str = "outputs/train_fast/pnp_lstm"
+    """Where the checkpoints, loss curve and held-out error are written; must not exist (or be empty) unless
+    ``overwrite``."""
     overwrite: bool = False
+    """Allow an existing ``output_dir`` (its files are replaced)."""
     test_episodes: str | None = None
+    """``"start:stop"``: held-out episodes, overriding the dataset's test split."""
     eval_every_epochs: int = 1
+    """Held-out MSE every N epochs (the loss curve's resolution)."""
     save_every_epochs: int = 0
+    """Extra checkpoints every N epochs; 0: only the final one."""
     num_threads: int | None = 1
+    """``torch.set_num_threads``; this model is far faster on 1 thread."""
     progress: bool = True
+    """tqdm progress bar."""
 
     def __post_init__(self) -> None:
         if self.test_episodes is not None:
