@@ -133,13 +133,13 @@ def _translated_config_file(config_cls, config_path: str | None, tmp_dir: str) -
         return config_path
     from draccus import cfgparsing
 
-    from lerobot_pnp.errors import ConfigError
+    from lerobot_pnp.errors import ConfigError, one_line
 
     try:
         with open(config_path, encoding="utf-8") as f:
             data = cfgparsing.load_config(f, file=config_path)
     except Exception as err:  # a malformed JSON/YAML file
-        raise ConfigError(f"--config_path {config_path!r}: not a readable JSON/YAML config ({_one_line(err)})") from err
+        raise ConfigError(f"--config_path {config_path!r}: not a readable JSON/YAML config ({one_line(err)})") from err
     if not isinstance(data, dict):
         raise ConfigError(
             f"--config_path {config_path!r}: expected a mapping of config keys, got {type(data).__name__}"
@@ -168,7 +168,7 @@ def main(argv: list[str] | None = None) -> int:
     """Parse, run, print. Any ``PnPError`` (the package's error tree) or operational failure is one line, exit 2."""
     import draccus
 
-    from lerobot_pnp.errors import PnPError
+    from lerobot_pnp.errors import PnPError, one_line
 
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or argv[0] in ("-h", "--help"):
@@ -196,11 +196,11 @@ def main(argv: list[str] | None = None) -> int:
         except (draccus.utils.ParsingError, ValueError, TypeError, OverflowError) as err:
             # a config dataclass rejected a value (its message names the field), or a value has the wrong type
             cause = err.__cause__ if isinstance(err.__cause__, PnPError) else err
-            print(f"lerobot-pnp {name}: invalid configuration: {_one_line(cause)}", file=sys.stderr)
+            print(f"lerobot-pnp {name}: invalid configuration: {one_line(cause)}", file=sys.stderr)
             return 2
         result = func(cfg)
     except PnPError as err:
-        print(f"lerobot-pnp {name}: error: {_one_line(err)}", file=sys.stderr)
+        print(f"lerobot-pnp {name}: error: {one_line(err)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         hint = " (rerun with --resume to continue)" if name == "generate" else ""
@@ -214,10 +214,6 @@ def main(argv: list[str] | None = None) -> int:
     if result is not None:
         print(json.dumps(result, indent=2, default=str))
     return 0
-
-
-def _one_line(err: BaseException) -> str:
-    return " ".join(str(err).split()) or type(err).__name__
 
 
 if __name__ == "__main__":

@@ -3,10 +3,11 @@
 Why not draccus's own ``--help``: it builds argparse help from source comments, so a literal ``%`` in a comment
 crashes it, a Google-style ``Args:`` line in a class docstring is mistaken for a field (it then prints the
 class source), nested configs list ``--policy str`` twice, and the ``Args:`` descriptions (this project's
-convention) are not shown per field. This module reads the same dataclasses: a field's description is its
-``Args:`` entry in the class docstring (or an inherited class's), else the comment draccus would show (above,
-inline or a docstring below the field). Nested dataclass fields are listed with their dotted flag
-(``--policy.hidden_size``). A field named ``preset`` lists the keys of its module's ``PRESETS``.
+convention) are not shown per field. This module reads the same dataclasses: a field's description comes from
+the class that defines it, its ``Args:`` entry, else the comment draccus would show (above, inline or a
+docstring below the field). Nested dataclass fields are listed with their dotted flag
+(``--policy.hidden_size``). A field named ``preset`` lists the keys of its module's ``PRESETS`` (else the task
+presets, ``env_config.PRESETS``).
 """
 
 from __future__ import annotations
@@ -95,7 +96,12 @@ def _describe(cls: type, field: dataclasses.Field) -> str:
     text = field_doc(cls, field.name)
     text = " ".join(text.split()).lstrip("-# ")  # a section divider comment above the field is no description
     if field.name == "preset":
-        presets = getattr(sys.modules.get(cls.__module__), "PRESETS", None)
+        owner = next((k for k in cls.__mro__ if field.name in inspect.get_annotations(k)), cls)
+        presets = getattr(sys.modules.get(owner.__module__), "PRESETS", None)
+        if presets is None:  # a task preset (e.g. DAgger's demonstrations)
+            from lerobot_pnp import env_config
+
+            presets = env_config.PRESETS
         if isinstance(presets, dict):
             text += f" (one of: {', '.join(sorted(presets))})"
     return text

@@ -58,6 +58,11 @@ class PhysicsError(PnPError, RuntimeError):
 DEBUG_ENV = "LEROBOT_PNP_DEBUG"
 
 
+def one_line(err: BaseException) -> str:
+    """An error's message on one line (how ``lerobot-pnp`` and the ``lerobot-*`` hook print it)."""
+    return " ".join(str(err).split()) or type(err).__name__
+
+
 def one_line_message(err: BaseException) -> str | None:
     """The one line a LeRobot CLI user should see for ``err``, or None when it is not ours to shorten.
 
@@ -70,7 +75,7 @@ def one_line_message(err: BaseException) -> str | None:
     while err is not None and id(err) not in seen:
         seen.add(id(err))
         if isinstance(err, PnPError):
-            return " ".join(str(err).split()) or type(err).__name__
+            return one_line(err)
         if type(err).__name__ == "OfflineModeIsEnabled":
             return _offline_line(str(err))
         if type(err).__name__ == "HFValidationError" and (path := _missing_local_path(str(err))):

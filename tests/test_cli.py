@@ -312,3 +312,11 @@ def test_stock_lerobot_train_help_documents_the_policy_fields(tmp_path):
     proc = _run([_exe("lerobot-train"), "--policy.type=pnp_lstm", "--help"], tmp_path, timeout=120)
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert "LSTM hidden units." in proc.stdout and "Recovering mode: the longest episode" in proc.stdout
+
+
+def test_train_with_a_malformed_config_file_is_one_line(tmp_path, capsys):
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"dataset": {"repo_id": ')
+    assert cli.main(["train", "--config_path", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert "not a readable JSON/YAML config" in err and len(err.strip().splitlines()) == 1, err

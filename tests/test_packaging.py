@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 import zipfile
@@ -23,8 +24,12 @@ def _wheel_env(site: Path) -> dict[str, str]:
 
 @pytest.fixture(scope="session")
 def wheel(tmp_path_factory) -> Path:
+    # Built from a clean copy: a stale build/ folder in the checkout could otherwise put removed files in the wheel.
+    src = tmp_path_factory.mktemp("src") / "tree"
+    junk = shutil.ignore_patterns(".git", ".venv", "build", "dist", "*.egg-info", "outputs", "__pycache__", ".*_cache")
+    shutil.copytree(ROOT, src, ignore=junk)
     out = tmp_path_factory.mktemp("wheel")
-    cmd = [sys.executable, "-m", "pip", "wheel", str(ROOT), "--no-deps", "--no-build-isolation", "-q", "-w", str(out)]
+    cmd = [sys.executable, "-m", "pip", "wheel", str(src), "--no-deps", "--no-build-isolation", "-q", "-w", str(out)]
     proc = subprocess.run(cmd, capture_output=True, text=True, cwd=out)
     assert proc.returncode == 0, proc.stderr[-3000:]
     (path,) = out.glob("lerobot_policy_pnp_lstm-*.whl")
