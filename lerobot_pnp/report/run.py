@@ -202,11 +202,22 @@ def run_study(cfg: StudyConfig) -> dict:
     The output folder is locked for the whole run (a second study on it fails at once); the top-level
     entries the study writes are listed in its manifest, so ``--fresh`` deletes only those."""
     out = Path(cfg.output_dir)
-    with lock_output(out, "lerobot-pnp report"):
-        manifest = Manifest(out, "lerobot-pnp report")
+    with lock_output(out, "lerobot-pnp report/demo"):
+        manifest = Manifest(out, "lerobot-pnp report/demo")
+        if not manifest.path.exists() and (out / "study_config.json").is_file():
+            manifest.claim(*(p.name for p in out.iterdir() if _written_by_the_study(p.name)))  # an older study
         if cfg.fresh:
             manifest.clear()
         return _run_locked(cfg, out, manifest)
+
+
+# What a study wrote before it kept a manifest (its folder holds study_config.json)
+_STUDY_ENTRIES = ("study_config.json", "dataset", "train", "evals", "lerobot_eval_cli", "report.md", "summary.json",
+                  "figures")  # fmt: skip
+
+
+def _written_by_the_study(name: str) -> bool:
+    return name in _STUDY_ENTRIES or name.removesuffix(".tmp") in _STUDY_ENTRIES or name.startswith("dataset_")
 
 
 def _dataset(out: Path, name: str, cfg: StudyConfig, changes: dict | None = None) -> tuple[dict, str]:
