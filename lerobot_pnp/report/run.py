@@ -23,13 +23,13 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from lerobot_pnp.cache import MANIFEST_FILE, STAGE_FILE, Manifest, Stage, code_versions, lock_output, remove
-from lerobot_pnp.dataset.workdir import remove_generation
-from lerobot_pnp.env_config import PAPER_TASK, BaxterPnPEnvConfig, read_recorded
+from lerobot_pnp.env_config import BaxterPnPEnvConfig, read_recorded
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.report import adapters
 from lerobot_pnp.report.adapters import check_same_demonstrations
 from lerobot_pnp.report.evaluation import records_from_json, records_to_json
 from lerobot_pnp.report.methods import TrainContext, get_methods, keyed_train, train_stage
+from lerobot_pnp.report.stages import dataset_stage, eval_stage, written_by_the_study
 from lerobot_pnp.report.suites import get_suites
 
 # The recordings a method can train on besides the keyframe dataset (``Method.data``): what they are and the
@@ -205,40 +205,10 @@ def run_study(cfg: StudyConfig) -> dict:
     with lock_output(out, "lerobot-pnp report/demo"):
         manifest = Manifest(out, "lerobot-pnp report/demo")
         if not manifest.path.exists() and (out / "study_config.json").is_file():
-            manifest.claim(*(p.name for p in out.iterdir() if _written_by_the_study(p.name)))  # an older study
+            manifest.claim(*(p.name for p in out.iterdir() if written_by_the_study(p.name)))  # an older study
         if cfg.fresh:
             manifest.clear()
         return _run_locked(cfg, out, manifest)
-
-
-# What a study wrote before it kept a manifest (its folder holds study_config.json)
-_STUDY_ENTRIES = ("study_config.json", "dataset", "train", "evals", "lerobot_eval_cli", "report.md", "summary.json",
-                  "figures")  # fmt: skip
-
-
-def _written_by_the_study(name: str) -> bool:
-    return name in _STUDY_ENTRIES or name.removesuffix(".tmp") in _STUDY_ENTRIES or name.startswith("dataset_")
-
-
-def _dataset(out: Path, name: str, cfg: StudyConfig, changes: dict | None = None) -> tuple[dict, str]:
-    """Generate (or finish, or reuse) the recording ``name``, keyed by what determines it; (summary, key).
-
-    A dataset of other settings (or one without a record) is verified by the generator against its own
-    record of how it was made, and replaced when that differs."""
-    root = out / name
-    stage = Stage(root / STAGE_FILE, {"stage": "dataset", "num_episodes": cfg.num_episodes,
-                                      "seed": cfg.dataset_seed, "changes": changes or {}, "versions": code_versions()})  # fmt: skip
-    if stage.done(f"dataset {name}"):
-        return {"root": str(root), "status": "reused"}, stage.key
-    stage.invalidate()
-    try:
-        summary = adapters.generate_dataset(root, cfg.num_episodes, cfg.dataset_seed, cfg.workers, env_changes=changes)
-    except ConfigError as err:  # made with other settings: not this study's dataset any more
-        print(f"  dataset {name}: regenerated ({err})", flush=True)
-        remove_generation(root)
-        summary = adapters.generate_dataset(root, cfg.num_episodes, cfg.dataset_seed, cfg.workers, env_changes=changes)
-    stage.commit()
-    return summary, stage.key
 
 
 def _run_locked(cfg: StudyConfig, out: Path, manifest: Manifest) -> dict:
@@ -255,7 +225,7 @@ def _run_locked(cfg: StudyConfig, out: Path, manifest: Manifest) -> dict:
     t = time.perf_counter()
     root = out / "dataset"
     keys: dict[str, str] = {}  # recording -> its dataset's stage key
-    generation, keys["keyframe"] = _dataset(out, "dataset", cfg)
+    generation, keys["keyframe"] = dataset_stage(out, "dataset", cfg)
     timings["dataset"] = time.perf_counter() - t
     base_env = BaxterPnPEnvConfig.from_dict(read_recorded(root) or {})
     roots = {"keyframe": root}
@@ -267,7 +237,7 @@ def _run_locked(cfg: StudyConfig, out: Path, manifest: Manifest) -> dict:
         t = time.perf_counter()
         roots[data] = out / f"dataset_{data}"
         manifest.claim(roots[data].name)
-        generation[data], keys[data] = _dataset(out, roots[data].name, cfg, changes)
+        generation[data], keys[data] = dataset_stage(out, roots[data].name, cfg, changes)
         check_same_demonstrations(root, roots[data])
         timings[f"dataset_{data}"] = time.perf_counter() - t
 
@@ -364,15 +334,6 @@ def _context(job: Job, method, cfg: StudyConfig, out: Path, roots: dict[str, Pat
                         roots.get("dense"), cfg.act_steps, dict(keys))  # fmt: skip
 
 
-def _eval_stage(path: Path, method, ctx, suite, n_episodes: int, env_parts: list, cfg: StudyConfig) -> Stage:
-    """An evaluation's key: the trained artefact's (or the data's), the suite as defined now, its episodes
-    and seeds. A task field added since it ran counts as unchanged when its value is the paper's (off)."""
-    parts = {"stage": "eval", "train": train_stage(method, ctx).key if method.learned else None,
-             "data": ctx.data_keys.get(method.data), "suite": suite.name, "env_parts": env_parts,
-             "n_episodes": n_episodes, "eval_seed": cfg.eval_seed, "versions": code_versions()}  # fmt: skip
-    return Stage(path, parts, compare={"env_parts": _same_parts})
-
-
 def run_job(job: Job, cfg: StudyConfig, out: Path, roots: dict[str, Path], base_env, keys: dict[str, str]):
     """Train ``job`` if one of its evaluations is missing or stale, run those evaluations; return the records
     per suite and the stage timings. Everything it finishes is on disk, so an interrupted study resumes."""
@@ -385,7 +346,7 @@ def run_job(job: Job, cfg: StudyConfig, out: Path, roots: dict[str, Path], base_
     for suite, n_episodes in _suites_for(cfg, job.n_demos, method):
         path = out / "evals" / method.name / f"seed{job.tag}" / f"{suite.name}.json"
         env_parts = [method.env_config(c, ctx).to_dict() for c in suite.env_configs(base_env)]
-        stage = _eval_stage(path, method, ctx, suite, n_episodes, env_parts, cfg)
+        stage = eval_stage(path, method, ctx, suite, n_episodes, env_parts, cfg)
         if stage.done(f"evaluation {method.name} {job.tag} {suite.name}"):
             data = stage.stored()  # finished earlier, with these settings and this trained artefact
         elif cfg.report_only:
@@ -423,20 +384,6 @@ def _evaluate(method, artifact, ctx, suite, n_episodes: int, base_env, cfg: Stud
     data = records_to_json(records, time.perf_counter() - t)
     data["env_parts"] = [c.to_dict() for c in env_cfgs]
     return data
-
-
-def _same_parts(stored: list[dict] | None, current: list[dict]) -> bool:
-    """Whether a finished evaluation ran the suite as it is defined now (else it is run again).
-
-    A task field missing from the stored config was added later and had its paper value ("off") then, the
-    rule of recorded tasks; other missing keys are ignored."""
-    if stored is None or len(stored) != len(current):
-        return False
-    current = json.loads(json.dumps(current))  # tuples -> lists, as stored
-    paper = json.loads(json.dumps(PAPER_TASK))
-    return all(
-        old.get(k, paper.get(k, v)) == v for old, new in zip(stored, current, strict=True) for k, v in new.items()
-    )
 
 
 def _cli_check(cfg: StudyConfig, methods, results, where: tuple, timings: dict) -> dict | None:
