@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import logging
 import math
 import shutil
 from collections.abc import Callable
@@ -25,7 +24,6 @@ from typing import Any
 
 from lerobot_pnp.errors import ConfigError
 
-logger = logging.getLogger(__name__)
 STAGE_FILE = "stage.json"  # the record of a stage kept in a folder
 MANIFEST_FILE = ".pnp_manifest.json"
 
@@ -147,7 +145,6 @@ class Stage:
         """Whether the stage was finished with these parts; logs what changed when it was not."""
         changed = self.changes()
         if changed and what:
-            logger.warning("%s: re-run (changed since it was made: %s)", what, ", ".join(changed))
             print(f"  {what}: re-run (changed since it was made: {', '.join(changed)})", flush=True)
         return changed == []
 

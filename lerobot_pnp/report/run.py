@@ -4,9 +4,12 @@ Stages: 1. dataset (the expert's demonstrations; 1b. the same demonstrations rec
 that needs another view of them: at the control rate for ACT, with the phase observed for the phase-told
 control; checked to be the same episodes) -> 2-3. jobs, one per method x training seed: train, then
 evaluate every suite (same eval seeds for every method), run side by side in a process pool -> 4. report
-(``report.md``, figures, ``summary.json``). A finished training is recognised by its checkpoint, a finished
-evaluation by its JSON file (written atomically, re-run if its suite's env config changed), so rerunning
-the same command only does what is missing.
+(``report.md``, figures, ``summary.json``). Every stage is keyed by what determines it (``stages.py``,
+``methods.train_stage``; ``lerobot_pnp.cache``): a dataset by its generation settings, a training by its
+method, data key, seed and epochs, an evaluation by the training's key, the suite as defined now, its
+episodes and seeds (the key is stored in its JSON, written atomically). Rerunning the same command only does
+what is missing; a changed flag re-runs what depends on it, so the report states the config of its results.
+The output folder is locked for the run; ``--fresh`` deletes only the entries of its manifest.
 
 Presets (``preset``): ``demo`` (the README's main command, < 15 min on 2 cores), ``quick`` (CI-sized, a few
 minutes) and ``full`` (the whole study). Fields left at None take the preset's value.
