@@ -403,3 +403,14 @@ def test_7_stock_lerobot_train_checkpoints_carry_their_task(dagger_run, tmp_path
     changed = {**task, "place_low": [0.6, -0.1], "place_high": [0.6, -0.1]}
     (root / "meta/baxter_pnp_env.json").write_text(json.dumps(changed))  # the root regenerated, another target
     assert read_recorded(pretrained) == task
+
+
+def test_a_task_field_added_since_a_stage_ran_counts_as_unchanged_at_its_paper_value():
+    from lerobot_pnp.cache import same_env_configs
+    from lerobot_pnp.env_config import BaxterPnPEnvConfig
+
+    now = BaxterPnPEnvConfig(preset="full").to_dict()
+    old = {k: v for k, v in now.items() if k != "observe_phase"}  # recorded before the field existed
+    assert same_env_configs(old, now) and same_env_configs([old], [now])
+    assert not same_env_configs(old, {**now, "observe_phase": True})
+    assert not same_env_configs({**old, "drop_prob": 0.5}, now)

@@ -38,6 +38,7 @@ from lerobot_pnp.cache import (
     key_of,
     lock_output,
     remove,
+    same_env_configs,
     write_json_atomic,
 )
 from lerobot_pnp.rollout import load_policy
@@ -68,7 +69,7 @@ def _base_env_cfg(cfg: DaggerConfig):
 
 def _stage(record: Path, what: str, **parts) -> Stage:
     """A DAgger stage keyed by ``parts`` and the code versions (see ``lerobot_pnp.cache``)."""
-    return Stage(record, {"stage": what, **parts, "versions": code_versions()})
+    return Stage(record, {"stage": what, **parts, "versions": code_versions()}, compare={"env": same_env_configs})
 
 
 def _key(what: str, **parts) -> str:

@@ -6,12 +6,10 @@ trained artefact's key (or the data's), the suite as defined now, its episode co
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
-from lerobot_pnp.cache import STAGE_FILE, Stage, code_versions
+from lerobot_pnp.cache import STAGE_FILE, Stage, code_versions, same_env_configs
 from lerobot_pnp.dataset.workdir import remove_generation
-from lerobot_pnp.env_config import PAPER_TASK
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.report import adapters
 from lerobot_pnp.report.methods import train_stage
@@ -75,18 +73,4 @@ def eval_stage(path: Path, method, ctx, suite, n_episodes: int, env_parts: list,
         "eval_seed": cfg.eval_seed,
         "versions": code_versions(),
     }
-    return Stage(path, parts, compare={"env_parts": same_parts})
-
-
-def same_parts(stored: list[dict] | None, current: list[dict]) -> bool:
-    """Whether a finished evaluation ran the suite as it is defined now (else it is run again).
-
-    A task field missing from the stored config was added later and had its paper value ("off") then, the
-    rule of recorded tasks; other missing keys are ignored."""
-    if stored is None or len(stored) != len(current):
-        return False
-    current = json.loads(json.dumps(current))  # tuples -> lists, as stored
-    paper = json.loads(json.dumps(PAPER_TASK))
-    return all(
-        old.get(k, paper.get(k, v)) == v for old, new in zip(stored, current, strict=True) for k, v in new.items()
-    )
+    return Stage(path, parts, compare={"env_parts": same_env_configs})
