@@ -312,7 +312,7 @@ def _run_jobs(jobs: list[Job], context: tuple, processes: int, fn=None):
     pending, running = list(jobs), {}
     from lerobot_pnp.dataset.executors import die_with_parent
 
-    # a worker dies with this process (kill -9 included), as the generation's do: no orphan writes on
+    # a worker dies with this process (kill -9 included), as the generation's do: none writes on alone
     pool = ProcessPoolExecutor(
         processes, mp_context=mp.get_context("spawn"), initializer=die_with_parent, initargs=(os.getpid(),)
     )
