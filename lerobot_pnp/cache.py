@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import logging
 import math
 import shutil
 from collections.abc import Callable
@@ -25,7 +24,6 @@ from typing import Any
 
 from lerobot_pnp.errors import ConfigError
 
-logger = logging.getLogger(__name__)
 STAGE_FILE = "stage.json"  # the record of a stage kept in a folder
 MANIFEST_FILE = ".pnp_manifest.json"
 
@@ -110,6 +108,24 @@ def _same(old: Any, new: Any) -> bool:
     return old == new
 
 
+def same_env_configs(stored: list[dict] | dict | None, current: list[dict] | dict) -> bool:
+    """Whether env configs recorded in a stage's key equal the current ones (one dict or a list of them).
+
+    A task field missing from a stored config was added later and had its paper value ("off") then, the
+    rule of recorded tasks; other missing keys are ignored."""
+    from lerobot_pnp.env_config import PAPER_TASK
+
+    if isinstance(current, dict):
+        stored, current = [stored] if isinstance(stored, dict) else None, [current]
+    if stored is None or len(stored) != len(current):
+        return False
+    current = json.loads(json.dumps(current))  # tuples -> lists, as stored
+    paper = json.loads(json.dumps(PAPER_TASK))
+    return all(
+        old.get(k, paper.get(k, v)) == v for old, new in zip(stored, current, strict=True) for k, v in new.items()
+    )
+
+
 class Stage:
     """A cached stage's record: its key and the key's parts, in ``record`` (a JSON file).
 
@@ -147,7 +163,6 @@ class Stage:
         """Whether the stage was finished with these parts; logs what changed when it was not."""
         changed = self.changes()
         if changed and what:
-            logger.warning("%s: re-run (changed since it was made: %s)", what, ", ".join(changed))
             print(f"  {what}: re-run (changed since it was made: {', '.join(changed)})", flush=True)
         return changed == []
 

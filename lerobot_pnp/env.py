@@ -96,7 +96,10 @@ class BaxterPnPEnv(gym.Env):
                 f"action must have shape ({robot.ACTION_DIM},) (7 joint targets + gripper), got {action.shape}"
             )
         if not np.all(np.isfinite(action)):
-            raise ConfigError(f"action contains NaN/inf: {action.tolist()}")
+            raise ConfigError(
+                f"action contains NaN/inf: {action.tolist()} (from a policy: check its checkpoint's weights and "
+                "normalisation stats, e.g. with lerobot_pnp.rollout.load_policy)"
+            )
         q_target = np.clip(action[: robot.N_JOINTS], robot.JOINT_LOWER, robot.JOINT_UPPER)
         grip = float(np.clip(action[-1], 0.0, 1.0))
         if self.config.control_mode == "keyframe":

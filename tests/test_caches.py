@@ -207,6 +207,12 @@ def test_4_fresh_refuses_a_folder_with_foreign_files_and_deletes_only_the_manife
     (study / "report.md").write_text("old")
     Manifest(study, "lerobot-pnp report").clear()
     assert list(study.iterdir()) == []
+    # a study folder written before manifests: its own entries are known, a user's file is still refused
+    (study / "evals").mkdir()
+    (study / "study_config.json").write_text("{}")
+    (study / "notes.txt").write_text("mine")
+    assert _study(study, fresh=True) == 2 and "notes.txt" in capsys.readouterr().err
+    assert (study / "evals").is_dir() and (study / "notes.txt").read_text() == "mine"
 
 
 # --------------------------------------------------------------------------------------------------- case 6
@@ -333,7 +339,7 @@ def test_8_nan_and_zero_std_in_a_checkpoint_are_named_as_the_checkpoints(dagger_
     weights = load_file(ckpt / "model.safetensors")
     name = next(iter(weights))
     save_file({**weights, name: np.full_like(weights[name], np.nan)}, ckpt / "model.safetensors")
-    with pytest.raises(PolicyLoadError, match=f"weights '{name}' contain NaN"):
+    with pytest.raises(PolicyLoadError, match=f"corrupt: its weights .*{name}.* contain NaN"):
         load_policy(ckpt)
     (ckpt / "model.safetensors").write_bytes((dagger_run / CKPT / "model.safetensors").read_bytes())
     stats_file = next(ckpt.glob("policy_preprocessor_step_*normalizer*.safetensors"))
@@ -375,3 +381,36 @@ def test_stage_records_name_the_changed_parts(tmp_path):
         Stage(tmp_path / "s.json", {"x": float("nan")})
     (tmp_path / "s.json").write_text("{trunc")
     assert not Stage(tmp_path / "s.json", {"seed": 0, "n": 3}).done()
+
+
+@pytest.mark.slow
+def test_7_stock_lerobot_train_checkpoints_carry_their_task(dagger_run, tmp_path):
+    from lerobot_pnp.env_config import read_recorded
+
+    root = _copy(dagger_run / "demos", tmp_path / "demos")
+    task = read_recorded(root)
+    train = Path(sys.executable).with_name("lerobot-train")
+    args = ["--policy.type=pnp_lstm", "--policy.mode=recovering", "--policy.max_episode_length=41",
+            "--policy.push_to_hub=false", "--policy.device=cpu", "--dataset.repo_id=local/x", f"--dataset.root={root}",
+            "--dataset.video_backend=pyav", "--steps=2", "--batch_size=2", "--num_workers=0", "--save_freq=2",
+            "--wandb.enable=false", f"--output_dir={tmp_path / 'run'}"]  # fmt: skip
+    proc = subprocess.run(
+        [str(train), *args], capture_output=True, text=True, env={**os.environ, "OMP_NUM_THREADS": "1"}
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    pretrained = tmp_path / "run/checkpoints/last/pretrained_model"
+    assert json.loads((pretrained / "baxter_pnp_env.json").read_text()) == task
+    changed = {**task, "place_low": [0.6, -0.1], "place_high": [0.6, -0.1]}
+    (root / "meta/baxter_pnp_env.json").write_text(json.dumps(changed))  # the root regenerated, another target
+    assert read_recorded(pretrained) == task
+
+
+def test_a_task_field_added_since_a_stage_ran_counts_as_unchanged_at_its_paper_value():
+    from lerobot_pnp.cache import same_env_configs
+    from lerobot_pnp.env_config import BaxterPnPEnvConfig
+
+    now = BaxterPnPEnvConfig(preset="full").to_dict()
+    old = {k: v for k, v in now.items() if k != "observe_phase"}  # recorded before the field existed
+    assert same_env_configs(old, now) and same_env_configs([old], [now])
+    assert not same_env_configs(old, {**now, "observe_phase": True})
+    assert not same_env_configs({**old, "drop_prob": 0.5}, now)

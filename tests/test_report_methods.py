@@ -79,7 +79,7 @@ def _timed_job(job, log_dir):
     from pathlib import Path
 
     start = time.time()
-    time.sleep(1.5 if job.method == "recovering" else 0.05)  # long enough for the other worker to start under load
+    time.sleep(4.0 if job.method == "recovering" else 0.05)  # long enough for the other worker to start under load
     Path(log_dir, f"{job.method}_{job.tag}").write_text(f"{start} {time.time()}")
     return job.method
 

@@ -44,8 +44,9 @@ class DaggerConfig:
     (its own actions are executed) under ``rollout_suites``, labels every visited state with
     ``FSMExpert(env).label()``, aggregates the labelled episodes with everything before (LeRobot's
     ``aggregate_datasets``) and retrains from scratch (see ``loop``). Each round is evaluated on the same
-    seeds. Everything lives in ``output_dir``; a finished step (dataset, checkpoint, evaluation) is reused, so
-    an interrupted run continues where it stopped. Deterministic given ``seed``.
+    seeds. Everything lives in ``output_dir``; a finished step (dataset, checkpoint, evaluation) is reused
+    while its key (the settings and inputs it was made from) is unchanged, so an interrupted run continues
+    where it stopped and a changed flag re-runs what depends on it. Deterministic given ``seed``.
 
     Args:
         output_dir: Where the datasets, checkpoints, evaluations and ``table.md`` go.

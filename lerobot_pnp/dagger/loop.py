@@ -13,6 +13,11 @@ Layout of ``output_dir``::
     round_XX/train/        fast-path training run (checkpoints/last/pretrained_model)
     round_XX/eval.json     success per suite on the evaluation seeds
     table.md / table.json  success per round and suite with Wilson 95 % intervals
+
+Every stage is keyed (``lerobot_pnp.cache``) by what determines it and recorded when complete: the datasets'
+``stage.json``, ``round_XX/rollouts.json``, ``round_XX/train/done.json`` (the checkpoint relative to it) and
+``round_XX/eval.stage.json``. A stage whose key changed (another seed, num_demos, round-0 checkpoint, ...) is
+re-run, and so is everything keyed by it; the folder is locked for the run.
 """
 
 from __future__ import annotations
@@ -30,8 +35,10 @@ from lerobot_pnp.cache import (
     Stage,
     code_versions,
     digest_files,
+    key_of,
     lock_output,
     remove,
+    same_env_configs,
     write_json_atomic,
 )
 from lerobot_pnp.rollout import load_policy
@@ -62,7 +69,12 @@ def _base_env_cfg(cfg: DaggerConfig):
 
 def _stage(record: Path, what: str, **parts) -> Stage:
     """A DAgger stage keyed by ``parts`` and the code versions (see ``lerobot_pnp.cache``)."""
-    return Stage(record, {"stage": what, **parts, "versions": code_versions()})
+    return Stage(record, {"stage": what, **parts, "versions": code_versions()}, compare={"env": same_env_configs})
+
+
+def _key(what: str, **parts) -> str:
+    """The key of an input no stage of this run produced (a dataset or checkpoint passed in): its content."""
+    return key_of({"stage": what, **parts, "versions": code_versions()})
 
 
 def _demos(cfg: DaggerConfig, out: Path, env_cfg) -> tuple[Path, str, str, str]:
@@ -73,7 +85,7 @@ def _demos(cfg: DaggerConfig, out: Path, env_cfg) -> tuple[Path, str, str, str]:
         info = load_info(Path(cfg.base_root))
         n = int(info.total_episodes)
         test = (info.splits or {}).get("test") or f"{n - max(1, round(cfg.test_fraction * n))}:{n}"
-        key = _stage(Path(), "base", content=digest_files(Path(cfg.base_root), DATASET_FILES), test=test).key
+        key = _key("base", content=digest_files(Path(cfg.base_root), DATASET_FILES), test=test)
         return Path(cfg.base_root), cfg.base_repo_id, test, key
     root, repo_id = out / "demos", f"{cfg.base_repo_id}_demos"
     n = cfg.num_demos
@@ -169,7 +181,7 @@ def _train(cfg: DaggerConfig, data: tuple[Path, str, str], test: str, out_dir: P
 
 def checkpoint_key(ckpt: Path) -> str:
     """The key of a checkpoint passed in by path: its content (config, weights, processors, task)."""
-    return _stage(Path(), "checkpoint", content=digest_files(Path(ckpt), CHECKPOINT_FILES)).key
+    return _key("checkpoint", content=digest_files(Path(ckpt), CHECKPOINT_FILES))
 
 
 def evaluate_checkpoint(cfg: DaggerConfig, ckpt: Path, env_cfg, out_file: Path, ckpt_key: str | None = None) -> dict:

@@ -131,9 +131,13 @@ class PnpLstmPolicy(PreTrainedPolicy):
                     raise PolicyError(f"cannot read the policy config {path / 'config.json'}: {err}") from None
                 _check_same_shapes(path, config, saved)
         try:
-            return super().from_pretrained(pretrained_name_or_path, config=config, **kwargs)
+            policy = super().from_pretrained(pretrained_name_or_path, config=config, **kwargs)
         except (ConfigError, OSError) as err:
             raise PolicyError(f"cannot load the pnp_lstm checkpoint {path}: {err}") from None
+        bad = [n for n, t in policy.state_dict().items() if t.is_floating_point() and not bool(t.isfinite().all())]
+        if bad:  # the checkpoint's fault, named here rather than as a NaN action steps later
+            raise PolicyError(f"the pnp_lstm checkpoint {path} is corrupt: its weights {bad[:3]} contain NaN/inf")
+        return policy
 
     @classmethod
     def _load_as_safetensor(cls, model, model_file: str, map_location: str, strict: bool):

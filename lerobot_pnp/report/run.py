@@ -4,9 +4,12 @@ Stages: 1. dataset (the expert's demonstrations; 1b. the same demonstrations rec
 that needs another view of them: at the control rate for ACT, with the phase observed for the phase-told
 control; checked to be the same episodes) -> 2-3. jobs, one per method x training seed: train, then
 evaluate every suite (same eval seeds for every method), run side by side in a process pool -> 4. report
-(``report.md``, figures, ``summary.json``). A finished training is recognised by its checkpoint, a finished
-evaluation by its JSON file (written atomically, re-run if its suite's env config changed), so rerunning
-the same command only does what is missing.
+(``report.md``, figures, ``summary.json``). Every stage is keyed by what determines it (``stages.py``,
+``methods.train_stage``; ``lerobot_pnp.cache``): a dataset by its generation settings, a training by its
+method, data key, seed and epochs, an evaluation by the training's key, the suite as defined now, its
+episodes and seeds (the key is stored in its JSON, written atomically). Rerunning the same command only does
+what is missing; a changed flag re-runs what depends on it, so the report states the config of its results.
+The output folder is locked for the run; ``--fresh`` deletes only the entries of its manifest.
 
 Presets (``preset``): ``demo`` (the README's main command, < 15 min on 2 cores), ``quick`` (CI-sized, a few
 minutes) and ``full`` (the whole study). Fields left at None take the preset's value.
@@ -23,13 +26,13 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from lerobot_pnp.cache import MANIFEST_FILE, STAGE_FILE, Manifest, Stage, code_versions, lock_output, remove
-from lerobot_pnp.dataset.workdir import remove_generation
-from lerobot_pnp.env_config import PAPER_TASK, BaxterPnPEnvConfig, read_recorded
+from lerobot_pnp.env_config import BaxterPnPEnvConfig, read_recorded
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.report import adapters
 from lerobot_pnp.report.adapters import check_same_demonstrations
 from lerobot_pnp.report.evaluation import records_from_json, records_to_json
 from lerobot_pnp.report.methods import TrainContext, get_methods, keyed_train, train_stage
+from lerobot_pnp.report.stages import dataset_stage, eval_stage, written_by_the_study
 from lerobot_pnp.report.suites import get_suites
 
 # The recordings a method can train on besides the keyframe dataset (``Method.data``): what they are and the
@@ -202,32 +205,13 @@ def run_study(cfg: StudyConfig) -> dict:
     The output folder is locked for the whole run (a second study on it fails at once); the top-level
     entries the study writes are listed in its manifest, so ``--fresh`` deletes only those."""
     out = Path(cfg.output_dir)
-    with lock_output(out, "lerobot-pnp report"):
-        manifest = Manifest(out, "lerobot-pnp report")
+    with lock_output(out, "lerobot-pnp report/demo"):
+        manifest = Manifest(out, "lerobot-pnp report/demo")
+        if not manifest.path.exists() and (out / "study_config.json").is_file():
+            manifest.claim(*(p.name for p in out.iterdir() if written_by_the_study(p.name)))  # an older study
         if cfg.fresh:
             manifest.clear()
         return _run_locked(cfg, out, manifest)
-
-
-def _dataset(out: Path, name: str, cfg: StudyConfig, changes: dict | None = None) -> tuple[dict, str]:
-    """Generate (or finish, or reuse) the recording ``name``, keyed by what determines it; (summary, key).
-
-    A dataset of other settings (or one without a record) is verified by the generator against its own
-    record of how it was made, and replaced when that differs."""
-    root = out / name
-    stage = Stage(root / STAGE_FILE, {"stage": "dataset", "num_episodes": cfg.num_episodes,
-                                      "seed": cfg.dataset_seed, "changes": changes or {}, "versions": code_versions()})  # fmt: skip
-    if stage.done(f"dataset {name}"):
-        return {"root": str(root), "status": "reused"}, stage.key
-    stage.invalidate()
-    try:
-        summary = adapters.generate_dataset(root, cfg.num_episodes, cfg.dataset_seed, cfg.workers, env_changes=changes)
-    except ConfigError as err:  # made with other settings: not this study's dataset any more
-        print(f"  dataset {name}: regenerated ({err})", flush=True)
-        remove_generation(root)
-        summary = adapters.generate_dataset(root, cfg.num_episodes, cfg.dataset_seed, cfg.workers, env_changes=changes)
-    stage.commit()
-    return summary, stage.key
 
 
 def _run_locked(cfg: StudyConfig, out: Path, manifest: Manifest) -> dict:
@@ -244,7 +228,7 @@ def _run_locked(cfg: StudyConfig, out: Path, manifest: Manifest) -> dict:
     t = time.perf_counter()
     root = out / "dataset"
     keys: dict[str, str] = {}  # recording -> its dataset's stage key
-    generation, keys["keyframe"] = _dataset(out, "dataset", cfg)
+    generation, keys["keyframe"] = dataset_stage(out, "dataset", cfg)
     timings["dataset"] = time.perf_counter() - t
     base_env = BaxterPnPEnvConfig.from_dict(read_recorded(root) or {})
     roots = {"keyframe": root}
@@ -256,7 +240,7 @@ def _run_locked(cfg: StudyConfig, out: Path, manifest: Manifest) -> dict:
         t = time.perf_counter()
         roots[data] = out / f"dataset_{data}"
         manifest.claim(roots[data].name)
-        generation[data], keys[data] = _dataset(out, roots[data].name, cfg, changes)
+        generation[data], keys[data] = dataset_stage(out, roots[data].name, cfg, changes)
         check_same_demonstrations(root, roots[data])
         timings[f"dataset_{data}"] = time.perf_counter() - t
 
@@ -328,7 +312,7 @@ def _run_jobs(jobs: list[Job], context: tuple, processes: int, fn=None):
     pending, running = list(jobs), {}
     from lerobot_pnp.dataset.executors import die_with_parent
 
-    # a worker dies with this process (kill -9 included), as the generation's do: no orphan writes on
+    # a worker dies with this process (kill -9 included), as the generation's do: none writes on alone
     pool = ProcessPoolExecutor(
         processes, mp_context=mp.get_context("spawn"), initializer=die_with_parent, initargs=(os.getpid(),)
     )
@@ -353,15 +337,6 @@ def _context(job: Job, method, cfg: StudyConfig, out: Path, roots: dict[str, Pat
                         roots.get("dense"), cfg.act_steps, dict(keys))  # fmt: skip
 
 
-def _eval_stage(path: Path, method, ctx, suite, n_episodes: int, env_parts: list, cfg: StudyConfig) -> Stage:
-    """An evaluation's key: the trained artefact's (or the data's), the suite as defined now, its episodes
-    and seeds. A task field added since it ran counts as unchanged when its value is the paper's (off)."""
-    parts = {"stage": "eval", "train": train_stage(method, ctx).key if method.learned else None,
-             "data": ctx.data_keys.get(method.data), "suite": suite.name, "env_parts": env_parts,
-             "n_episodes": n_episodes, "eval_seed": cfg.eval_seed, "versions": code_versions()}  # fmt: skip
-    return Stage(path, parts, compare={"env_parts": _same_parts})
-
-
 def run_job(job: Job, cfg: StudyConfig, out: Path, roots: dict[str, Path], base_env, keys: dict[str, str]):
     """Train ``job`` if one of its evaluations is missing or stale, run those evaluations; return the records
     per suite and the stage timings. Everything it finishes is on disk, so an interrupted study resumes."""
@@ -374,7 +349,7 @@ def run_job(job: Job, cfg: StudyConfig, out: Path, roots: dict[str, Path], base_
     for suite, n_episodes in _suites_for(cfg, job.n_demos, method):
         path = out / "evals" / method.name / f"seed{job.tag}" / f"{suite.name}.json"
         env_parts = [method.env_config(c, ctx).to_dict() for c in suite.env_configs(base_env)]
-        stage = _eval_stage(path, method, ctx, suite, n_episodes, env_parts, cfg)
+        stage = eval_stage(path, method, ctx, suite, n_episodes, env_parts, cfg)
         if stage.done(f"evaluation {method.name} {job.tag} {suite.name}"):
             data = stage.stored()  # finished earlier, with these settings and this trained artefact
         elif cfg.report_only:
@@ -412,20 +387,6 @@ def _evaluate(method, artifact, ctx, suite, n_episodes: int, base_env, cfg: Stud
     data = records_to_json(records, time.perf_counter() - t)
     data["env_parts"] = [c.to_dict() for c in env_cfgs]
     return data
-
-
-def _same_parts(stored: list[dict] | None, current: list[dict]) -> bool:
-    """Whether a finished evaluation ran the suite as it is defined now (else it is run again).
-
-    A task field missing from the stored config was added later and had its paper value ("off") then, the
-    rule of recorded tasks; other missing keys are ignored."""
-    if stored is None or len(stored) != len(current):
-        return False
-    current = json.loads(json.dumps(current))  # tuples -> lists, as stored
-    paper = json.loads(json.dumps(PAPER_TASK))
-    return all(
-        old.get(k, paper.get(k, v)) == v for old, new in zip(stored, current, strict=True) for k, v in new.items()
-    )
 
 
 def _cli_check(cfg: StudyConfig, methods, results, where: tuple, timings: dict) -> dict | None:

@@ -1,0 +1,76 @@
+"""The study's stage keys (``lerobot_pnp.cache``): its datasets and evaluations, and what a study wrote.
+
+A dataset is keyed by its generation settings; a training by ``methods.train_stage``; an evaluation by the
+trained artefact's key (or the data's), the suite as defined now, its episode count and its seeds.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from lerobot_pnp.cache import STAGE_FILE, Stage, code_versions, same_env_configs
+from lerobot_pnp.dataset.workdir import remove_generation
+from lerobot_pnp.errors import ConfigError
+from lerobot_pnp.report import adapters
+from lerobot_pnp.report.methods import train_stage
+
+# What a study wrote before it kept a manifest (its folder holds study_config.json)
+STUDY_ENTRIES = (
+    "study_config.json",
+    "dataset",
+    "train",
+    "evals",
+    "lerobot_eval_cli",
+    "report.md",
+    "summary.json",
+    "figures",
+)
+
+
+def written_by_the_study(name: str) -> bool:
+    return name in STUDY_ENTRIES or name.removesuffix(".tmp") in STUDY_ENTRIES or name.startswith("dataset_")
+
+
+def dataset_stage(out: Path, name: str, cfg, changes: dict | None = None) -> tuple[dict, str]:
+    """Generate (or finish, or reuse) the recording ``name``, keyed by what determines it; (summary, key).
+
+    A dataset of other settings (or one without a record) is verified by the generator against its own
+    record of how it was made, and replaced when that differs."""
+    root = out / name
+    stage = Stage(
+        root / STAGE_FILE,
+        {
+            "stage": "dataset",
+            "num_episodes": cfg.num_episodes,
+            "seed": cfg.dataset_seed,
+            "changes": changes or {},
+            "versions": code_versions(),
+        },
+    )
+    if stage.done(f"dataset {name}"):
+        return {"root": str(root), "status": "reused"}, stage.key
+    stage.invalidate()
+    try:
+        summary = adapters.generate_dataset(root, cfg.num_episodes, cfg.dataset_seed, cfg.workers, env_changes=changes)
+    except ConfigError as err:  # made with other settings: not this study's dataset any more
+        print(f"  dataset {name}: regenerated ({err})", flush=True)
+        remove_generation(root)
+        summary = adapters.generate_dataset(root, cfg.num_episodes, cfg.dataset_seed, cfg.workers, env_changes=changes)
+    stage.commit()
+    return summary, stage.key
+
+
+def eval_stage(path: Path, method, ctx, suite, n_episodes: int, env_parts: list, cfg) -> Stage:
+    """An evaluation's key: the trained artefact's (or the data's), the suite as defined now, its episodes
+    and seeds. A task field added since it ran counts as unchanged when its value is the paper's (off)."""
+    parts = {
+        "stage": "eval",
+        "train": train_stage(method, ctx).key if method.learned else None,
+        "data": ctx.data_keys.get(method.data),
+        "suite": suite.name,
+        "env_parts": env_parts,
+        "n_episodes": n_episodes,
+        "eval_seed": cfg.eval_seed,
+        "versions": code_versions(),
+    }
+    return Stage(path, parts, compare={"env_parts": same_env_configs})
