@@ -7,7 +7,8 @@ set -euo pipefail
 OUT=${1:-outputs/bench_images}
 N=${N:-200}                # demonstrations (episodes)
 STATE_STEPS=${STATE_STEPS:-1500}  # lerobot-train steps of state-only ACT (about 0.05 s a step here)
-STEPS=${STEPS:-450}        # lerobot-train steps of image ACT and Diffusion (1-2 s a step on 2 busy cores)
+STEPS=${STEPS:-450}        # lerobot-train steps of image ACT (1-1.5 s a step on 2 busy cores)
+DIFF_STEPS=${DIFF_STEPS:-180}  # ... and of Diffusion (about 3 s a step: two image frames per sample)
 EVAL_N=${EVAL_N:-100}      # evaluation episodes (seeds EVAL_SEED ...)
 EVAL_SEED=${EVAL_SEED:-100000}
 export HF_HUB_OFFLINE=1 MUJOCO_GL=${MUJOCO_GL:-egl} OMP_NUM_THREADS=${OMP_NUM_THREADS:-1}
@@ -35,7 +36,7 @@ common() { echo --num_workers 0 --batch_size 16 --steps "$1" --save_freq "$1" --
 [ -d "$OUT/act_images" ] || timed train_act_images lerobot-train --config_path configs/train_act_images.json \
   $(common "$STEPS") --output_dir "$OUT/act_images"
 [ -d "$OUT/diffusion_images" ] || timed train_diffusion_images lerobot-train \
-  --config_path configs/train_diffusion_images.json $(common "$STEPS") --output_dir "$OUT/diffusion_images"
+  --config_path configs/train_diffusion_images.json $(common "$DIFF_STEPS") --output_dir "$OUT/diffusion_images"
 
 for run in planner act_state act_images diffusion_images; do
   [ -f "$OUT/eval_$run/eval_info.json" ] || timed "eval_$run" lerobot-eval \

@@ -577,7 +577,18 @@ def _read_json(path: Path) -> dict:
 
 
 def _source_from_command_line() -> str | None:
-    """``--dataset.root`` (lerobot-train) or ``--policy.path`` (lerobot-eval) from this process's arguments."""
+    """``--dataset.root`` (lerobot-train) or ``--policy.path`` (lerobot-eval) from this process's arguments, else
+    the same keys of the ``--config_path`` file (``lerobot-train --config_path configs/train_act_images.json``)."""
     from lerobot.configs.parser import parse_arg
 
-    return parse_arg("dataset.root") or parse_arg("policy.path")
+    source = parse_arg("dataset.root") or parse_arg("policy.path")
+    config_path = parse_arg("config_path")
+    if source or not config_path or not Path(config_path).is_file():
+        return source
+    try:
+        config = json.loads(Path(config_path).read_text())
+    except (OSError, json.JSONDecodeError):
+        return None  # LeRobot's parser reports a bad config file itself
+    if not isinstance(config, dict):
+        return None
+    return (config.get("dataset") or {}).get("root") or (config.get("policy") or {}).get("path")

@@ -42,6 +42,18 @@ def _run(cmd: list[str], cwd: Path, timeout: float = 180) -> subprocess.Complete
 
 
 # ---------------------------------------------------------------------------------------------- fast
+def test_recorded_cameras_found_through_a_config_file(tmp_path, monkeypatch):
+    """``lerobot-train --config_path file.json`` names the dataset only in the file: its task is read from there."""
+    write_recorded(BaxterPnPEnvConfig(cameras=["front"], image_height=64, image_width=64), tmp_path / "ds")
+    config = tmp_path / "train.json"
+    config.write_text(json.dumps({"dataset": {"repo_id": "local/ds", "root": str(tmp_path / "ds")}}))
+    monkeypatch.setattr(sys, "argv", ["lerobot-train", f"--config_path={config}", "--steps=3"])
+    cfg = BaxterPnPEnvConfig()
+    assert cfg.cameras == ["front"] and cfg.image_height == 64
+    monkeypatch.setattr(sys, "argv", ["lerobot-train", "--steps=3"])
+    assert BaxterPnPEnvConfig().cameras == []
+
+
 def test_recorded_cameras_are_read_back(tmp_path):
     recorded = BaxterPnPEnvConfig(cameras=["front", "wrist"], image_height=48, image_width=64)
     write_recorded(recorded, tmp_path)
@@ -88,8 +100,10 @@ def test_shipped_image_configs_are_offline(name):
 @pytest.mark.slow
 def test_act_on_images_stock_train_then_eval_without_camera_flags(tmp_path):
     pnp, train, evaluate = _exe("lerobot-pnp"), _exe("lerobot-train"), _exe("lerobot-eval")
-    ds = tmp_path / "ds"
-    gen = [pnp, "generate", "--repo_id=local/img", f"--root={ds}", "--num_episodes=3", "--workers=1"]
+    config = json.loads((REPO / "configs" / "train_act_images.json").read_text())
+    ds = tmp_path / config["dataset"]["root"]  # the config's own (relative) dataset root, run from tmp_path
+    repo_id = config["dataset"]["repo_id"]
+    gen = [pnp, "generate", f"--repo_id={repo_id}", f"--root={ds}", "--num_episodes=3", "--workers=1"]
     cams = ["--env.cameras=[front]", "--env.image_height=64", "--env.image_width=64", "--progress=false"]
     proc = _run([*gen, *cams], tmp_path)
     assert proc.returncode == 0, proc.stderr[-3000:]
@@ -98,9 +112,7 @@ def test_act_on_images_stock_train_then_eval_without_camera_flags(tmp_path):
     proc = _run(
         [
             train,
-            f"--config_path={REPO / 'configs' / 'train_act_images.json'}",
-            "--dataset.repo_id=local/img",
-            f"--dataset.root={ds}",
+            f"--config_path={REPO / 'configs' / 'train_act_images.json'}",  # no dataset or camera flag
             "--steps=3",
             "--save_freq=3",
             "--env_eval_freq=3",
