@@ -66,6 +66,7 @@ def _copy(src: Path, dst: Path) -> Path:
 
 
 # --------------------------------------------------------------------------------------------------- case 1
+@pytest.mark.slow
 def test_1_a_second_dagger_on_the_same_folder_is_refused_and_a_stage_without_record_is_redone(
     dagger_run, tmp_path, capsys
 ):
@@ -89,6 +90,7 @@ def test_1_a_second_dagger_on_the_same_folder_is_refused_and_a_stage_without_rec
 
 
 # --------------------------------------------------------------------------------------------------- case 2
+@pytest.mark.slow
 def test_2_dagger_reruns_the_stages_whose_config_changed(dagger_run, tmp_path, capsys):
     out = _copy(dagger_run, tmp_path / "dg")
     ckpt0 = out / "round_00/train/checkpoints/last/pretrained_model/model.safetensors"
@@ -240,6 +242,7 @@ def _alive(pid: int) -> bool:
     return state != "Z"
 
 
+@pytest.mark.slow
 def test_6_pool_workers_die_with_the_study(tmp_path):
     log = tmp_path / "pids"
     log.mkdir()
