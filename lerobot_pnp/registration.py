@@ -23,6 +23,10 @@ def register_all() -> None:
 
     # a pnp_lstm checkpoint records the task of its training dataset (the policy package knows no env)
     TaskRecord.read, TaskRecord.write = env_config.dataset_task, env_config.write_checkpoint_task
+    # ... and so does any other policy's checkpoint written by stock lerobot-train (in that process only)
+    from lerobot_pnp.stock_checkpoints import install_stock_checkpoint_hook
+
+    install_stock_checkpoint_hook()
 
     if env_config.GYM_ID not in gym.registry:
         gym.register(

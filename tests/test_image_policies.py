@@ -128,10 +128,14 @@ def test_act_on_images_stock_train_then_eval_without_camera_flags(tmp_path):
     assert "Suite overall aggregated" in proc.stdout + proc.stderr  # the in-training eval ran in the camera env
     ckpt = out / "checkpoints" / "last" / "pretrained_model"
     assert json.loads((ckpt / "config.json").read_text())["input_features"]["observation.images.front"]
+    # stock lerobot-train wrote the task into ACT's checkpoint too (stock_checkpoints): it outlives the dataset
+    task = json.loads((ckpt / "baxter_pnp_env.json").read_text())
+    assert task["cameras"] == ["front"] and (task["image_height"], task["image_width"]) == (64, 64)
+    (ds / "meta" / "baxter_pnp_env.json").unlink()  # the dataset root no longer says which cameras
 
     ev = tmp_path / "eval"
     cmd = [evaluate, f"--policy.path={ckpt}", "--env.type=baxter_pnp", "--eval.n_episodes=2"]
     proc = _run([*cmd, "--eval.batch_size=2", "--policy.device=cpu", f"--output_dir={ev}"], tmp_path)
     assert proc.returncode == 0, proc.stderr[-3000:]
     overall = json.loads((ev / "eval_info.json").read_text())["overall"]
-    assert overall["n_episodes"] == 2 and 0 <= overall["pc_success"] <= 100
+    assert overall["n_episodes"] == 2  # the camera env was built from the checkpoint's own task
