@@ -7,10 +7,11 @@ convention) are not shown per field. This module reads the same dataclasses: a f
 the class that defines it, its ``Args:`` entry, else the comment draccus would show (above, inline or a
 docstring below the field). Nested dataclass fields are listed with their dotted flag
 (``--policy.hidden_size``). A field named ``preset`` lists the keys of its module's ``PRESETS`` (else the task
-presets, ``env_config.PRESETS``). Each entry is one description: a long docstring is cut to its first sentence
-(the rest stays in the source), reST literal quotes dropped. LeRobot's derived fields (``env.features``, ``policy.input_features`` ...: set
-from the env or the dataset, never typed) are left out, and the few LeRobot fields that have no comment of their
-own get one here (``LEROBOT_FIELD_DOCS``).
+presets, ``env_config.PRESETS``), unless its description names them all. Each entry is one description: a long
+docstring is cut to its first sentence (the rest stays in the source), reST literal quotes dropped; defaults
+print as typed (enums by value, dataclasses as dicts). LeRobot's derived fields (``env.features``,
+``policy.input_features`` ...: set from the env or the dataset, never typed) are left out, and the few LeRobot
+fields that have no comment of their own get one here (``LEROBOT_FIELD_DOCS``).
 """
 
 from __future__ import annotations
@@ -113,9 +114,12 @@ def _type_name(tp) -> str:
 
 
 def _plain(value):
-    """``value`` with enums as their values (``MEAN_STD``, not ``<NormalizationMode.MEAN_STD: 'MEAN_STD'>``)."""
+    """``value`` as typed on the command line: enums as their values (``MEAN_STD``, not
+    ``<NormalizationMode.MEAN_STD: 'MEAN_STD'>``), dataclasses as dicts."""
     if isinstance(value, enum.Enum):
         return value.value
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):  # as typed: '[{"name": ..., ...}]'
+        return {f.name: _plain(getattr(value, f.name)) for f in dataclasses.fields(value)}
     if isinstance(value, dict):
         return {_plain(k): _plain(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
@@ -147,7 +151,7 @@ def _describe(cls: type, field: dataclasses.Field) -> str:
             from lerobot_pnp import env_config
 
             presets = env_config.PRESETS
-        if isinstance(presets, dict):
+        if isinstance(presets, dict) and not all(re.search(rf"\b{re.escape(p)}\b", text) for p in presets):
             text += f" (one of: {', '.join(sorted(presets))})"
     return text
 

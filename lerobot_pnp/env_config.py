@@ -168,7 +168,7 @@ class BaxterPnPEnvConfig(EnvConfig):
 
     task: str | None = GYM_TASK  # gymnasium id suffix (LeRobot builds ``lerobot_pnp/<task>``)
     fps: int | None = None  # keyframe: 1 (one FSM state per step); dense: control rate, default 20
-    # Named task preset: "paper" (the paper's setting). None = the recorded task if any, else "paper".
+    # Named task preset: "paper" (the paper's setting) or "full" (everything on). None = the recorded task, else paper
     preset: str | None = None
     # A dataset folder or checkpoint whose recorded task to use (default: from the command line, see above).
     task_source: str | None = None
