@@ -152,7 +152,7 @@ def _describe(cls: type, field: dataclasses.Field) -> str:
 
             presets = env_config.PRESETS
         if isinstance(presets, dict) and not all(re.search(rf"\b{re.escape(p)}\b", text) for p in presets):
-            text += f" (one of: {', '.join(sorted(presets))})"
+            text += f" (one\N{NO-BREAK SPACE}of: {', '.join(sorted(presets))})"
     return text
 
 
@@ -203,7 +203,8 @@ def command_help(name: str, summary: str, cls: type) -> str:
     ]
     for flag, tp, text in rows:
         head = f"  {flag} {tp}"
-        body = textwrap.wrap(text, width - left) or [""]
+        nbsp = "\N{NO-BREAK SPACE}"
+        body = textwrap.wrap(text.replace(" = ", f"{nbsp}={nbsp}"), width - left) or [""]  # "0 = auto" stays whole
         if len(head) + 2 > left:
             out.append(head)
             out += [" " * left + line for line in body if line]
