@@ -7,12 +7,17 @@ convention) are not shown per field. This module reads the same dataclasses: a f
 the class that defines it, its ``Args:`` entry, else the comment draccus would show (above, inline or a
 docstring below the field). Nested dataclass fields are listed with their dotted flag
 (``--policy.hidden_size``). A field named ``preset`` lists the keys of its module's ``PRESETS`` (else the task
-presets, ``env_config.PRESETS``).
+presets, ``env_config.PRESETS``), unless its description names them all. Each entry is one description: a long
+docstring is cut to its first sentence (the rest stays in the source), reST literal quotes dropped; defaults
+print as typed (enums by value, dataclasses as dicts). LeRobot's derived fields (``env.features``,
+``policy.input_features`` ...: set from the env or the dataset, never typed) are left out, and the few LeRobot
+fields that have no comment of their own get one here (``LEROBOT_FIELD_DOCS``).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import enum
 import inspect
 import re
 import shutil
@@ -22,6 +27,22 @@ import typing
 
 # "name: text", "name (type): text" or "a / b / c: text" (one text for several fields)
 _ARG_LINE = re.compile(r"^(\s*)(\w+(?: / \w+)*)(?: \([^)]*\))?:\s*(.*)$")
+# (LeRobot class, field) -> description, for LeRobot fields without a (right) comment of their own
+LEROBOT_FIELD_DOCS: dict[tuple[str, str], str] = {
+    ("EnvConfig", "max_parallel_tasks"): "lerobot-eval: tasks of a multi-task env evaluated at once (threads)",
+    ("EnvConfig", "disable_env_checker"): "skip gymnasium's env checker in gym.make",
+    ("PreTrainedConfig", "repo_id"): "Hub repo (owner/name) the trained policy is pushed to (with push_to_hub)",
+    ("PreTrainedConfig", "license"): "license of the policy on the Hub",
+}
+# (LeRobot class, field) not listed: derived from the env or the dataset when the run starts, never typed
+DERIVED_FIELDS = {
+    ("EnvConfig", "features"),
+    ("EnvConfig", "features_map"),
+    ("PreTrainedConfig", "input_features"),
+    ("PreTrainedConfig", "output_features"),
+}
+_LONG = 160  # characters: a description longer than this is cut to its first sentence
+_SENTENCE_END = re.compile(r'(?<=[.!?])\s+(?=[A-Z`("])')
 
 
 def args_section(cls: type) -> dict[str, str]:
@@ -54,10 +75,22 @@ def field_doc(cls: type, name: str) -> str:
     for klass in cls.__mro__:
         if name not in inspect.get_annotations(klass):
             continue
-        text = args_section(klass).get(name) or _comment_help(klass, name)
+        text = LEROBOT_FIELD_DOCS.get((klass.__name__, name)) if klass.__module__.startswith("lerobot.") else None
+        text = text or args_section(klass).get(name) or _comment_help(klass, name)
         if text:
             return text
     return ""
+
+
+def _owner(cls: type, name: str) -> type:
+    """The class nearest to ``cls`` that declares field ``name``."""
+    return next((k for k in cls.__mro__ if name in inspect.get_annotations(k)), cls)
+
+
+def is_derived(cls: type, name: str) -> bool:
+    """A LeRobot field set from the env or the dataset (``DERIVED_FIELDS``; a subclass may redeclare it), left out
+    of the help."""
+    return any(k.__module__.startswith("lerobot.") and (k.__name__, name) in DERIVED_FIELDS for k in cls.__mro__)
 
 
 def _comment_help(cls: type, name: str) -> str:
@@ -77,7 +110,21 @@ def _type_name(tp) -> str:
         return _type_name(args[0])
     if isinstance(tp, type) and not typing.get_args(tp):
         return tp.__name__
-    return str(tp).replace("typing.", "").replace("NoneType", "None")
+    return re.sub(r"\b(?:\w+\.)+(\w+)", r"\1", str(tp)).replace("NoneType", "None")  # no module paths
+
+
+def _plain(value):
+    """``value`` as typed on the command line: enums as their values (``MEAN_STD``, not
+    ``<NormalizationMode.MEAN_STD: 'MEAN_STD'>``), dataclasses as dicts."""
+    if isinstance(value, enum.Enum):
+        return value.value
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):  # as typed: '[{"name": ..., ...}]'
+        return {f.name: _plain(getattr(value, f.name)) for f in dataclasses.fields(value)}
+    if isinstance(value, dict):
+        return {_plain(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return type(value)(_plain(v) for v in value)
+    return value
 
 
 def _default_of(field: dataclasses.Field, instance) -> str:
@@ -89,21 +136,23 @@ def _default_of(field: dataclasses.Field, instance) -> str:
         return ""
     if dataclasses.is_dataclass(value):
         return ""
-    return "none" if value is None else str(value).lower() if isinstance(value, bool) else repr(value)
+    return "none" if value is None else str(value).lower() if isinstance(value, bool) else repr(_plain(value))
 
 
 def _describe(cls: type, field: dataclasses.Field) -> str:
     text = field_doc(cls, field.name)
     text = " ".join(text.split()).lstrip("-# ")  # a section divider comment above the field is no description
+    text = text.replace("``", "")  # reST literals read as plain text in a terminal
+    if len(text) > _LONG:
+        text = _SENTENCE_END.split(text, maxsplit=1)[0]
     if field.name == "preset":
-        owner = next((k for k in cls.__mro__ if field.name in inspect.get_annotations(k)), cls)
-        presets = getattr(sys.modules.get(owner.__module__), "PRESETS", None)
+        presets = getattr(sys.modules.get(_owner(cls, field.name).__module__), "PRESETS", None)
         if presets is None:  # a task preset (e.g. DAgger's demonstrations)
             from lerobot_pnp import env_config
 
             presets = env_config.PRESETS
-        if isinstance(presets, dict):
-            text += f" (one of: {', '.join(sorted(presets))})"
+        if isinstance(presets, dict) and not all(re.search(rf"\b{re.escape(p)}\b", text) for p in presets):
+            text += f" (one\N{NO-BREAK SPACE}of: {', '.join(sorted(presets))})"
     return text
 
 
@@ -112,7 +161,7 @@ def field_rows(cls: type, prefix: str = "", instance=None) -> list[tuple[str, st
     hints = typing.get_type_hints(cls)
     rows: list[tuple[str, str, str]] = []
     for field in dataclasses.fields(cls):
-        if not field.init:
+        if not field.init or is_derived(cls, field.name):
             continue
         tp = hints.get(field.name, field.type)
         flag = f"--{prefix}{field.name}"
@@ -122,7 +171,11 @@ def field_rows(cls: type, prefix: str = "", instance=None) -> list[tuple[str, st
             continue
         text = _describe(cls, field)
         default = _default_of(field, instance)
-        rows.append((flag, _type_name(tp), f"{text} [default: {default}]".strip() if default else text))
+        if default and len(default) <= 40:  # kept on one line when wrapped (a non-breaking space)
+            default = default.replace(" ", "\N{NO-BREAK SPACE}")
+        rows.append(
+            (flag, _type_name(tp), f"{text} [default:\N{NO-BREAK SPACE}{default}]".strip() if default else text)
+        )
     return rows
 
 
@@ -150,11 +203,12 @@ def command_help(name: str, summary: str, cls: type) -> str:
     ]
     for flag, tp, text in rows:
         head = f"  {flag} {tp}"
-        body = textwrap.wrap(text, width - left) or [""]
+        nbsp = "\N{NO-BREAK SPACE}"
+        body = textwrap.wrap(text.replace(" = ", f"{nbsp}={nbsp}"), width - left) or [""]  # "0 = auto" stays whole
         if len(head) + 2 > left:
             out.append(head)
             out += [" " * left + line for line in body if line]
         else:
             out.append(head.ljust(left) + body[0])
             out += [" " * left + line for line in body[1:]]
-    return "\n".join(out)
+    return "\n".join(out).replace("\N{NO-BREAK SPACE}", " ")

@@ -50,63 +50,56 @@ DENSE_FPS = 20
 DENSE_SECONDS_PER_KEYFRAME = 3  # dense episodes: 3 s of control per keyframe of the budget (30 s for the paper's 10)
 RECORDED_FILE = "meta/baxter_pnp_env.json"
 
-# The task fields and their values in each preset (fields not listed keep the "paper" value).
+# The task fields and their values in each preset (fields not listed keep the "paper" value). What each field
+# means is the comment on its BaxterPnPEnvConfig field (the one description, shown by every --help).
 PAPER_TASK: dict[str, Any] = {
-    "object_low": (0.45, 0.10),  # object xy box (m, base frame); fully reachable gripper-down
+    "object_low": (0.45, 0.10),
     "object_high": (0.75, 0.50),
-    # an xy box inside which no object is placed (rejection sampling; low == high excludes nothing): with
-    # object_low/high it makes a band, e.g. the strip along the edge of the training box or a ring around it
     "object_exclude_low": (0.0, 0.0),
     "object_exclude_high": (0.0, 0.0),
-    "yaw_range": (0.0, 0.0),  # object yaw (rad); the paper varies position only
-    "place_low": (0.60, -0.05),  # the place target is drawn from this xy box (a point in the paper),
-    "place_high": (0.60, -0.05),  # outside the object box so no episode starts solved
-    "start_low": (0.45, 0.0, 0.05),  # the gripper (pointing down) starts at a random point of this box
+    "yaw_range": (0.0, 0.0),
+    "place_low": (0.60, -0.05),
+    "place_high": (0.60, -0.05),
+    "start_low": (0.45, 0.0, 0.05),
     "start_high": (0.75, 0.45, 0.25),
-    "hover_height": 0.15,  # the paper's h: approach / retract height above the object
-    "success_xy_tol": 0.02,  # object within this distance (xy) of the target counts as placed
-    "size_range": (0.05, 0.05),  # cube edge length (m), drawn per episode
-    "mass_range": (0.5, 0.5),  # object mass (kg), drawn per episode
-    "friction_range": (1.0, 1.0),  # object sliding friction coefficient, drawn per episode
-    "observe_yaw": False,  # environment_state gains (sin 4 yaw, cos 4 yaw): the cube's 90-degree symmetry
-    "observe_goal": False,  # environment_state gains the place target xy (the goal)
-    # environment_state gains a one-hot of the task phase inferred from the simulator state (PickPlaceTask.
-    # progress): privileged information, for the "told the phase" controls of the memory study
+    "hover_height": 0.15,
+    "success_xy_tol": 0.02,
+    "size_range": (0.05, 0.05),
+    "mass_range": (0.5, 0.5),
+    "friction_range": (1.0, 1.0),
+    "observe_yaw": False,
+    "observe_goal": False,
     "observe_phase": False,
-    "keyframe_budget": 10,  # keyframe steps per episode (dense: 3 s of control per keyframe)
+    "keyframe_budget": 10,
     # Perturbations (each named, seeded, usable alone; see task.PickPlaceTask.after_step).
-    "nudge_max": 0.0,  # object pushed by up to this (m, xy) after `nudge_at_step` steps, before the grasp
+    "nudge_max": 0.0,
     "nudge_at_step": 1,
-    "grasp_miss_prob": 0.0,  # per episode: the object slides 3-5 cm while the open gripper is at it (grasp misses)
-    "drop_prob": 0.0,  # per episode: the object is knocked out of the gripper in transport (falls to the table)
-    "displace_prob": 0.0,  # per episode: the object is moved 4-8 cm after it was released on the target
-    "obs_noise_object": 0.0,  # Gaussian observation noise (std) on the object position (m)
-    "obs_noise_joints": 0.0,  # ... and on the joint angles (rad)
-    "obs_bias_object": 0.0,  # a constant per-episode offset of this length (m, xy) on the observed object
-    "obs_latency": 0,  # observations are this many steps old
+    "grasp_miss_prob": 0.0,
+    "drop_prob": 0.0,
+    "displace_prob": 0.0,
+    "obs_noise_object": 0.0,
+    "obs_noise_joints": 0.0,
+    "obs_bias_object": 0.0,
+    "obs_latency": 0,
     # Perturbations as distributions (disturbances.py); these values are the original single triggers, so a
     # task recorded before they existed keeps its meaning. Times are fractions of a kind's window; 0 = the
     # original trigger at the end of a step, > 0 = in the middle of a move (see disturbances.py).
-    "nudge_last_step": 0,  # the nudge step is uniform in nudge_at_step..nudge_last_step (<= nudge_at_step: fixed)
-    "grasp_miss_window": (0.0, 0.0),  # when: 0 = at the close, f > 0 = slips out once lifted f of the hover height
-    "grasp_miss_range": (0.055, 0.07),  # how far the object slides out of the fingers (m)
-    "grasp_miss_max_events": 1,  # chances per episode, each taken with grasp_miss_prob
-    "drop_window": (0.0, 0.0),  # when: 0 = after the lift step, f > 0 = after f of the way to the target
-    "drop_range": (0.08, 0.12),  # landing distance from where it left the fingers (m)
-    "drop_spread": 0.0,  # landing direction: up to this angle (rad) off the gripper axis toward the box; pi = any
-    "drop_max_events": 1,  # chances per episode, each taken with drop_prob
-    "displace_window": (0.0, 0.0),  # when: 0 = on release, f > 0 = once the gripper has risen f of h / 2
-    "displace_range": (0.04, 0.08),  # how far a released object is pushed (m)
-    "displace_spread": 1.0471975511965976,  # push direction: up to this angle (rad) off the way to the box
-    "displace_max_events": 1,  # chances per episode, each taken with displace_prob
-    # a disturbed object only lands in this xy box (redrawn, else the nearest point), where the arm re-picks it;
-    # low == high: anywhere (the original perturbations)
+    "nudge_last_step": 0,
+    "grasp_miss_window": (0.0, 0.0),
+    "grasp_miss_range": (0.055, 0.07),
+    "grasp_miss_max_events": 1,
+    "drop_window": (0.0, 0.0),
+    "drop_range": (0.08, 0.12),
+    "drop_spread": 0.0,
+    "drop_max_events": 1,
+    "displace_window": (0.0, 0.0),
+    "displace_range": (0.04, 0.08),
+    "displace_spread": 1.0471975511965976,
+    "displace_max_events": 1,
     "landing_low": (0.0, 0.0),
     "landing_high": (0.0, 0.0),
-    "obs_latency_max": 0,  # latency per episode uniform in obs_latency..obs_latency_max (0: fixed obs_latency)
-    "obs_latency_jitter": 0.0,  # per step, the latency is redrawn within that range with this probability
-    # keyframe moves carrying the object last at least this long (s): a short fast carry shakes a heavy cube
-    # loose (re-picks near the target); 0 = the joint velocity limits alone
+    "obs_latency_max": 0,
+    "obs_latency_jitter": 0.0,
     "carry_min_time": 0.0,
 }
 # The reachable table region (IK gripper-down at hover and grasp height, any grasp yaw, clear of the table edge):
@@ -175,7 +168,7 @@ class BaxterPnPEnvConfig(EnvConfig):
 
     task: str | None = GYM_TASK  # gymnasium id suffix (LeRobot builds ``lerobot_pnp/<task>``)
     fps: int | None = None  # keyframe: 1 (one FSM state per step); dense: control rate, default 20
-    # Named task preset: "paper" (the paper's setting). None = the recorded task if any, else "paper".
+    # Named task preset: "paper" (the paper's setting) or "full" (everything on). None = the recorded task, else paper
     preset: str | None = None
     # A dataset folder or checkpoint whose recorded task to use (default: from the command line, see above).
     task_source: str | None = None
@@ -184,54 +177,62 @@ class BaxterPnPEnvConfig(EnvConfig):
     episode_length: int | None = None  # env steps before truncation; default keyframe_budget (dense: 3 s per keyframe)
     # ---- observation setup (None = the recorded one, else OBSERVATION_DEFAULTS): what an image policy consumes
     cameras: list[str] | None = None  # rendered camera observations: front, overhead, wrist
-    image_height: int | None = None
-    image_width: int | None = None
+    image_height: int | None = None  # rendered camera image height (pixels)
+    image_width: int | None = None  # rendered camera image width (pixels)
     speed: float = 1.0  # fraction of Baxter's joint velocity limits used by the interpolator
     straight_paths: bool = True  # keyframe moves keep the gripper on a straight line (else joint-linear)
-    # ---- task (None = from the preset / recorded task; see PAPER_TASK for meanings and defaults)
-    object_low: tuple[float, float] | None = None
-    object_high: tuple[float, float] | None = None
+    # ---- task (None = from the preset / recorded task; the values are in PAPER_TASK / FULL_TASK)
+    object_low: tuple[float, float] | None = None  # object xy box, low corner (m, base frame; reachable gripper-down)
+    object_high: tuple[float, float] | None = None  # object xy box, high corner (m)
+    # low corner of an xy box where no object is placed (low == high: none); with object_low/high it makes a band
     object_exclude_low: tuple[float, float] | None = None
-    object_exclude_high: tuple[float, float] | None = None
-    yaw_range: tuple[float, float] | None = None
-    place_low: tuple[float, float] | None = None
-    place_high: tuple[float, float] | None = None
-    start_low: tuple[float, float, float] | None = None
-    start_high: tuple[float, float, float] | None = None
-    hover_height: float | None = None
-    success_xy_tol: float | None = None
-    size_range: tuple[float, float] | None = None
-    mass_range: tuple[float, float] | None = None
-    friction_range: tuple[float, float] | None = None
-    observe_yaw: bool | None = None
-    observe_goal: bool | None = None
+    object_exclude_high: tuple[float, float] | None = None  # high corner of that excluded xy box (m)
+    yaw_range: tuple[float, float] | None = None  # object yaw drawn in this range (rad); the paper varies position only
+    place_low: tuple[float, float] | None = None  # place target xy box, low corner (m); a point in the paper
+    place_high: tuple[float, float] | None = None  # place target xy box, high corner (outside the object box)
+    start_low: tuple[float, float, float] | None = None  # gripper start xyz box, low corner (m; gripper pointing down)
+    start_high: tuple[float, float, float] | None = None  # gripper start xyz box, high corner (m)
+    hover_height: float | None = None  # the paper's h: approach / retract height above the object (m)
+    success_xy_tol: float | None = None  # the object within this xy distance of the target (m) counts as placed
+    size_range: tuple[float, float] | None = None  # cube edge length (m), drawn per episode
+    mass_range: tuple[float, float] | None = None  # object mass (kg), drawn per episode
+    friction_range: tuple[float, float] | None = None  # object sliding friction coefficient, drawn per episode
+    observe_yaw: bool | None = None  # environment_state gains (sin 4 yaw, cos 4 yaw): the cube's 90-degree symmetry
+    observe_goal: bool | None = None  # environment_state gains the place target xy (the goal)
+    # environment_state gains a one-hot of the task phase from the simulator state (privileged; the phase-told control)
     observe_phase: bool | None = None
-    keyframe_budget: int | None = None
-    nudge_max: float | None = None
-    nudge_at_step: int | None = None
-    grasp_miss_prob: float | None = None
-    drop_prob: float | None = None
-    displace_prob: float | None = None
-    obs_noise_object: float | None = None
-    obs_noise_joints: float | None = None
-    obs_bias_object: float | None = None
-    obs_latency: int | None = None
-    nudge_last_step: int | None = None
+    keyframe_budget: int | None = None  # keyframe steps per episode (dense: 3 s of control per keyframe)
+    # ---- perturbations (each named, seeded, usable alone; see task.PickPlaceTask.after_step and disturbances.py)
+    nudge_max: float | None = None  # the object is pushed by up to this (m, xy) after nudge_at_step steps, pre-grasp
+    nudge_at_step: int | None = None  # the step after which the nudge happens (the first of its range)
+    grasp_miss_prob: float | None = None  # per chance: the object slides out while the open gripper is at it
+    drop_prob: float | None = None  # per chance: the object is knocked out of the gripper in transport
+    displace_prob: float | None = None  # per chance: the object is moved after it was released on the target
+    obs_noise_object: float | None = None  # Gaussian observation noise (std, m) on the object position
+    obs_noise_joints: float | None = None  # Gaussian observation noise (std, rad) on the joint angles
+    obs_bias_object: float | None = None  # a constant per-episode offset of this length (m, xy) on the observed object
+    obs_latency: int | None = None  # observations are this many steps old (the low end with obs_latency_max)
+    nudge_last_step: int | None = None  # the nudge step is uniform in nudge_at_step..this (<= nudge_at_step: fixed)
+    # when a grasp miss happens: 0 = at the close; f > 0 = slips out once lifted f of the hover height
     grasp_miss_window: tuple[float, float] | None = None
-    grasp_miss_range: tuple[float, float] | None = None
-    grasp_miss_max_events: int | None = None
+    grasp_miss_range: tuple[float, float] | None = None  # how far the missed object slides out of the fingers (m)
+    grasp_miss_max_events: int | None = None  # grasp-miss chances per episode, each taken with grasp_miss_prob
+    # when a drop happens: 0 = after the lift step; f > 0 = after f of the way to the target
     drop_window: tuple[float, float] | None = None
-    drop_range: tuple[float, float] | None = None
-    drop_spread: float | None = None
-    drop_max_events: int | None = None
+    drop_range: tuple[float, float] | None = None  # a dropped object lands this far from where it left the fingers (m)
+    drop_spread: float | None = None  # drop landing direction: up to this angle (rad) off the gripper axis; pi = any
+    drop_max_events: int | None = None  # drop chances per episode, each taken with drop_prob
+    # when a displacement happens: 0 = on release; f > 0 = once the gripper has risen f of h / 2
     displace_window: tuple[float, float] | None = None
-    displace_range: tuple[float, float] | None = None
-    displace_spread: float | None = None
-    displace_max_events: int | None = None
+    displace_range: tuple[float, float] | None = None  # how far a released object is pushed (m)
+    displace_spread: float | None = None  # push direction: up to this angle (rad) off the way to the box; pi = any
+    displace_max_events: int | None = None  # displacement chances per episode, each taken with displace_prob
+    # a disturbed object lands only in this xy box (low corner; redrawn, else the nearest point); low == high: anywhere
     landing_low: tuple[float, float] | None = None
-    landing_high: tuple[float, float] | None = None
-    obs_latency_max: int | None = None
-    obs_latency_jitter: float | None = None
+    landing_high: tuple[float, float] | None = None  # high corner of that landing xy box (m)
+    obs_latency_max: int | None = None  # latency per episode uniform in obs_latency..this (0: fixed obs_latency)
+    obs_latency_jitter: float | None = None  # per step, the latency is redrawn in its range with this probability
+    # keyframe moves carrying the object last at least this long (s; a fast carry shakes a heavy cube loose); 0 = off
     carry_min_time: float | None = None
     features: dict[str, PolicyFeature] = field(default_factory=dict)
     features_map: dict[str, str] = field(default_factory=dict)

@@ -64,6 +64,49 @@ def test_command_help_documents_every_field(name, capsys):
     assert "def __post_init__" not in out and "--policy str" not in out
 
 
+def _help_entries(text: str) -> dict[str, str]:
+    """``--flag`` -> its description (default included) parsed from a ``lerobot-pnp <command> --help`` text."""
+    entries: dict[str, str] = {}
+    flag = None
+    lines = text.rstrip("\n").split("\n")
+    for line in lines[lines.index("options:") + 1 :]:
+        if line.startswith("  --"):
+            head, _, body = line[2:].partition("  ")  # flag and type use single spaces; the column gap is >= 2
+            flag = head.split(" ")[0]
+            entries[flag] = body.strip()
+        else:
+            assert flag and line.startswith(" " * 10), f"stray help line {line!r}"
+            entries[flag] += " " + line.strip()
+    return entries
+
+
+@pytest.mark.parametrize("name", list(cli.COMMANDS))
+def test_command_help_describes_every_field_in_one_entry(name, capsys, monkeypatch):
+    """Every option of every command has a description of its own (not only a default), short enough to read,
+    no LeRobot-derived field (env.features ...) is listed and no default is a long object repr."""
+    monkeypatch.setenv("COLUMNS", "120")
+    assert cli.main([name, "--help"]) == 0
+    text = capsys.readouterr().out
+    entries = _help_entries(text)
+    assert len(entries) > 3
+    for flag, body in entries.items():
+        description = body.split(" [default: ")[0].strip()
+        assert description and not description.startswith("[default:"), f"{name} {flag}: no description"
+        assert len(description) <= 260, f"{name} {flag}: a {len(description)}-character description"
+    assert not [f for f in entries if f.rsplit(".", 1)[-1] in ("features", "features_map", "input_features")]
+    assert "PolicyFeature(" not in text and "<NormalizationMode" not in text and "lerobot.configs" not in text
+    assert max(len(line) for line in text.split("\n")) <= 120
+
+
+def test_help_keeps_a_default_on_one_line():
+    from lerobot_pnp.cli_help import command_help
+    from lerobot_pnp.env_config import BaxterPnPEnvConfig
+
+    text = command_help("x", "summary", BaxterPnPEnvConfig)
+    assert "[default:\n" not in text and not any(line.strip().endswith("[default:") for line in text.split("\n"))
+    assert "--drop_window tuple[float, float]" in text and "[default: (0.0, 0.0)]" in text
+
+
 def test_help_names_every_preset(capsys):
     from lerobot_pnp.env_config import PRESETS
 
@@ -308,10 +351,15 @@ def test_in_process_eval_keeps_one_progress_bar_and_none_in_a_log(capsys):
 
 @pytest.mark.slow
 def test_stock_lerobot_train_help_documents_the_policy_fields(tmp_path):
-    """Our field docs are attribute docstrings, the form draccus (LeRobot's parser) shows; no '%' crash."""
-    proc = _run([_exe("lerobot-train"), "--policy.type=pnp_lstm", "--help"], tmp_path, timeout=120)
+    """Our field docs are attribute docstrings or field comments, the forms draccus (LeRobot's parser) shows: the
+    policy's and the env's task fields (one description each, the same as ``lerobot-pnp --help``); no '%' crash."""
+    cmd = [_exe("lerobot-train"), "--policy.type=pnp_lstm", "--env.type=baxter_pnp", "--help"]
+    proc = _run(cmd, tmp_path, timeout=120)
     assert proc.returncode == 0, proc.stderr[-2000:]
-    assert "LSTM hidden units." in proc.stdout and "Recovering mode: the longest episode" in proc.stdout
+    out = " ".join(proc.stdout.split())  # argparse wraps to the terminal
+    assert "LSTM hidden units." in out and "Recovering mode: the longest episode" in out
+    assert "--env.drop_prob [float] per chance: the object is knocked out of the gripper in transport" in out
+    assert "--env.carry_min_time [float] keyframe moves carrying the object" in out
 
 
 def test_train_with_a_malformed_config_file_is_one_line(tmp_path, capsys):

@@ -53,8 +53,9 @@ class DaggerConfig:
         preset: Task preset of the demonstrations (``full``); ignored with ``base_root``.
         env_changes: Task fields set on top of the preset (or of ``base_root``'s recorded task), e.g.
             ``{"observe_phase": true}`` for the phase-told memoryless control; validated by the env config.
-        base_root / base_repo_id: An existing keyframe dataset (its recorded task defines the env) used as the
-            round-0 data instead of generating ``num_demos`` demonstrations.
+        base_root: An existing keyframe dataset folder (its recorded task defines the env) used as the round-0
+            data instead of generating ``num_demos`` demonstrations.
+        base_repo_id: The repo id of ``base_root``; also the stem of the repo ids of the datasets written here.
         round0_checkpoint: A policy already trained on the round-0 data (a ``pretrained_model`` folder): round 0
             is not trained again, the first rollouts run this policy (the study's ``recovering_dagger``
             continues its ``recovering`` run of the same seed this way).
@@ -62,9 +63,16 @@ class DaggerConfig:
             at its preset probability, so recoveries are demonstrated); the last ``test_fraction`` is held out.
         rounds: DAgger rounds after round 0.
         rollouts_per_round: Policy episodes per round, cycled over ``rollout_suites``.
-        eval_suites / eval_episodes / eval_seed: The evaluation (same seeds ``eval_seed + i`` every round).
+        test_fraction: The fraction of the round-0 episodes (the last ones) held out of training.
+        rollout_suites: The suites (task variants) the policy's rollouts run under, one after another.
+        eval_suites: The suites every round's policy is evaluated on.
+        eval_episodes: Evaluation episodes per suite.
+        eval_seed: Evaluation episode ``i`` uses seed ``eval_seed + i``, the same every round.
         policy: The ``pnp_lstm`` config trained each round (``--policy.mode=recovering`` by default).
-        epochs / batch_size / seed: Fast-path training of each round.
+        epochs: Training epochs of each round (the fast path, ``lerobot-pnp train``).
+        batch_size: Episodes per training batch.
+        seed: The seed of the demonstrations, rollouts and training (the run is deterministic given it).
+        progress: Show progress bars (demonstrations, rollouts, training, evaluation).
     """
 
     output_dir: str = "outputs/dagger"

@@ -47,12 +47,12 @@ _CONTENT_FIELDS = ("repo_id", "seed", "num_episodes", "max_retries", "train_frac
 class SlurmOptions:
     """``--slurm.*``: resources of each SLURM array task (one shard) and of the merge job."""
 
-    partition: str = "cpu"
-    cpus_per_task: int = 1
+    partition: str = "cpu"  # SLURM partition (sbatch --partition) of the shard tasks and the merge job
+    cpus_per_task: int = 1  # CPUs per array task (sbatch --cpus-per-task)
     mem_per_cpu_gb: int = 2  # GB per CPU (an integer: sbatch rejects "1.5G")
     time: str = "04:00:00"  # per task, HH:MM:SS
-    qos: str | None = None
-    job_name: str = "pnp_generate"
+    qos: str | None = None  # SLURM quality of service (sbatch --qos); none = the cluster default
+    job_name: str = "pnp_generate"  # SLURM job name of the array; the merge job adds "_merge"
 
     def __post_init__(self):
         if self.cpus_per_task < 1 or self.mem_per_cpu_gb <= 0:
@@ -63,9 +63,9 @@ class SlurmOptions:
 class GenerateConfig:
     """``lerobot-pnp generate``: expert demonstrations as a LeRobotDataset v3.0."""
 
-    repo_id: str = "local/baxter_pnp_keyframe"
+    repo_id: str = "local/baxter_pnp_keyframe"  # the dataset's LeRobot repo id (owner/name), also its default folder
     root: str | None = None  # output folder; default outputs/datasets/<repo_id>
-    num_episodes: int = 1400
+    num_episodes: int = 1400  # episodes to record (slots; an expert failure is re-seeded, see max_retries)
     seed: int = 0  # episode slot i uses seed + i (retries: seed + i + num_episodes * r)
     env: BaxterPnPEnvConfig = field(default_factory=BaxterPnPEnvConfig)  # the task: --env.control_mode dense ...
     executor: str = "local"  # local (this machine) | slurm (sbatch array + merge job)

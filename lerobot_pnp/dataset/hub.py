@@ -13,11 +13,11 @@ from lerobot_pnp.errors import DatasetError
 class PushConfig:
     """``lerobot-pnp push``: upload a generated dataset to the Hugging Face Hub (tagged v3.0)."""
 
-    repo_id: str = "local/baxter_pnp_keyframe"
-    root: str | None = None  # default outputs/datasets/<repo_id>
-    private: bool = False
-    branch: str | None = None
-    push_videos: bool = True
+    repo_id: str = "local/baxter_pnp_keyframe"  # the Hub dataset repo (owner/name) to upload to
+    root: str | None = None  # the dataset folder to upload; default outputs/datasets/<repo_id>
+    private: bool = False  # create the Hub repo as private
+    branch: str | None = None  # Hub branch to push to; none = main
+    push_videos: bool = True  # also upload the videos/ folder (camera datasets)
     connect_timeout_s: float = 5.0  # fail fast when the Hub cannot be reached
 
     @property

@@ -123,7 +123,8 @@ class PnpLstmConfig(PreTrainedConfig):
 
     # Recovering mode (see recovering.py).
     mode: str = "clocked"
-    """``"clocked"`` (default; the paper: steps 0-4 PICK net, 5-9 PLACE net, fixed 10-frame episodes) or
+    """The network: ``"clocked"`` (the paper's two subtask nets on a fixed 10-frame clock) or ``"recovering"``
+    (one trunk over the whole episode, no clock). ``"clocked"`` (default; the paper: steps 0-4 PICK net, 5-9 PLACE net, fixed 10-frame episodes) or
     ``"recovering"`` (``recovering.RecoveringNet``: one trunk over the whole variable-length episode, no clock,
     state carried across the switch, PICK/PLACE heads mixed by a learned subtask classifier; runs until the env
     ends the episode). In recovering mode ``recurrent=False`` is the memoryless control with an MLP trunk of about
@@ -138,15 +139,12 @@ class PnpLstmConfig(PreTrainedConfig):
     demonstration commands it (``processor_pnp_lstm.BinaryGripperStep``). Off by default: the paper's planner
     regresses it."""
     subtask_loss_weight: float = 0.1
-    """Recovering mode: weights of the cross-entropy of the subtask switch (``phase.subtask``) and of the auxiliary
-    phase classifier (``phase.index``) next to the action MSE; used when the batch carries per-frame labels (the
-    fast path and DAgger; stock ``lerobot-train`` windows only observations and actions, so there the switch
-    learns from the action loss alone)."""
+    """Recovering mode: weight of the cross-entropy of the subtask switch (``phase.subtask``) next to the action
+    MSE. Used when the batch carries per-frame labels (the fast path and DAgger; stock ``lerobot-train`` windows
+    only observations and actions, so there the switch learns from the action loss alone)."""
     phase_loss_weight: float = 0.1
-    """Recovering mode: weights of the cross-entropy of the subtask switch (``phase.subtask``) and of the auxiliary
-    phase classifier (``phase.index``) next to the action MSE; used when the batch carries per-frame labels (the
-    fast path and DAgger; stock ``lerobot-train`` windows only observations and actions, so there the switch
-    learns from the action loss alone)."""
+    """Recovering mode: weight of the cross-entropy of the auxiliary phase classifier (``phase.index``) next to the
+    action MSE. Used, like ``subtask_loss_weight``, only when the batch carries per-frame labels."""
 
     def __post_init__(self) -> None:
         super().__post_init__()

@@ -116,17 +116,18 @@ PRESETS: dict[str, dict] = {
 class StudyConfig:
     """``lerobot-pnp demo`` / ``lerobot-pnp report``: the study (see the module doc for the presets)."""
 
-    output_dir: str = "outputs/demo"
-    preset: str = "demo"  # demo | quick | full
+    output_dir: str = "outputs/demo"  # everything the study writes (datasets, checkpoints, report.md); resumable
+    preset: str = "demo"  # the study's size: demo (the README's main run), quick (CI-sized) or full (the whole study)
     quick: bool = False  # shorthand for preset=quick
     full: bool = False  # shorthand for preset=full
     num_episodes: int | None = None  # demonstrations generated (80 % train / 20 % held out)
-    dataset_seed: int = 0
+    dataset_seed: int = 0  # seed of the first demonstration (episode i uses dataset_seed + i)
     # processes for generation and for the train-and-evaluate jobs (each single-threaded); 0 = one per core
     workers: int = 0
-    epochs: int | None = None
-    train_seeds: list[int] | None = None
-    methods: list[str] | None = None
+    epochs: int | None = None  # training epochs of each learned method that trains by epochs
+    train_seeds: list[int] | None = None  # one training (and evaluation) per learned method and seed
+    methods: list[str] | None = None  # methods compared (methods.METHODS), e.g. '["lookup_table", "clocked_lstm"]'
+    # evaluation suites and episodes of each, e.g. '[{"name": "nominal", "n_episodes": 100}]'; a group name: its sweep
     suites: list[SuiteSpec] | None = None
     data_efficiency: list[int] | None = None  # numbers of training demonstrations (clocked LSTM vs lookup)
     # episodes of the nominal suite re-run through the real `lerobot-eval` CLI (first learned method, first

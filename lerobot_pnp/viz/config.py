@@ -21,7 +21,7 @@ UNSEEN_SEED = 100_000
 class PolicyRef:
     """``--policy.path`` (LeRobot's spelling) is accepted as well as ``--policy_path``."""
 
-    path: str | None = None
+    path: str | None = None  # the same as --policy_path: a LeRobot checkpoint (pretrained_model folder)
 
 
 @dataclass
@@ -53,7 +53,7 @@ class VizConfig:
     seed: int | None = None
     compare_expert: bool = True  # run the FSM expert from each rollout's start state and log the differences
     log_hz: float = 25.0  # rate of the continuous samples (simulated time)
-    device: str = "cpu"
+    device: str = "cpu"  # torch device the policy runs on for rollouts (cpu, cuda, ...)
 
     def __post_init__(self) -> None:
         if isinstance(self.policy, dict):
