@@ -24,8 +24,8 @@ DAGGER = {
     "num_demos": 6,
     "rounds": 1,
     "rollouts_per_round": 2,
-    "rollout_suites": ["drop"],
-    "eval_suites": ["nominal"],
+    "rollout_suites": ["quiet_drop"],
+    "eval_suites": ["quiet"],
     "eval_episodes": 2,
     "epochs": 2,
     "progress": False,
@@ -327,7 +327,7 @@ def test_8_a_failed_slurm_submission_does_not_block_a_local_run(tmp_path, monkey
 def test_8_nan_and_zero_std_in_a_checkpoint_are_named_as_the_checkpoints(dagger_run, tmp_path, caplog):
     from safetensors.numpy import load_file, save_file
 
-    from lerobot_pnp.rollout import PolicyLoadError, load_policy
+    from lerobot_pnp.evaluation.checkpoints import PolicyLoadError, load_policy
 
     ckpt = _copy(dagger_run / CKPT, tmp_path / "ckpt")
     weights = load_file(ckpt / "model.safetensors")
