@@ -147,3 +147,50 @@ def test_dagger_table_uses_the_one_rate(tmp_path):
     (row,) = json.loads((tmp_path / "table.json").read_text())
     assert row["quiet"]["rate"] == 1.0 and row["quiet"]["wilson95"] == list(wilson_interval(10, 10))
     assert row["quiet"]["wilson95"][1] == 1.0 and "quiet_drop" not in row
+
+
+# ---------------------------------------------------------------------------------------------- evaluators
+def test_dagger_evaluate_equals_its_former_loop():
+    """DAgger's evaluation now runs ``evaluate_serial`` (``run_episode`` per seed); its dict is the one the former
+    hand-written loop (verbatim below) gave on the same env and seeds."""
+    import numpy as np
+
+    from lerobot_pnp.dagger import evaluate
+    from lerobot_pnp.dagger.rollouts import suite_env
+    from lerobot_pnp.env_config import BaxterPnPEnvConfig
+    from lerobot_pnp.evaluation.checkpoints import LoadedPolicy
+    from lerobot_pnp.expert import run_expert_episode
+    from lerobot_pnp.report.adapters import Episodes
+    from lerobot_pnp.report.baselines import LookupTablePolicy, identity_processors
+
+    base, seeds = BaxterPnPEnvConfig(preset="paper"), [3, 4, 5]
+    env = suite_env(base, "quiet")
+    demo = run_expert_episode(env, 3)  # replayed by the lookup table: a success on seed 3, failures elsewhere
+    env.close()
+    pre, post = identity_processors()
+    table = LookupTablePolicy(Episodes(np.arange(1), demo.object_positions[:1], [demo.actions]))
+    loaded = LoadedPolicy(table, pre, post, path=None, type="pnp_lookup_table")
+
+    def former(suite):
+        env = suite_env(base, suite)
+        successes, causes = 0, {}
+        for seed in seeds:
+            loaded.reset()
+            obs, info = env.reset(seed=seed)
+            while True:
+                obs, _, terminated, truncated, info = env.step(loaded.act(obs))
+                if terminated or truncated:
+                    break
+            if info.get("is_success"):
+                successes += 1
+            else:
+                cause = str(info.get("failure_cause") or "unknown")
+                causes[cause] = causes.get(cause, 0) + 1
+        env.close()
+        return {"suite": suite, "n": len(seeds), "successes": successes, "failures": causes}
+
+    for suite in ("quiet", "quiet_drop"):
+        got = evaluate(loaded, base, suite, seeds)
+        assert got == former(suite) and got["n"] == 3
+    assert evaluate(loaded, base, "quiet", [3])["successes"] == 1
+    assert evaluate(loaded, base, "quiet_drop", [3])["failures"] == {"dropped": 1}

@@ -121,23 +121,8 @@ def labelled_rollout(env, policy: LoadedPolicy, seed: int, suite: str = "") -> L
 
 def evaluate(policy: LoadedPolicy, base_cfg, suite: str, seeds: list[int], progress=None) -> dict:
     """Success of ``policy`` on ``suite`` over ``seeds`` (one env, seeded resets), with failures by cause."""
-    env = suite_env(base_cfg, suite)
-    successes, causes = 0, {}
-    try:
-        for seed in seeds:
-            policy.reset()
-            obs, info = env.reset(seed=seed)
-            while True:
-                obs, _, terminated, truncated, info = env.step(policy.act(obs))
-                if terminated or truncated:
-                    break
-            if info.get("is_success"):
-                successes += 1
-            else:
-                cause = str(info.get("failure_cause") or "unknown")
-                causes[cause] = causes.get(cause, 0) + 1
-            if progress is not None:
-                progress.update(1)
-    finally:
-        env.close()
-    return {"suite": suite, "n": len(seeds), "successes": successes, "failures": causes}
+    from lerobot_pnp.evaluation.episodes import evaluate_serial
+    from lerobot_pnp.evaluation.records import summarize
+
+    counts = summarize(evaluate_serial(policy, SUITES[suite].env_configs(base_cfg)[0], seeds, progress))
+    return {"suite": suite, "n": counts["n"], "successes": counts["successes"], "failures": counts["by_cause"]}

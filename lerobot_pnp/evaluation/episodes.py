@@ -1,6 +1,7 @@
 """The evaluators: a policy run closed-loop in the env, episode by episode or with stock LeRobot ``eval_policy``.
 
-``run_episode`` runs one seeded episode of a ``LoadedPolicy`` in one env and keeps the trajectory. It mirrors
+``run_episode`` runs one seeded episode of a ``LoadedPolicy`` in one env and keeps the trajectory
+(``evaluate_serial`` runs it on a list of seeds and keeps a record of each: DAgger's evaluation). It mirrors
 the per-step pipeline of ``lerobot-eval``'s rollout (gym observation -> ``preprocess_observation`` -> task ->
 policy pre-processor -> ``select_action`` -> post-processor -> ``env.step``), so the viewer (``lerobot_pnp.viz``)
 watches exactly what ``lerobot-eval`` would run. Set ``env.unwrapped.physics.on_control_tick`` before it to
@@ -212,4 +213,30 @@ def run_episode(
         successes=np.asarray(successes, dtype=bool),
         success=bool(successes and successes[-1]),
         phases=np.asarray(phases, dtype=np.int64) if all(p is not None for p in phases) else None,
+        info=info,
     )
+
+
+def evaluate_serial(
+    loaded: LoadedPolicy, env_cfg: BaxterPnPEnvConfig, seeds: list[int], progress: Any = None
+) -> list[EpisodeRecord]:
+    """``loaded`` on ``seeds`` in one env built from ``env_cfg``: seeded resets, each episode until the env ends
+    it (success or its step limit), one record per episode (``progress.update(1)`` after each). DAgger's
+    evaluation: a ``LoadedPolicy`` episode by episode, where the study runs stock ``eval_policy``."""
+    env = make_env(env_cfg)
+    records = []
+    start: dict[str, np.ndarray] = {}
+
+    def keep_start(k: int, obs: dict, action: np.ndarray) -> None:
+        if k == 0:  # before the first step: the true start position of the object
+            start["xy"] = env.unwrapped.physics.object_pose()[0][:2].copy()
+
+    try:
+        for seed in seeds:
+            ep = run_episode(env, loaded, seed, on_step=keep_start)
+            records.append(EpisodeRecord.from_info(seed, ep.info, ep.num_steps, start["xy"]))
+            if progress is not None:
+                progress.update(1)
+    finally:
+        env.close()
+    return records
