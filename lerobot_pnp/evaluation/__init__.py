@@ -11,6 +11,7 @@ One of each concept, so a name means one thing everywhere:
   DAgger's), the serial evaluator built on it, and stock LeRobot ``eval_policy`` with per-episode records (the
   study's).
 
-Modules are imported by name (``from lerobot_pnp.evaluation.suites import SUITES``): this package imports
-nothing at import time, so the catalogue does not pull in torch.
+Modules are imported by name (``from lerobot_pnp.evaluation.suites import SUITES``): this ``__init__`` imports
+nothing, so a caller of one module loads only what that module needs (the catalogue needs no gymnasium wrapper
+and no LeRobot eval script).
 """
