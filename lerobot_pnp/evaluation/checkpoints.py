@@ -7,7 +7,7 @@ scene through cameras, images ``observation.images.<camera>`` only of the env's 
 that its weights and normalisation stats are finite; it raises ``IncompatiblePolicyError`` /
 ``PolicyLoadError`` (one line) otherwise. With ``env_cfg`` the policy is built the way ``lerobot-eval`` builds
 it (``make_policy(cfg, env_cfg=...)``: the study's path); without, from the checkpoint alone (the viewer's and
-DAgger's path). ``lerobot_pnp.evaluation.episodes`` runs the loaded policy.
+DAgger's path). ``policy_action`` is one step of it; ``lerobot_pnp.evaluation.episodes`` runs it for whole episodes.
 """
 
 from __future__ import annotations
@@ -52,9 +52,7 @@ class LoadedPolicy:
                 reset()
 
     def act(self, obs: dict, task: str = robot.TASK) -> np.ndarray:
-        """One step on a single gym observation (``episodes.policy_action``)."""
-        from lerobot_pnp.evaluation.episodes import policy_action
-
+        """One step on a single gym observation (``policy_action``)."""
         return policy_action(self, obs, task)
 
 
@@ -196,3 +194,18 @@ def check_checkpoint_values(ckpt: Path, policy: Any, processors: tuple) -> None:
                             "checkpoint %s: %s has std 0 in dims %s (constant in its training data)",
                             ckpt, feature, np.flatnonzero(array.reshape(-1) == 0).tolist(),
                         )  # fmt: skip
+
+
+def policy_action(loaded: LoadedPolicy, obs: dict, task: str) -> np.ndarray:
+    """One policy step on a single (unbatched) gym observation; returns the (8,) env action."""
+    import torch
+    from lerobot.envs.utils import preprocess_observation
+
+    keep_pixels = bool(image_inputs(loaded.policy.config))  # state policies never see the env's renders
+    batch = preprocess_observation({k: v for k, v in obs.items() if k != "pixels" or keep_pixels})
+    batch["task"] = [task]
+    batch = loaded.preprocessor(batch)
+    with torch.inference_mode():
+        action = loaded.policy.select_action(batch)
+    action = loaded.postprocessor(action)
+    return action.to("cpu").numpy().reshape(-1).astype(np.float32)

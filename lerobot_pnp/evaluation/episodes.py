@@ -33,7 +33,7 @@ import torch
 from lerobot_pnp import robot
 from lerobot_pnp.env_config import BaxterPnPEnvConfig, make_env
 from lerobot_pnp.errors import ExpertFailure, PnPError, UnreachableError
-from lerobot_pnp.evaluation.checkpoints import IncompatiblePolicyError, LoadedPolicy, image_inputs
+from lerobot_pnp.evaluation.checkpoints import IncompatiblePolicyError, LoadedPolicy, policy_action
 from lerobot_pnp.evaluation.records import EpisodeRecord
 
 NEW_ROLLOUT_OPTION = "lerobot_new_rollout"  # what lerobot's rollout passes on a genuine reset
@@ -152,20 +152,6 @@ class PolicyEpisode:
     @property
     def num_steps(self) -> int:
         return len(self.actions)
-
-
-def policy_action(loaded: LoadedPolicy, obs: dict, task: str) -> np.ndarray:
-    """One policy step on a single (unbatched) gym observation; returns the (8,) env action."""
-    from lerobot.envs.utils import preprocess_observation
-
-    keep_pixels = bool(image_inputs(loaded.policy.config))  # state policies never see the env's renders
-    batch = preprocess_observation({k: v for k, v in obs.items() if k != "pixels" or keep_pixels})
-    batch["task"] = [task]
-    batch = loaded.preprocessor(batch)
-    with torch.inference_mode():
-        action = loaded.policy.select_action(batch)
-    action = loaded.postprocessor(action)
-    return action.to("cpu").numpy().reshape(-1).astype(np.float32)
 
 
 def run_episode(
