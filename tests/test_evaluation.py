@@ -53,16 +53,8 @@ def test_sign_test_and_paired_comparison():
 
 # ---------------------------------------------------------------------------------------------- suites
 # DAgger's catalogue before it joined the one catalogue (dagger/rollouts.py NOMINAL / SUITES), verbatim.
-_OLD_NOMINAL = {
-    "nudge_max": 0.0,
-    "grasp_miss_prob": 0.0,
-    "drop_prob": 0.0,
-    "displace_prob": 0.0,
-    "obs_noise_object": 0.0,
-    "obs_noise_joints": 0.0,
-    "obs_bias_object": 0.0,
-    "obs_latency": 0,
-}
+_OFF = ("nudge_max", "grasp_miss_prob", "drop_prob", "displace_prob", "obs_noise_object", "obs_noise_joints")
+_OLD_NOMINAL = {**dict.fromkeys((*_OFF, "obs_bias_object"), 0.0), "obs_latency": 0}
 _OLD_DAGGER_SUITES = {
     "nominal": _OLD_NOMINAL,
     "grasp_miss": {**_OLD_NOMINAL, "grasp_miss_prob": 1.0},
@@ -87,8 +79,9 @@ _OLD_DAGGER_SUITES = {
 def test_renamed_dagger_suites_keep_their_env_changes(old):
     from lerobot_pnp.dagger.config import _RENAMED
 
-    new = SUITES[_RENAMED[old]]
-    assert new.parts == (_OLD_DAGGER_SUITES[old],)
+    (changes,) = SUITES[_RENAMED[old]].parts
+    assert changes == _OLD_DAGGER_SUITES[old]
+    assert {k: type(v) for k, v in changes.items()} == {k: type(v) for k, v in _OLD_DAGGER_SUITES[old].items()}
 
 
 def test_dagger_suite_env_is_the_catalogue_change_on_the_base_task():
