@@ -37,16 +37,16 @@ _RENAMED = {
 }
 
 
-def _suite_problems(names: list[str]) -> list[str]:
-    """What is wrong with a list of DAgger suite names (retired DAgger names, unknown or multi-part suites)."""
+def _suite_problems(field_name: str, names: list[str]) -> list[str]:
+    """What is wrong with the list ``field_name`` of suite names (retired DAgger names, unknown or multi-part)."""
     if any(s in _RENAMED and s not in SUITES for s in names):
         renames = ", ".join(f"{s!r} -> {_RENAMED[s]!r}" for s in dict.fromkeys(names) if s in _RENAMED)
-        return [f"suites {names} use DAgger's old suite names; rename them: {renames}"]
+        return [f"{field_name} {names} uses DAgger's old suite names; rename them: {renames}"]
     problems = []
     if unknown := [s for s in names if s not in SUITES]:
-        problems.append(f"unknown suites {unknown}; choose from {sorted(SUITES)}")
+        problems.append(f"{field_name}: unknown suites {unknown}; choose from {sorted(SUITES)}")
     if multi := [s for s in names if s in SUITES and len(SUITES[s].parts) != 1]:
-        problems.append(f"suites {multi} have several parts; DAgger runs one env per suite")
+        problems.append(f"{field_name}: suites {multi} have several parts; DAgger runs one env per suite")
     return problems
 
 
@@ -92,6 +92,9 @@ class DaggerConfig:
             at its preset probability, so recoveries are demonstrated); the last ``test_fraction`` is held out.
         rounds: DAgger rounds after round 0.
         rollouts_per_round: Policy episodes per round, cycled over ``rollout_suites``.
+        rollout_suites: Suites of the one catalogue (``lerobot_pnp.evaluation.suites``, one part each) that the
+            rollouts cycle over: ``nominal`` (the task as recorded), the ``quiet*`` suites (every perturbation off,
+            then one at a time).
         eval_suites / eval_episodes / eval_seed: The evaluation (same seeds ``eval_seed + i`` every round).
         policy: The ``pnp_lstm`` config trained each round (``--policy.mode=recovering`` by default).
         epochs / batch_size / seed: Fast-path training of each round.
@@ -119,7 +122,8 @@ class DaggerConfig:
 
     def __post_init__(self) -> None:
         checks = [
-            *((False, problem) for problem in _suite_problems([*self.rollout_suites, *self.eval_suites])),
+            *((False, problem) for problem in _suite_problems("rollout_suites", self.rollout_suites)),
+            *((False, problem) for problem in _suite_problems("eval_suites", self.eval_suites)),
             (self.rounds >= 0, f"rounds must be >= 0, got {self.rounds}"),
             (self.num_demos >= 2, f"num_demos must be >= 2, got {self.num_demos}"),
             (0.0 < self.test_fraction < 1.0, f"test_fraction must be in (0, 1), got {self.test_fraction}"),
