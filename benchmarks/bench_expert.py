@@ -1,7 +1,7 @@
 """The scripted expert on every task suite: success over seeded episodes, failures by cause and phase.
 
 Issue targets: >= 99.5 % on `paper`, on `full` and on each perturbation alone (1000 episodes each); >= 99 % on
-every suite of the held-out-disturbance protocol (``report.suites.HELD_OUT_AXES``, on the `full` training task;
+every suite of the held-out-disturbance protocol (``evaluation.suites.HELD_OUT_AXES``, on the `full` training task;
 issue 19, >= 200 episodes each).
 
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_expert.py --episodes 1000 --out outputs/bench_expert.json
@@ -18,13 +18,13 @@ from pathlib import Path
 
 import lerobot_pnp  # noqa: F401  (registers the env)
 from lerobot_pnp.env_config import NARROW_FULL_DISTURBANCES, BaxterPnPEnvConfig
+from lerobot_pnp.evaluation.stats import wilson_interval as wilson
+from lerobot_pnp.evaluation.suites import HELD_OUT_AXES, SUITES
 from lerobot_pnp.expert_eval import ExpertEvalConfig, evaluate_expert
-from lerobot_pnp.report.stats import wilson_interval as wilson
-from lerobot_pnp.report.suites import HELD_OUT_AXES
-from lerobot_pnp.report.suites import SUITES as CATALOGUE
 
 BUDGET = {"keyframe_budget": 40}  # room for recoveries
-SUITES: dict[str, dict] = {
+# Whole tasks (env configs), not changes to a training task: a preset each, with its own names.
+PRESET_SUITES: dict[str, dict] = {
     "paper": {},
     "full": {"preset": "full"},
     "full, narrow (before issue 19)": {"preset": "full", **NARROW_FULL_DISTURBANCES},
@@ -48,15 +48,17 @@ PROTOCOL = list(dict.fromkeys(n for axis in HELD_OUT_AXES for n in (*axis.in_dis
 
 def env_config(name: str) -> BaxterPnPEnvConfig:
     if name in PROTOCOL:
-        return CATALOGUE[name].env_configs(BaxterPnPEnvConfig(preset="full"))[0]
-    return BaxterPnPEnvConfig(**SUITES[name])
+        return SUITES[name].env_configs(BaxterPnPEnvConfig(preset="full"))[0]
+    return BaxterPnPEnvConfig(**PRESET_SUITES[name])
 
 
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--episodes", type=int, default=1000)
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--suites", nargs="*", default=list(SUITES), help="names, or 'protocol' for all of those")
+    parser.add_argument(
+        "--suites", nargs="*", default=list(PRESET_SUITES), help="names, or 'protocol' for all of those"
+    )
     parser.add_argument("--out", type=Path, default=Path("outputs/bench_expert.json"))
     args = parser.parse_args(argv)
     results = {}

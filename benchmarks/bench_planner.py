@@ -113,7 +113,7 @@ def train(root: Path, repo: str, test: str, policy, cfg: DaggerConfig, out_dir: 
 
 
 def latency(ckpt: Path, calls: int = 2000) -> float:
-    from lerobot_pnp.rollout import load_policy
+    from lerobot_pnp.evaluation.checkpoints import load_policy
 
     p = load_policy(ckpt).policy
     feats = p.config.input_features
@@ -133,7 +133,7 @@ def latency(ckpt: Path, calls: int = 2000) -> float:
 def cli_check(cfg: DaggerConfig, out: Path, rnd: int) -> dict:
     """Stock ``lerobot-eval`` (subprocess) on round ``rnd``'s checkpoint, suite by suite, against the
     in-process evaluation of the same seeds (``round_XX/eval.json``)."""
-    from lerobot_pnp.dagger.rollouts import SUITES
+    from lerobot_pnp.evaluation.suites import SUITES
     from lerobot_pnp.report.cli_eval import EvalSpec, run_eval
 
     rdir = out / "dagger" / f"round_{rnd:02d}"
@@ -141,7 +141,7 @@ def cli_check(cfg: DaggerConfig, out: Path, rnd: int) -> dict:
     in_process = json.loads((rdir / "eval.json").read_text())
     report = {}
     for suite in cfg.eval_suites:
-        spec = EvalSpec(suite, cfg.eval_episodes, dict(SUITES[suite]))
+        spec = EvalSpec(suite, cfg.eval_episodes, dict(SUITES[suite].parts[0]))  # DAgger suites have one part
         res = run_eval(ckpt, out / "lerobot_eval" / f"round_{rnd:02d}" / suite, spec, cfg.eval_seed, 50)
         ok = sum(res["per_episode"].values())
         report[suite] = {"successes": ok, "n": len(res["per_episode"]), "in_process": in_process[suite]["successes"]}

@@ -4,7 +4,7 @@
 
 a. Time to target (fast path): ``train_fast`` on the keyframe dataset with a checkpoint every
    ``--ckpt_every`` epochs; each checkpoint is rolled out closed loop in-process with
-   ``lerobot_pnp.rollout.run_policy_episode`` (the same pipeline as ``lerobot-eval``: preprocess_observation
+   ``lerobot_pnp.evaluation.episodes.run_episode`` (the same pipeline as ``lerobot-eval``: preprocess_observation
    -> pre-processor -> select_action -> post-processor -> env.step) on ``--curve_episodes`` unseen seeds
    (100000 + i; the dataset uses seeds < 20000). "Wall time to target" = from calling ``train_fast`` (dataset
    load included) to the checkpoint file of the first checkpoint whose success >= ``--target`` %; the
@@ -76,12 +76,13 @@ def _env(env_args: dict):
 
 def rollout_success(ckpt: Path, n_episodes: int, env_args: dict | None = None, seed: int = EVAL_SEED) -> dict:
     """Closed-loop success (%) of a checkpoint over seeds seed .. seed + n - 1 (in-process rollouts)."""
-    from lerobot_pnp.rollout import load_policy, run_policy_episode
+    from lerobot_pnp.evaluation.checkpoints import load_policy
+    from lerobot_pnp.evaluation.episodes import run_episode
 
     loaded = load_policy(ckpt)
     env = _env(env_args or {})
     start = time.perf_counter()
-    ok = sum(run_policy_episode(env, loaded, seed + i).success for i in range(n_episodes))
+    ok = sum(run_episode(env, loaded, seed + i).success for i in range(n_episodes))
     return {"pc_success": 100.0 * ok / n_episodes, "n_episodes": n_episodes, "eval_s": time.perf_counter() - start}
 
 
@@ -175,7 +176,7 @@ def bench_time_to_target(args, dataset, work: Path) -> dict:
                     continue
             reached = point
     out = {
-        "eval_method": f"in-process rollout.run_policy_episode on {args.curve_episodes} unseen seeds "
+        "eval_method": f"in-process evaluation.episodes.run_episode on {args.curve_episodes} unseen seeds "
         f"{EVAL_SEED}..{EVAL_SEED + args.curve_episodes - 1}",
         "epochs": args.epochs,
         "ckpt_every_epochs": args.ckpt_every,
@@ -301,7 +302,7 @@ def bench_latency(args, ckpt: Path) -> dict:
     from lerobot.policies.act.configuration_act import ACTConfig
     from lerobot.policies.act.modeling_act import ACTPolicy
 
-    from lerobot_pnp.rollout import load_policy
+    from lerobot_pnp.evaluation.checkpoints import load_policy
 
     log("\n=== c. select_action latency (CPU, 1 torch thread) ===")
     loaded = load_policy(ckpt)

@@ -2,7 +2,7 @@
 
 Usage: ``python benchmarks/image_policies_table.py OUT run [run ...]`` (runs are folders ``OUT/eval_<run>``).
 Every run was evaluated on the same seeded episodes, so the exact McNemar p-value against the first run is
-given too (``lerobot_pnp.report.stats``, the study's own statistics).
+given too (``lerobot_pnp.evaluation.stats``, the study's own statistics).
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ import json
 import sys
 from pathlib import Path
 
-from lerobot_pnp.report.stats import rate, sign_test_p
+from lerobot_pnp.evaluation.stats import Rate, sign_test_p
 
 
 def successes(eval_dir: Path) -> list[bool]:
@@ -37,7 +37,7 @@ def table(out: Path, runs: list[str]) -> str:
         losses = sum(b and not a for a, b in zip(got, first, strict=True))
         p = "-" if run == runs[0] else f"{sign_test_p(wins, losses):.2g}"
         train_s = took.get(f"train_{run}", "?")
-        rows.append(f"| {run} | {rate(got)} | {len(got)} | {p} | {train_s} | {took.get(f'eval_{run}', '?')} |")
+        rows.append(f"| {run} | {Rate.of(got)} | {len(got)} | {p} | {train_s} | {took.get(f'eval_{run}', '?')} |")
     return "\n".join(rows)
 
 

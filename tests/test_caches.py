@@ -24,8 +24,8 @@ DAGGER = {
     "num_demos": 6,
     "rounds": 1,
     "rollouts_per_round": 2,
-    "rollout_suites": ["drop"],
-    "eval_suites": ["nominal"],
+    "rollout_suites": ["quiet_drop"],
+    "eval_suites": ["quiet"],
     "eval_episodes": 2,
     "epochs": 2,
     "progress": False,
@@ -336,7 +336,8 @@ def test_8_a_failed_slurm_submission_does_not_block_a_local_run(tmp_path, monkey
 def test_8_nan_and_zero_std_in_a_checkpoint_are_named_as_the_checkpoints(dagger_run, tmp_path, caplog):
     from safetensors.numpy import load_file, save_file
 
-    from lerobot_pnp.rollout import PolicyLoadError, load_policy
+    from lerobot_pnp.env_config import BaxterPnPEnvConfig
+    from lerobot_pnp.evaluation.checkpoints import IncompatiblePolicyError, PolicyLoadError, load_policy
 
     ckpt = _copy(dagger_run / CKPT, tmp_path / "ckpt")
     weights = load_file(ckpt / "model.safetensors")
@@ -344,6 +345,8 @@ def test_8_nan_and_zero_std_in_a_checkpoint_are_named_as_the_checkpoints(dagger_
     save_file({**weights, name: np.full_like(weights[name], np.nan)}, ckpt / "model.safetensors")
     with pytest.raises(PolicyLoadError, match=f"corrupt: its weights .*{name}.* contain NaN"):
         load_policy(ckpt)
+    with pytest.raises(PolicyLoadError, match=f"weights '{name}' contain NaN"):  # the study's path checks too
+        load_policy(ckpt, env_cfg=BaxterPnPEnvConfig(preset="full"))
     (ckpt / "model.safetensors").write_bytes((dagger_run / CKPT / "model.safetensors").read_bytes())
     stats_file = next(ckpt.glob("policy_preprocessor_step_*normalizer*.safetensors"))
     stats = load_file(stats_file)
@@ -352,6 +355,10 @@ def test_8_nan_and_zero_std_in_a_checkpoint_are_named_as_the_checkpoints(dagger_
     with caplog.at_level("WARNING"):
         load_policy(ckpt)
     assert "std 0" in caplog.text
+    # with an env config, the environment_state must be that env's exactly (the dagger run's task is `full`)
+    assert load_policy(ckpt, env_cfg=BaxterPnPEnvConfig(preset="full")).policy.config.type == "pnp_lstm"
+    with pytest.raises(IncompatiblePolicyError, match=r"environment_state' has shape \(7,\), this env gives \(3,\)"):
+        load_policy(ckpt, env_cfg=BaxterPnPEnvConfig(preset="paper"))
     mean = next(k for k in stats if k.endswith(".mean"))
     save_file({**stats, mean: np.full_like(stats[mean], np.inf)}, stats_file)
     with pytest.raises(PolicyLoadError, match="normalisation stats .* contain NaN/inf"):

@@ -276,8 +276,8 @@ def test_policy_feature_check_accepts_every_task_width_and_names_a_wrong_one():
     feature check; another width fails with a message naming the feature."""
     from lerobot.configs import FeatureType, PolicyFeature
 
+    from lerobot_pnp.evaluation.checkpoints import IncompatiblePolicyError, check_policy_features
     from lerobot_pnp.policy import PnpLstmConfig
-    from lerobot_pnp.rollout import IncompatiblePolicyError, check_policy_features
 
     def config(env_width):
         cfg = PnpLstmConfig()

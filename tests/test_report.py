@@ -1,11 +1,10 @@
-"""The reproduction study: statistics, suites, the lookup-table baseline, the episode recorder, and (slow)
+"""The reproduction study: suites, the lookup-table baseline, the episode recorder, and (slow)
 the ``--quick`` study end to end: a report is written and the clocked LSTM beats the lookup table under a
 nudge on the same seeds."""
 
 from __future__ import annotations
 
 import json
-import math
 
 import numpy as np
 import pytest
@@ -13,36 +12,9 @@ import torch
 
 from lerobot_pnp.env_config import PAPER_TASK, BaxterPnPEnvConfig
 from lerobot_pnp.errors import ConfigError, PolicyError
+from lerobot_pnp.evaluation.suites import SUITES, get_suites
 from lerobot_pnp.report.adapters import Episodes
 from lerobot_pnp.report.baselines import LookupTablePolicy
-from lerobot_pnp.report.stats import paired_comparison, sign_test_p, wilson_interval
-from lerobot_pnp.report.suites import SUITES, get_suites
-
-
-# ---------------------------------------------------------------------------------------------- stats
-def test_wilson_interval_matches_reference_values():
-    lo, hi = wilson_interval(50, 100)
-    assert (round(lo, 4), round(hi, 4)) == (0.4038, 0.5962)
-    lo, hi = wilson_interval(0, 10)
-    assert lo == 0 and math.isclose(hi, 0.2775, abs_tol=1e-4)
-    lo, hi = wilson_interval(10, 10)
-    assert hi == 1 and math.isclose(lo, 0.7225, abs_tol=1e-4)
-    with pytest.raises(ValueError):
-        wilson_interval(3, 0)
-
-
-def test_sign_test_and_paired_comparison():
-    assert math.isclose(sign_test_p(10, 0), 2 / 1024)
-    assert sign_test_p(5, 5) == 1.0
-    assert sign_test_p(0, 0) == 1.0
-    a = {s: True for s in range(100)}
-    b = {s: s >= 20 for s in range(100)}  # b fails the first 20 seeds, a fails none
-    c = paired_comparison(a, b)
-    assert (c.n, c.a_only, c.b_only) == (100, 20, 0)
-    assert math.isclose(c.difference, 0.2) and c.significant()
-    assert not paired_comparison(a, a).significant()
-    with pytest.raises(ValueError, match="share no"):
-        paired_comparison({1: True}, {2: True})
 
 
 # ---------------------------------------------------------------------------------------------- suites
@@ -119,8 +91,8 @@ def test_lookup_table_rejects_a_task_with_other_observations():
 # ---------------------------------------------------------------------------------------------- evaluation
 def test_recorder_agrees_with_eval_policy_and_explains_failures():
     """A policy that never moves fails every episode; the records carry seeds, causes and start positions."""
+    from lerobot_pnp.evaluation.episodes import eval_lerobot_policy
     from lerobot_pnp.report.baselines import identity_processors
-    from lerobot_pnp.report.evaluation import eval_lerobot_policy
 
     class Still(LookupTablePolicy):
         def select_action(self, batch, **kwargs):

@@ -35,7 +35,7 @@ def study(tmp_path_factory):
 def test_act_trains_saves_loads_and_runs_dense_episodes(study):
     from lerobot.policies.act.modeling_act import ACTPolicy
 
-    from lerobot_pnp.report.evaluation import load_checkpoint
+    from lerobot_pnp.evaluation.checkpoints import load_policy
 
     out, _, _ = study
     for seed in (1000, 1001):
@@ -57,7 +57,7 @@ def test_act_trains_saves_loads_and_runs_dense_episodes(study):
 
     # the two training seeds give different weights
     weights = [
-        load_checkpoint(adapters.checkpoint_of(out / "train" / "act" / f"seed{s}"), BaxterPnPEnvConfig())[0]
+        load_policy(adapters.checkpoint_of(out / "train" / "act" / f"seed{s}"), env_cfg=BaxterPnPEnvConfig()).policy
         for s in (1000, 1001)
     ]
     assert isinstance(weights[0], ACTPolicy)

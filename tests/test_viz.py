@@ -1,4 +1,4 @@
-"""Tests of the Rerun viewer (lerobot_pnp/viz/) and the policy rollout helper (lerobot_pnp/rollout.py).
+"""Tests of the Rerun viewer (lerobot_pnp/viz/) and the policy rollout helper (lerobot_pnp/evaluation/episodes.py).
 
 Recordings are written headless (``save=...rrd``) and read back with Rerun's own reader
 (``rerun.experimental.RrdReader``): entity paths, rows per timeline and logged values are checked against
@@ -367,7 +367,7 @@ def test_policy_rollout_recording(policy_dir, tmp_path):
     # (another code path, the same teacher) gives the same labels. From the common start they agree with the
     # expert's own run; after the untrained policy's first step the states, and so the labels, differ.
     from lerobot_pnp.dagger.rollouts import labelled_rollout
-    from lerobot_pnp.rollout import load_policy
+    from lerobot_pnp.evaluation.checkpoints import load_policy
 
     dagger = labelled_rollout(
         make_env(BaxterPnPEnvConfig(preset="paper"), render_mode=None), load_policy(policy_dir), 3
@@ -406,21 +406,22 @@ def test_rollout_task_from_task_source(policy_dir, custom_dataset, tmp_path):
         VizConfig(policy_path=str(policy_dir), env_changes={"drop_probability": 1.0})
 
 
-def test_run_policy_episode_is_deterministic(policy_dir):
-    """rollout.run_policy_episode follows LeRobot's eval pipeline; the same seed gives the same episode."""
-    from lerobot_pnp.rollout import load_policy, run_policy_episode
+def test_run_episode_is_deterministic(policy_dir):
+    """evaluation.episodes.run_episode follows LeRobot's eval pipeline; the same seed gives the same episode."""
+    from lerobot_pnp.evaluation.checkpoints import load_policy
+    from lerobot_pnp.evaluation.episodes import run_episode
 
     loaded = load_policy(policy_dir)
     assert loaded.type == "pnp_lstm"
-    a = run_policy_episode(make_env(None, render_mode=None), loaded, seed=5)
-    b = run_policy_episode(make_env(None, render_mode=None), loaded, seed=5)
+    a = run_episode(make_env(None, render_mode=None), loaded, seed=5)
+    b = run_episode(make_env(None, render_mode=None), loaded, seed=5)
     assert a.actions.shape == (10, 8) and a.states.shape == (11, 8)
     np.testing.assert_array_equal(a.actions, b.actions)
 
 
 # ---------------------------------------------------------------------------------------------- bad input
 def test_bad_inputs(dataset, policy_dir, tmp_path):
-    from lerobot_pnp.rollout import IncompatiblePolicyError, PolicyLoadError
+    from lerobot_pnp.evaluation.checkpoints import IncompatiblePolicyError, PolicyLoadError
     from lerobot_pnp.viz import DatasetNotFoundError, EpisodeNotFoundError, VizConfig, visualize
 
     save = str(tmp_path / "x.rrd")
@@ -592,7 +593,7 @@ def test_image_policy_rollout_shows_its_camera(dataset, tmp_path):
     fmt = images["Image:format"][0][0]
     assert (fmt["height"], fmt["width"]) == (32, 32)
 
-    from lerobot_pnp.rollout import IncompatiblePolicyError
+    from lerobot_pnp.evaluation.checkpoints import IncompatiblePolicyError
 
     wrong = VizConfig(policy_path=str(ckpt), env_changes={"image_height": 48}, save=str(tmp_path / "w.rrd"))
     with pytest.raises(IncompatiblePolicyError, match="is 32x32; the env renders it at"):

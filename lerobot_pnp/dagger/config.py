@@ -8,15 +8,46 @@ from typing import Any
 
 from lerobot_pnp.env_config import TASK_FIELDS
 from lerobot_pnp.errors import ConfigError
+from lerobot_pnp.evaluation.suites import SUITES
 from lerobot_pnp.policy import PnpLstmConfig
-
-from .rollouts import SUITES
 
 # Rollouts under observation latency are left out by default: their recorded observations are already late,
 # and training shows half of all episodes one step later still (policy.latency_augment_prob). With an earlier
 # recipe that had no late episodes, adding them also cost nominal success (round 1: 93 % with, 98.5 % without).
-DEFAULT_ROLLOUT_SUITES = ["full", "grasp_miss", "drop", "nudge", "displace"]
-DEFAULT_EVAL_SUITES = ["nominal", "grasp_miss", "drop", "nudge", "displace", "noise_latency"]
+DEFAULT_ROLLOUT_SUITES = ["nominal", "quiet_grasp_miss", "quiet_drop", "quiet_nudge_0.03", "quiet_displace"]
+DEFAULT_EVAL_SUITES = [
+    "quiet", "quiet_grasp_miss", "quiet_drop", "quiet_nudge_0.03", "quiet_displace", "quiet_noise_latency",
+]  # fmt: skip
+
+# DAgger's own suite names before the one catalogue (lerobot_pnp.evaluation.suites), and the catalogue entry
+# with the same env changes. Several old names are catalogue names with another meaning (DAgger's "nominal" had
+# every perturbation off; the catalogue's is the training task unchanged), so a list that still holds one of
+# the retired names is refused with the renames, rather than read with the new meanings.
+_RENAMED = {
+    "full": "nominal",
+    "nominal": "quiet",
+    "grasp_miss": "quiet_grasp_miss",
+    "drop": "quiet_drop",
+    "nudge": "quiet_nudge_0.03",
+    "displace": "quiet_displace",
+    "noise_latency": "quiet_noise_latency",
+    "noise": "quiet_noise",
+    "bias": "quiet_bias",
+    "latency": "quiet_latency",
+}
+
+
+def _suite_problems(field_name: str, names: list[str]) -> list[str]:
+    """What is wrong with the list ``field_name`` of suite names (retired DAgger names, unknown or multi-part)."""
+    if any(s in _RENAMED and s not in SUITES for s in names):
+        renames = ", ".join(f"{s!r} -> {_RENAMED[s]!r}" for s in dict.fromkeys(names) if s in _RENAMED)
+        return [f"{field_name} {names} uses DAgger's old suite names; rename them: {renames}"]
+    problems = []
+    if unknown := [s for s in names if s not in SUITES]:
+        problems.append(f"{field_name}: unknown suites {unknown}; choose from {sorted(SUITES)}")
+    if multi := [s for s in names if s in SUITES and len(SUITES[s].parts) != 1]:
+        problems.append(f"{field_name}: suites {multi} have several parts; DAgger runs one env per suite")
+    return problems
 
 
 # The recovering planner's recipe (``configs/dagger.json``; how each part was chosen: docs/results/planner.md).
@@ -64,8 +95,10 @@ class DaggerConfig:
         rounds: DAgger rounds after round 0.
         rollouts_per_round: Policy episodes per round, cycled over ``rollout_suites``.
         test_fraction: The fraction of the round-0 episodes (the last ones) held out of training.
-        rollout_suites: The suites (task variants) the policy's rollouts run under, one after another.
-        eval_suites: The suites every round's policy is evaluated on.
+        rollout_suites: Suites of the one catalogue (``lerobot_pnp.evaluation.suites``, one part each) that the
+            rollouts cycle over: ``nominal`` (the task as recorded), the ``quiet*`` suites (every perturbation off,
+            then one at a time).
+        eval_suites: The suites every round's policy is evaluated on (same catalogue).
         eval_episodes: Evaluation episodes per suite.
         eval_seed: Evaluation episode ``i`` uses seed ``eval_seed + i``, the same every round.
         policy: The ``pnp_lstm`` config trained each round (``--policy.mode=recovering`` by default).
@@ -96,9 +129,9 @@ class DaggerConfig:
     progress: bool = True
 
     def __post_init__(self) -> None:
-        unknown = [s for s in (*self.rollout_suites, *self.eval_suites) if s not in SUITES]
         checks = [
-            (not unknown, f"unknown suites {unknown}; choose from {sorted(SUITES)}"),
+            *((False, problem) for problem in _suite_problems("rollout_suites", self.rollout_suites)),
+            *((False, problem) for problem in _suite_problems("eval_suites", self.eval_suites)),
             (self.rounds >= 0, f"rounds must be >= 0, got {self.rounds}"),
             (self.num_demos >= 2, f"num_demos must be >= 2, got {self.num_demos}"),
             (0.0 < self.test_fraction < 1.0, f"test_fraction must be in (0, 1), got {self.test_fraction}"),

@@ -41,11 +41,11 @@ from lerobot_pnp.cache import (
     same_env_configs,
     write_json_atomic,
 )
-from lerobot_pnp.rollout import load_policy
+from lerobot_pnp.evaluation.checkpoints import load_policy
+from lerobot_pnp.evaluation.stats import Rate
 
 from .config import DaggerConfig
 from .rollouts import evaluate, expert_episode, labelled_rollout, suite_env
-from .stats import rate_cell, wilson
 from .writer import aggregate, write_episodes
 
 logger = logging.getLogger(__name__)
@@ -94,7 +94,7 @@ def _demos(cfg: DaggerConfig, out: Path, env_cfg) -> tuple[Path, str, str, str]:
                    repo_id=repo_id)  # fmt: skip
     if not stage.done("dagger demos"):
         stage.invalidate()
-        env = suite_env(env_cfg, "full")
+        env = suite_env(env_cfg, "nominal")  # the task as recorded (DAgger's former "full")
         episodes, seed = [], cfg.seed
         with _tqdm(n, "expert demos", cfg.progress) as bar:
             while len(episodes) < n:
@@ -209,21 +209,11 @@ def write_table(rows: list[tuple[str, dict]], suites: list[str], out: Path) -> s
     lines = ["| policy | " + " | ".join(suites) + " |", "|---" * (len(suites) + 1) + "|"]
     data = []
     for name, res in rows:
-        cells = [rate_cell(res[s]["successes"], res[s]["n"]) if s in res else "-" for s in suites]
+        rates = {s: Rate(res[s]["successes"], res[s]["n"]) for s in suites if s in res}
+        cells = [str(rates[s]) if s in rates else "-" for s in suites]
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
         data.append(
-            {
-                "policy": name,
-                **{
-                    s: {
-                        **res[s],
-                        "rate": res[s]["successes"] / max(res[s]["n"], 1),
-                        "wilson95": wilson(res[s]["successes"], res[s]["n"]),
-                    }
-                    for s in suites
-                    if s in res
-                },
-            }
+            {"policy": name, **{s: {**res[s], "rate": r.rate, "wilson95": r.interval} for s, r in rates.items()}}
         )
     table = "\n".join(lines) + "\n"
     (out / "table.md").write_text(table)

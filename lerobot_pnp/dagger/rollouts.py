@@ -2,60 +2,27 @@
 
 ``FSMExpert(env).label()`` plans the expert's next keyframe from the current physical state without side
 effects, so every state the *policy* visits gets the keyframe a perfect teacher would command there (DAgger).
-The env is always built with ``make_env`` from an env config (the dataset's recorded task + suite changes).
+The env is always built with ``make_env`` from an env config (the dataset's recorded task + the changes of a
+suite of the one catalogue, ``lerobot_pnp.evaluation.suites``).
 """
 
 from __future__ import annotations
-
-from typing import Any
 
 import numpy as np
 
 from lerobot_pnp import robot
 from lerobot_pnp.errors import ExpertFailure, UnreachableError
-from lerobot_pnp.rollout import LoadedPolicy
+from lerobot_pnp.evaluation.checkpoints import LoadedPolicy
+from lerobot_pnp.evaluation.suites import SUITES
 
 from .writer import LabelledEpisode
 
-# Evaluation / rollout suites: changes applied to the `full` task. "nominal" is the full task (random
-# object pose and yaw, random place target, mass and friction ranges) with every perturbation off: no
-# events (nudge, missed grasp, drop, displacement) and exact, current observations.
-NOMINAL: dict[str, Any] = {
-    "nudge_max": 0.0,
-    "grasp_miss_prob": 0.0,
-    "drop_prob": 0.0,
-    "displace_prob": 0.0,
-    "obs_noise_object": 0.0,
-    "obs_noise_joints": 0.0,
-    "obs_bias_object": 0.0,
-    "obs_latency": 0,
-}
-SUITES: dict[str, dict[str, Any]] = {
-    "nominal": NOMINAL,
-    "grasp_miss": {**NOMINAL, "grasp_miss_prob": 1.0},
-    "drop": {**NOMINAL, "drop_prob": 1.0},
-    "nudge": {**NOMINAL, "nudge_max": 0.03},
-    "displace": {**NOMINAL, "displace_prob": 1.0},
-    "noise_latency": {
-        **NOMINAL,
-        "obs_noise_object": 0.003,
-        "obs_noise_joints": 0.005,
-        "obs_bias_object": 0.003,
-        "obs_latency": 1,
-    },
-    # noise_latency's parts, one at a time (to tell which one a policy fails on)
-    "noise": {**NOMINAL, "obs_noise_object": 0.003, "obs_noise_joints": 0.005},
-    "bias": {**NOMINAL, "obs_bias_object": 0.003},
-    "latency": {**NOMINAL, "obs_latency": 1},
-    "full": {},  # the full preset as recorded (every perturbation at its preset probability)
-}
-
 
 def suite_env(base_cfg, suite: str):
-    """The env for ``suite``: the base task config with the suite's changes, built by ``make_env``."""
+    """The env for the catalogue's ``suite`` (one part): the base task config with its changes (``make_env``)."""
     from lerobot_pnp.env_config import make_env
 
-    return make_env(base_cfg.with_changes(**SUITES[suite]))
+    return make_env(SUITES[suite].env_configs(base_cfg)[0])
 
 
 def expert_episode(env, seed: int, suite: str = "") -> LabelledEpisode | None:
@@ -154,23 +121,8 @@ def labelled_rollout(env, policy: LoadedPolicy, seed: int, suite: str = "") -> L
 
 def evaluate(policy: LoadedPolicy, base_cfg, suite: str, seeds: list[int], progress=None) -> dict:
     """Success of ``policy`` on ``suite`` over ``seeds`` (one env, seeded resets), with failures by cause."""
-    env = suite_env(base_cfg, suite)
-    successes, causes = 0, {}
-    try:
-        for seed in seeds:
-            policy.reset()
-            obs, info = env.reset(seed=seed)
-            while True:
-                obs, _, terminated, truncated, info = env.step(policy.act(obs))
-                if terminated or truncated:
-                    break
-            if info.get("is_success"):
-                successes += 1
-            else:
-                cause = str(info.get("failure_cause") or "unknown")
-                causes[cause] = causes.get(cause, 0) + 1
-            if progress is not None:
-                progress.update(1)
-    finally:
-        env.close()
-    return {"suite": suite, "n": len(seeds), "successes": successes, "failures": causes}
+    from lerobot_pnp.evaluation.episodes import evaluate_serial
+    from lerobot_pnp.evaluation.records import summarize
+
+    counts = summarize(evaluate_serial(policy, SUITES[suite].env_configs(base_cfg)[0], seeds, progress))
+    return {"suite": suite, "n": counts["n"], "successes": counts["successes"], "failures": counts["by_cause"]}

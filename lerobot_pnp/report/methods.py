@@ -37,9 +37,11 @@ from lerobot_pnp.cache import STAGE_FILE, Stage, code_versions, remove
 from lerobot_pnp.dagger import RECOVERING_RECIPE
 from lerobot_pnp.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.errors import ConfigError
+from lerobot_pnp.evaluation.checkpoints import load_policy
+from lerobot_pnp.evaluation.episodes import eval_expert, eval_lerobot_policy
+from lerobot_pnp.evaluation.records import EpisodeRecord
+from lerobot_pnp.evaluation.suites import RECOVERY_BUDGET
 from lerobot_pnp.report import act_baseline, adapters
-from lerobot_pnp.report.evaluation import EpisodeRecord, eval_expert, eval_lerobot_policy, load_checkpoint
-from lerobot_pnp.report.suites import RECOVERY_BUDGET
 
 
 @dataclass
@@ -116,8 +118,8 @@ def _pnp_lstm_trainer(overrides: dict) -> Callable[[TrainContext], Path]:
 
 
 def _checkpoint_eval(artifact, ctx, env_cfg, n, start_seed, batch_size):
-    policy, pre, post = load_checkpoint(artifact, env_cfg)
-    return eval_lerobot_policy(policy, pre, post, env_cfg, n, start_seed, batch_size)
+    lp = load_policy(artifact, env_cfg=env_cfg)
+    return eval_lerobot_policy(lp.policy, lp.preprocessor, lp.postprocessor, env_cfg, n, start_seed, batch_size)
 
 
 def pnp_lstm_method(name: str, label: str, description: str, **overrides) -> Method:

@@ -16,7 +16,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from lerobot_pnp import robot
-from lerobot_pnp.report.stats import Rate
+from lerobot_pnp.evaluation.stats import Rate
 
 PANELS_PER_ROW = 4  # heat maps and failure panels wrap after this many methods
 

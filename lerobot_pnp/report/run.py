@@ -28,12 +28,12 @@ from pathlib import Path
 from lerobot_pnp.cache import MANIFEST_FILE, STAGE_FILE, Manifest, Stage, code_versions, lock_output, remove
 from lerobot_pnp.env_config import BaxterPnPEnvConfig, read_recorded
 from lerobot_pnp.errors import ConfigError
+from lerobot_pnp.evaluation.records import records_from_json, records_to_json
+from lerobot_pnp.evaluation.suites import get_suites
 from lerobot_pnp.report import adapters
 from lerobot_pnp.report.adapters import check_same_demonstrations
-from lerobot_pnp.report.evaluation import records_from_json, records_to_json
 from lerobot_pnp.report.methods import TrainContext, get_methods, keyed_train, train_stage
 from lerobot_pnp.report.stages import dataset_stage, eval_stage, written_by_the_study
-from lerobot_pnp.report.suites import get_suites
 
 # The recordings a method can train on besides the keyframe dataset (``Method.data``): what they are and the
 # env-config changes they are generated with (the same seeds, so the same demonstrations).

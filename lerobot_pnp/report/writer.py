@@ -14,9 +14,9 @@ from dataclasses import asdict
 from pathlib import Path
 
 from lerobot_pnp import robot
+from lerobot_pnp.evaluation.stats import Rate, paired_comparison
+from lerobot_pnp.evaluation.suites import RECOVERY_BUDGET, SUITES
 from lerobot_pnp.report import adapters, plots
-from lerobot_pnp.report.stats import Rate, paired_comparison
-from lerobot_pnp.report.suites import RECOVERY_BUDGET, SUITES
 
 BASELINE = "lookup_table"
 RECOVERY_FIGURE_SUITES = ("nominal", "slack", "nudge_0.05", "grasp_miss", "drop", "displace")
@@ -250,7 +250,7 @@ def _markdown(cfg, methods, results, suite_names, table, comparisons, figures, s
         "| method | suite | failures by cause | by furthest phase |",
         "|---|---|---|---|",
     ]
-    from lerobot_pnp.report.evaluation import summarize
+    from lerobot_pnp.evaluation.records import summarize
 
     for m in methods:
         for s in suite_names:

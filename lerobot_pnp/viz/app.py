@@ -43,7 +43,7 @@ def visualize(cfg: VizConfig) -> dict:
         replay_cfg = replay_config(ds)
     loaded, policy_cfg = None, None
     if cfg.policy_path is not None:
-        from lerobot_pnp.rollout import check_policy_features, image_inputs, load_policy
+        from lerobot_pnp.evaluation.checkpoints import check_policy_features, image_inputs, load_policy
 
         loaded = load_policy(cfg.policy_path, device=cfg.device)
         cams = image_inputs(loaded.policy.config)

@@ -59,7 +59,7 @@ def rollout_with_expert(
     """Run the policy from ``seed`` (sampled continuously) and, optionally, the expert from the same start."""
     from lerobot_pnp.dagger.rollouts import Teacher
     from lerobot_pnp.dataset.episodes import PixelRecorder
-    from lerobot_pnp.rollout import run_policy_episode
+    from lerobot_pnp.evaluation.episodes import run_episode
 
     env = PixelRecorder(make_env(config, render_mode=None))
     base = env.unwrapped
@@ -80,7 +80,7 @@ def rollout_with_expert(
             labels.append(_label(teacher[0]))
 
     try:
-        pe = run_policy_episode(env, loaded, seed, on_step=on_step)
+        pe = run_episode(env, loaded, seed, on_step=on_step)
         frame_samples.append(sampler.sample())  # the final observation
         qpos = physics.data.qpos.copy()
         place_target = physics.place_target().round(4).tolist()

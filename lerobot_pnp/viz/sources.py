@@ -24,7 +24,7 @@ from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_STATE
 from lerobot_pnp import robot
 from lerobot_pnp.env_config import BaxterPnPEnvConfig, make_env, read_recorded
 from lerobot_pnp.errors import DatasetError
-from lerobot_pnp.rollout import ENV_STATE_WIDTHS
+from lerobot_pnp.evaluation.checkpoints import ENV_STATE_WIDTHS
 from lerobot_pnp.viz.sampling import Frames, Run, Sampler, run_events
 from lerobot_pnp.viz.scene import SceneModel
 

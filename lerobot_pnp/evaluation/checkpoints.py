@@ -1,20 +1,18 @@
-"""Run a LeRobot policy checkpoint in the Baxter env and collect the trajectory (one env, no vectorisation).
+"""The one strict loader of a LeRobot policy checkpoint (any registered policy type), checked against this env.
 
-This mirrors the per-step pipeline of ``lerobot-eval``'s rollout (gym observation -> ``preprocess_observation``
--> task -> policy pre-processor -> ``select_action`` -> post-processor -> ``env.step``) for a single, seeded
-episode, so the viewer (``lerobot_pnp.viz``) can watch exactly what ``lerobot-eval`` would run.
-
-``load_policy`` checks that the checkpoint fits this env (``observation.state`` (8,),
-``observation.environment_state`` (3,) unless it sees the scene through cameras, images
-``observation.images.<camera>`` only of the env's cameras, ``action`` (8,)) and raises
-``IncompatiblePolicyError`` otherwise. Set ``env.unwrapped.physics.on_control_tick`` before ``run_policy_episode`` to
-observe the continuous motion between steps.
+``load_policy`` accepts a ``pretrained_model`` folder, a checkpoint step folder or a training run folder. It
+checks that the checkpoint fits this env (``observation.state`` (8,), ``observation.environment_state`` of one
+of the widths a task can give (``ENV_STATE_WIDTHS``; exactly the env's with ``env_cfg``) unless it sees the
+scene through cameras, images ``observation.images.<camera>`` only of the env's cameras, ``action`` (8,)) and
+that its weights and normalisation stats are finite; it raises ``IncompatiblePolicyError`` /
+``PolicyLoadError`` (one line) otherwise. With ``env_cfg`` the policy is built the way ``lerobot-eval`` builds
+it (``make_policy(cfg, env_cfg=...)``: the study's path); without, from the checkpoint alone (the viewer's and
+DAgger's path). ``policy_action`` is one step of it; ``lerobot_pnp.evaluation.episodes`` runs it for whole episodes.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -56,25 +54,6 @@ class LoadedPolicy:
     def act(self, obs: dict, task: str = robot.TASK) -> np.ndarray:
         """One step on a single gym observation (``policy_action``)."""
         return policy_action(self, obs, task)
-
-
-@dataclass
-class PolicyEpisode:
-    """One closed-loop episode. Row ``k`` of ``states``/``object_positions`` is the observation the policy saw
-    at step ``k``; ``actions[k]`` is what it answered. The last row of ``states`` is the final observation."""
-
-    seed: int
-    states: np.ndarray  # (T+1, 8)
-    object_positions: np.ndarray  # (T+1, 3)
-    actions: np.ndarray  # (T, 8)
-    successes: np.ndarray  # (T,) env success flag after each step
-    success: bool
-    phases: np.ndarray | None = None  # (T+1,) FSM phase of each observation, where the env reports info["phase"]
-    info: dict = field(default_factory=dict)
-
-    @property
-    def num_steps(self) -> int:
-        return len(self.actions)
 
 
 def resolve_checkpoint(path: str | Path) -> Path:
@@ -154,10 +133,14 @@ def check_policy_features(
         )
 
 
-def load_policy(path: str | Path, device: str = "cpu") -> LoadedPolicy:
-    """Load a LeRobot checkpoint (any registered policy type) with its processors, checked against this env."""
+def load_policy(path: str | Path, device: str = "cpu", env_cfg: Any = None) -> LoadedPolicy:
+    """Load a LeRobot checkpoint with its processors, checked against this env.
+
+    With ``env_cfg`` (a ``BaxterPnPEnvConfig``) the policy is built by ``make_policy(cfg, env_cfg=env_cfg)``,
+    exactly as ``lerobot-eval`` does (its features become the env's; no postprocessor override); without,
+    by its class's ``from_pretrained`` with the postprocessor on the CPU (the actions go to the env as numpy)."""
     from lerobot.configs import PreTrainedConfig
-    from lerobot.policies.factory import get_policy_class, make_pre_post_processors
+    from lerobot.policies.factory import get_policy_class, make_policy, make_pre_post_processors
 
     import lerobot_pnp  # noqa: F401  (registers pnp_lstm)
 
@@ -166,18 +149,18 @@ def load_policy(path: str | Path, device: str = "cpu") -> LoadedPolicy:
         config = PreTrainedConfig.from_pretrained(ckpt)
     except Exception as err:  # draccus / json errors: unknown policy type, corrupt file
         raise PolicyLoadError(f"cannot read the policy config {ckpt / CONFIG_NAME}: {err}") from err
-    check_policy_features(config)
+    check_policy_features(config, None if env_cfg is None else len(env_cfg.environment_state_names))
     # lerobot issue #4647: set pretrained_path by hand, or the processors are rebuilt without their stats.
     config.pretrained_path = ckpt
     config.device = device
+    overrides = {"preprocessor_overrides": {"device_processor": {"device": device}}}
     try:
-        policy = get_policy_class(config.type).from_pretrained(ckpt, config=config)
-        preprocessor, postprocessor = make_pre_post_processors(
-            config,
-            pretrained_path=str(ckpt),
-            preprocessor_overrides={"device_processor": {"device": device}},
-            postprocessor_overrides={"device_processor": {"device": "cpu"}},
-        )
+        if env_cfg is not None:
+            policy = make_policy(cfg=config, env_cfg=env_cfg)
+        else:
+            policy = get_policy_class(config.type).from_pretrained(ckpt, config=config)
+            overrides["postprocessor_overrides"] = {"device_processor": {"device": "cpu"}}
+        preprocessor, postprocessor = make_pre_post_processors(config, pretrained_path=str(ckpt), **overrides)
     except Exception as err:
         raise PolicyLoadError(f"cannot load the policy from {ckpt}: {err}") from err
     check_checkpoint_values(ckpt, policy, (preprocessor, postprocessor))
@@ -226,51 +209,3 @@ def policy_action(loaded: LoadedPolicy, obs: dict, task: str) -> np.ndarray:
         action = loaded.policy.select_action(batch)
     action = loaded.postprocessor(action)
     return action.to("cpu").numpy().reshape(-1).astype(np.float32)
-
-
-def run_policy_episode(
-    env: Any,
-    loaded: LoadedPolicy,
-    seed: int,
-    *,
-    max_steps: int | None = None,
-    reset_options: dict | None = None,
-    on_step: Callable[[int, dict, np.ndarray], None] | None = None,
-) -> PolicyEpisode:
-    """Reset ``env`` with ``seed`` and run the policy until success or ``max_steps`` (default: the env's limit).
-
-    ``on_step(k, obs, action)`` is called before each step is applied.
-    """
-    base = env.unwrapped
-    if max_steps is None:
-        max_steps = base.config.episode_length
-    loaded.reset()
-    obs, info = env.reset(seed=seed, options=reset_options)
-    phases = [info.get("phase")]
-    states = [np.asarray(obs["agent_pos"], np.float32)]
-    objects = [np.asarray(obs["environment_state"], np.float32)]
-    actions, successes = [], []
-    task = getattr(base, "task_description", robot.TASK)
-    for k in range(max_steps):
-        action = policy_action(loaded, obs, task)
-        if action.shape != (robot.ACTION_DIM,) or not np.all(np.isfinite(action)):
-            raise IncompatiblePolicyError(f"policy returned an invalid action at step {k}: {action.tolist()}")
-        if on_step is not None:
-            on_step(k, obs, action)
-        obs, _, terminated, truncated, info = env.step(action)
-        actions.append(action)
-        successes.append(bool(info.get("is_success", False)))
-        phases.append(info.get("phase"))
-        states.append(np.asarray(obs["agent_pos"], np.float32))
-        objects.append(np.asarray(obs["environment_state"], np.float32))
-        if terminated or truncated:
-            break
-    return PolicyEpisode(
-        seed=seed,
-        states=np.stack(states),
-        object_positions=np.stack(objects),
-        actions=np.stack(actions) if actions else np.zeros((0, robot.ACTION_DIM), np.float32),
-        successes=np.asarray(successes, dtype=bool),
-        success=bool(successes and successes[-1]),
-        phases=np.asarray(phases, dtype=np.int64) if all(p is not None for p in phases) else None,
-    )

@@ -49,9 +49,10 @@ class Rate:
         lo, hi = self.interval
         return f"{100 * self.rate:.1f}% [{100 * lo:.1f}, {100 * hi:.1f}]"
 
-
-def rate(outcomes: Sequence[bool]) -> Rate:
-    return Rate(int(sum(bool(o) for o in outcomes)), len(outcomes))
+    @classmethod
+    def of(cls, outcomes: Sequence[bool]) -> Rate:
+        """The rate of a list of episode outcomes (True = success)."""
+        return cls(int(sum(bool(o) for o in outcomes)), len(outcomes))
 
 
 def sign_test_p(wins: int, losses: int) -> float:

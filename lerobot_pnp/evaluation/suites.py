@@ -11,6 +11,10 @@ are one box minus another, see ``band``). Every method sees exactly the same see
 
 Perturbations that need room to recover (missed grasp, drop, displacement) raise the keyframe budget
 to ``RECOVERY_BUDGET`` keyframe steps: with the paper's 10 steps not even the expert could recover.
+
+DAgger evaluates and rolls out on the ``quiet*`` suites: every perturbation of the training task switched off
+(``quiet``), then one event at probability 1 or one observation fault on top, with the keyframe budget as
+trained. ``nominal`` (the training task unchanged) is what DAgger called ``full``.
 """
 
 from __future__ import annotations
@@ -141,7 +145,42 @@ def _catalogue() -> dict[str, Suite]:
             ({"place_low": (0.50, -0.20), "place_high": (0.70, -0.05)},),
         ),
     ]
-    return {s.name: s for s in [*suites, *_held_out_protocol()]}
+    return {s.name: s for s in [*suites, *_held_out_protocol(), *_quiet_suites()]}
+
+
+# Every perturbation off: no events (nudge, missed grasp, drop, displacement), exact and current observations.
+_QUIET: dict[str, Any] = {
+    "nudge_max": 0.0,
+    "grasp_miss_prob": 0.0,
+    "drop_prob": 0.0,
+    "displace_prob": 0.0,
+    "obs_noise_object": 0.0,
+    "obs_noise_joints": 0.0,
+    "obs_bias_object": 0.0,
+    "obs_latency": 0,
+}
+_OBS_NOISE = {"obs_noise_object": 0.003, "obs_noise_joints": 0.005}
+
+
+def _quiet_suites() -> list[Suite]:
+    """DAgger's suites: the training task with every perturbation off, plus one thing at a time."""
+    one = {
+        "quiet_grasp_miss": ("a missed grasp in every episode", {"grasp_miss_prob": 1.0}),
+        "quiet_drop": ("a drop in transport in every episode", {"drop_prob": 1.0}),
+        "quiet_nudge_0.03": ("object pushed up to 0.03 m before the grasp", {"nudge_max": 0.03}),
+        "quiet_displace": ("the object moved after its release in every episode", {"displace_prob": 1.0}),
+        "quiet_noise_latency": (
+            "noisy, biased observations one step old",
+            {**_OBS_NOISE, "obs_bias_object": 0.003, "obs_latency": 1},
+        ),
+        # quiet_noise_latency's parts, one at a time (to tell which one a policy fails on)
+        "quiet_noise": ("Gaussian noise on the observed object and joints", _OBS_NOISE),
+        "quiet_bias": ("a constant bias on the observed object position", {"obs_bias_object": 0.003}),
+        "quiet_latency": ("observations one step old", {"obs_latency": 1}),
+    }
+    quiet = Suite("quiet", "the training task with every perturbation off (events and observation faults)", (_QUIET,))
+    return [quiet, *(Suite(name, f"{desc}, every other perturbation off", ({**_QUIET, **changes},))
+                     for name, (desc, changes) in one.items())]  # fmt: skip
 
 
 # ---------------------------------------------------------------------------------------------- held-out protocol
@@ -237,11 +276,12 @@ def _held_out_protocol() -> list[Suite]:
     return suites
 
 
+_TRAIN_KINDS = tuple(f"train_{k}" for k in KINDS)
 HELD_OUT_AXES: tuple[Axis, ...] = (
     Axis(
         "timing",
         "when the disturbance happens within its window",
-        tuple(f"train_{k}" for k in KINDS),
+        _TRAIN_KINDS,
         tuple(f"heldout_late_{k}" for k in KINDS),
     ),
     Axis(
@@ -250,12 +290,7 @@ HELD_OUT_AXES: tuple[Axis, ...] = (
         ("train_drop", "train_displace", "train_nudge"),
         ("heldout_far_drop", "heldout_far_displace", "heldout_far_nudge"),
     ),
-    Axis(
-        "count",
-        "events of one kind per episode",
-        tuple(f"train_{k}" for k in KINDS),
-        tuple(f"heldout_double_{k}" for k in KINDS),
-    ),
+    Axis("count", "events of one kind per episode", _TRAIN_KINDS, tuple(f"heldout_double_{k}" for k in KINDS)),
     Axis(
         "latency", "how old the observations are", ("train_latency",), ("heldout_latency_2", "heldout_latency_jitter")
     ),
