@@ -1,0 +1,80 @@
+"""The shipped recovering recipe trained on `full` (the training condition), evaluated on the held-out
+protocol's suites (stock eval_policy in process, the study's evaluator); numbers in docs/notes_i19.md.
+
+    lerobot-pnp generate --repo_id local/baxter_pnp_full19 --root outputs/ds_full --num_episodes 1000 \
+        --env.preset full
+    python scripts/heldout_protocol_eval.py train 41       # max_episode_length, as configs/dagger.json
+    python scripts/heldout_protocol_eval.py eval 100 [suite,suite,...]   # -> outputs/item4/eval.json
+"""
+
+import json
+import sys
+import time
+from pathlib import Path
+
+from lerobot_pnp.dagger.config import RECOVERING_RECIPE
+from lerobot_pnp.env_config import BaxterPnPEnvConfig
+from lerobot_pnp.policy.configuration_pnp_lstm import PnpLstmConfig
+from lerobot_pnp.report.evaluation import eval_lerobot_policy, load_checkpoint
+from lerobot_pnp.report.stats import wilson_interval
+from lerobot_pnp.report.suites import HELD_OUT_AXES, SUITES
+
+root, out = Path("outputs/ds_full"), Path("outputs/item4")
+stage = sys.argv[1]
+if stage == "train":
+    from lerobot_pnp.train_fast import TrainFastConfig, train_fast
+
+    policy = PnpLstmConfig(
+        **RECOVERING_RECIPE,
+        max_episode_length=int(sys.argv[2]),
+        subtask_loss_weight=0.1,
+        phase_loss_weight=0.1,
+        device="cpu",
+        push_to_hub=False,
+    )
+    t = time.time()
+    res = train_fast(
+        TrainFastConfig(
+            dataset_repo_id="local/baxter_pnp_full19",
+            dataset_root=str(root),
+            policy=policy,
+            epochs=300,
+            batch_size=32,
+            seed=0,
+            output_dir=str(out / "train"),
+            overwrite=True,
+            progress=False,
+        )
+    )
+    (out / "train_done.json").write_text(
+        json.dumps(
+            {**res.summary(), "checkpoint": str(res.checkpoint_dir), "wall_s": time.time() - t}, indent=2, default=str
+        )
+    )
+else:
+    ckpt = Path(json.loads((out / "train_done.json").read_text())["checkpoint"])
+    base = BaxterPnPEnvConfig(task_source=str(root))
+    n = int(sys.argv[2])
+    names = ["nominal"] + list(dict.fromkeys(x for a in HELD_OUT_AXES for x in (*a.in_distribution, *a.held_out)))
+    if len(sys.argv) > 3:
+        names = sys.argv[3].split(",")
+    results = json.loads((out / "eval.json").read_text()) if (out / "eval.json").is_file() else {}
+    for name in names:
+        if name in results:
+            continue
+        cfg = SUITES[name].env_configs(base)[0]
+        policy, pre, post = load_checkpoint(ckpt, cfg)
+        t = time.time()
+        recs = eval_lerobot_policy(policy, pre, post, cfg, n, 10_000_000, 10)
+        k = sum(r.success for r in recs)
+        lo, hi = wilson_interval(k, n)
+        causes = {}
+        for r in recs:
+            if not r.success:
+                causes[r.failure_cause] = causes.get(r.failure_cause, 0) + 1
+        results[name] = {"successes": k, "n": n, "wilson95": [lo, hi], "failures": causes, "wall_s": time.time() - t}
+        print(
+            f"{name:<26} {k}/{n} = {100 * k / n:5.1f} % [{100 * lo:5.1f}, {100 * hi:5.1f}] {causes} {time.time() - t:.0f}s",
+            flush=True,
+        )
+        (out / "eval.json").write_text(json.dumps(results, indent=2))
