@@ -14,10 +14,11 @@ from pathlib import Path
 
 from lerobot_pnp.dagger.config import RECOVERING_RECIPE
 from lerobot_pnp.env_config import BaxterPnPEnvConfig
+from lerobot_pnp.evaluation.checkpoints import load_policy
+from lerobot_pnp.evaluation.episodes import eval_lerobot_policy
+from lerobot_pnp.evaluation.stats import wilson_interval
+from lerobot_pnp.evaluation.suites import HELD_OUT_AXES, SUITES
 from lerobot_pnp.policy.configuration_pnp_lstm import PnpLstmConfig
-from lerobot_pnp.report.evaluation import eval_lerobot_policy, load_checkpoint
-from lerobot_pnp.report.stats import wilson_interval
-from lerobot_pnp.report.suites import HELD_OUT_AXES, SUITES
 
 root, out = Path("outputs/ds_full"), Path("outputs/item4")
 stage = sys.argv[1]
@@ -63,7 +64,8 @@ else:
         if name in results:
             continue
         cfg = SUITES[name].env_configs(base)[0]
-        policy, pre, post = load_checkpoint(ckpt, cfg)
+        lp = load_policy(ckpt, env_cfg=cfg)
+        policy, pre, post = lp.policy, lp.preprocessor, lp.postprocessor
         t = time.time()
         recs = eval_lerobot_policy(policy, pre, post, cfg, n, 10_000_000, 10)
         k = sum(r.success for r in recs)
