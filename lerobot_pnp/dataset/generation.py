@@ -30,6 +30,7 @@ from lerobot_pnp.dataset.executors import (
 )
 from lerobot_pnp.dataset.merge import GENERATION_FILE, MergeShards, merge_and_commit
 from lerobot_pnp.dataset.shards import GenerateShard, shard_dir, shard_is_valid
+from lerobot_pnp.dataset.splits import TRAIN_FRACTION, recorded_task_path
 from lerobot_pnp.dataset.validation import WORK_DIR, read_json, validate_dataset, write_json_atomic
 from lerobot_pnp.dataset.workdir import RootLock, disk_error, remove_generation, root_state
 from lerobot_pnp.env_config import BaxterPnPEnvConfig
@@ -73,7 +74,7 @@ class GenerateConfig:
     workers: int = 0  # local: tasks run at once (0 = one per core); slurm: max array tasks at once (0 = no cap)
     slurm: SlurmOptions = field(default_factory=SlurmOptions)
     logging_dir: str | None = None  # datatrove logs; default ROOT/.pnp_work/logs (local), ROOT.logs (slurm)
-    train_fraction: float = 0.8  # first episodes -> "train", the rest -> "test" (meta/info.json "splits")
+    train_fraction: float = TRAIN_FRACTION  # first episodes -> "train", the rest -> "test" (meta/info.json "splits")
     max_retries: int = 10  # reseeds per slot when the expert fails
     resume: bool = False  # finish an interrupted run in root (completed shards are kept)
     overwrite: bool = False  # delete the dataset (or interrupted run) in root first; other files are kept
@@ -176,7 +177,7 @@ def _generate_locked(cfg: GenerateConfig, root: Path, t_start: float) -> dict:
     if state == "complete":  # --resume on a finished dataset: verify it matches and report
         info = validate_dataset(root)
         record = read_json(root / GENERATION_FILE, "generation record")
-        _check_same_run(record.get("generation", {}), cfg, read_json(root / "meta/baxter_pnp_env.json", "env"))
+        _check_same_run(record.get("generation", {}), cfg, read_json(recorded_task_path(root), "env"))
         if cfg.subtask_annotations:
             annotate_subtasks(root)
         return {"root": str(root), "status": "already complete", "episodes": info["total_episodes"],

@@ -103,7 +103,9 @@ class _Run:
         return ckpt / "pretrained_model"
 
 
-def _seed_everything(seed: int) -> None:
+def seed_everything(seed: int) -> None:
+    """Seed Python's, numpy's and torch's global generators (LeRobot's ``set_seed``, with numpy's seed taken
+    modulo 2**32: numpy accepts 32 bits, the configs accept seeds up to 2**63). The trainers call it first."""
     random.seed(seed)
     np.random.seed(seed % 2**32)
     torch.manual_seed(seed)
@@ -127,7 +129,7 @@ def train_fast(cfg: TrainFastConfig) -> TrainFastResult:
     if cfg.num_threads is not None:
         torch.set_num_threads(cfg.num_threads)
     out_dir = Path(cfg.output_dir)
-    _seed_everything(cfg.seed)
+    seed_everything(cfg.seed)
 
     max_length = cfg.policy.max_episode_length if cfg.policy.recovering else None
     ds, data = load_keyframe_data(cfg.dataset_repo_id, cfg.dataset_root, cfg.test_episodes, max_length)
