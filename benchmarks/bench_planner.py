@@ -49,6 +49,7 @@ import lerobot_pnp  # noqa: E402,F401
 from lerobot_pnp.dagger import DaggerConfig, evaluate_checkpoint, run_dagger, write_table  # noqa: E402
 from lerobot_pnp.dagger.loop import _base_env_cfg  # noqa: E402
 from lerobot_pnp.dagger.writer import LabelledEpisode, write_episodes  # noqa: E402
+from lerobot_pnp.dataset.splits import test_split  # noqa: E402
 
 
 def log(msg: str) -> None:
@@ -203,7 +204,7 @@ def main() -> None:
     if "memoryless" in sections:  # round-0 data, like the phase-told control and the round-0 planner
         data, repo = out / "dagger" / "demos", f"{cfg.base_repo_id}_demos"
         n_demos = cfg.num_demos
-        test = f"{n_demos - max(1, round(cfg.test_fraction * n_demos))}:{n_demos}"
+        test = test_split(n_demos, cfg.test_fraction)  # the split DAgger's demos were generated with
         for name, prob in recipes:
             policy = copy.deepcopy(cfg.policy)
             policy.recurrent, policy.latency_augment_prob = False, prob

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from lerobot_pnp import robot
-from lerobot_pnp.errors import ExpertFailure, UnreachableError
+from lerobot_pnp.errors import UnreachableError
 from lerobot_pnp.rollout import LoadedPolicy
 
 from .writer import LabelledEpisode
@@ -56,17 +56,6 @@ def suite_env(base_cfg, suite: str):
     from lerobot_pnp.env_config import make_env
 
     return make_env(base_cfg.with_changes(**SUITES[suite]))
-
-
-def expert_episode(env, seed: int, suite: str = "") -> LabelledEpisode | None:
-    """The expert's demonstration for ``seed`` (None if the expert fails on it: the caller takes another)."""
-    from lerobot_pnp.expert import run_expert_episode
-
-    try:
-        ep = run_expert_episode(env, seed)
-    except (UnreachableError, ExpertFailure):
-        return None
-    return LabelledEpisode(seed, ep.states, ep.object_positions, ep.actions, ep.phases, True, suite)
 
 
 # A policy "followed" the last label when every joint setpoint is within this of it (rad): learned keyframes

@@ -150,7 +150,8 @@ def generate(cfg: GenerateConfig) -> dict:
         ) from None
 
 
-def _generate_locked(cfg: GenerateConfig, root: Path, t_start: float) -> dict:
+def _root_state_for(cfg: GenerateConfig, root: Path) -> str:
+    """The state of ``root`` this run starts from, after ``--overwrite``; DatasetError when it may not start."""
     work = root / WORK_DIR
     state = root_state(root)
     jobs = _slurm_jobs(work)
@@ -174,14 +175,25 @@ def _generate_locked(cfg: GenerateConfig, root: Path, t_start: float) -> dict:
         raise DatasetError(
             f"{root} already exists ({what}); pass --resume to finish/keep it or --overwrite to replace it"
         )
-    if state == "complete":  # --resume on a finished dataset: verify it matches and report
-        info = validate_dataset(root)
-        record = read_json(root / GENERATION_FILE, "generation record")
-        _check_same_run(record.get("generation", {}), cfg, read_json(recorded_task_path(root), "env"))
-        if cfg.subtask_annotations:
-            annotate_subtasks(root)
-        return {"root": str(root), "status": "already complete", "episodes": info["total_episodes"],
-                "frames": info["total_frames"], "splits": info.get("splits")}  # fmt: skip
+    return state
+
+
+def _verify_complete(cfg: GenerateConfig, root: Path) -> dict:
+    """``--resume`` on a finished dataset: verify it matches this run's settings and report it."""
+    info = validate_dataset(root)
+    record = read_json(root / GENERATION_FILE, "generation record")
+    _check_same_run(record.get("generation", {}), cfg, read_json(recorded_task_path(root), "env"))
+    if cfg.subtask_annotations:
+        annotate_subtasks(root)
+    return {"root": str(root), "status": "already complete", "episodes": info["total_episodes"],
+            "frames": info["total_frames"], "splits": info.get("splits")}  # fmt: skip
+
+
+def _generate_locked(cfg: GenerateConfig, root: Path, t_start: float) -> dict:
+    work = root / WORK_DIR
+    state = _root_state_for(cfg, root)
+    if state == "complete":
+        return _verify_complete(cfg, root)
 
     # The run's settings: recorded on a fresh start, checked on a resume (the shard layout comes from disk).
     workers = cfg.workers or default_workers()

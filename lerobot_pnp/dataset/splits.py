@@ -107,6 +107,13 @@ def train_count(num_episodes: int, train_fraction: float = TRAIN_FRACTION) -> in
     return len(parse_range(split_of(num_episodes, train_fraction)["train"]))
 
 
+def test_split(num_episodes: int, test_fraction: float) -> str:
+    """The ``"test"`` range ``split_of`` holds out of ``num_episodes`` for ``train_fraction = 1 - test_fraction``
+    (``"n:n"``, empty, when there is nothing to hold out: a single episode)."""
+    n = num_episodes
+    return split_of(n, 1 - test_fraction).get("test", f"{n}:{n}")
+
+
 def train_test(
     splits: dict[str, str] | None, n_episodes: int, test_override: str | None = None
 ) -> tuple[list[int], list[int], str]:

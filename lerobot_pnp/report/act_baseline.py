@@ -141,6 +141,33 @@ def _held_out_l1(policy, data: _ChunkBatches, n_max: int = 4096, batch: int = 51
     return float(np.mean(losses))
 
 
+def _fit(policy, train: _ChunkBatches, budget: ActBudget, seed: int, opt_cfg):
+    """``budget.steps`` optimiser steps on random frames of ``train``; returns (optimizer, scheduler config,
+    scheduler, per-step losses, loop seconds), what the checkpoint saves. Leaves the policy in eval mode."""
+    from tqdm.auto import tqdm
+
+    optimizer = opt_cfg.build(policy.get_optim_params())
+    sched_cfg = budget.scheduler()
+    scheduler = sched_cfg.build(optimizer, budget.steps)
+    gen = torch.Generator().manual_seed(seed)
+    policy.train()
+    losses: list[float] = []
+    t_loop = time.perf_counter()
+    for _ in tqdm(range(budget.steps), desc=f"ACT seed {seed}", unit="step", mininterval=10):
+        rows = torch.randint(0, train.n, (budget.batch_size,), generator=gen)
+        loss, _ = policy.forward(train.batch(rows))
+        optimizer.zero_grad(set_to_none=True)
+        loss.backward()
+        if opt_cfg.grad_clip_norm:
+            torch.nn.utils.clip_grad_norm_(policy.parameters(), opt_cfg.grad_clip_norm)
+        optimizer.step()
+        scheduler.step()
+        losses.append(float(loss.detach()))
+    loop_s = time.perf_counter() - t_loop
+    policy.eval()
+    return optimizer, sched_cfg, scheduler, losses, loop_s
+
+
 def train_act(dataset_root: Path, output_dir: Path, seed: int, budget: ActBudget, n_demos: int | None = None) -> Path:
     """Train ACT on the training split of the dense dataset; returns the ``pretrained_model`` folder.
 
@@ -171,27 +198,7 @@ def train_act(dataset_root: Path, output_dir: Path, seed: int, budget: ActBudget
     test = _ChunkBatches(_read_frames(dataset_root, test_eps), preprocessor, policy_cfg.chunk_size)
 
     opt_cfg = policy_cfg.get_optimizer_preset()
-    optimizer = opt_cfg.build(policy.get_optim_params())
-    sched_cfg = budget.scheduler()
-    scheduler = sched_cfg.build(optimizer, budget.steps)
-    gen = torch.Generator().manual_seed(seed)
-    policy.train()
-    losses: list[float] = []
-    t_loop = time.perf_counter()
-    from tqdm.auto import tqdm
-
-    for _ in tqdm(range(budget.steps), desc=f"ACT seed {seed}", unit="step", mininterval=10):
-        rows = torch.randint(0, train.n, (budget.batch_size,), generator=gen)
-        loss, _ = policy.forward(train.batch(rows))
-        optimizer.zero_grad(set_to_none=True)
-        loss.backward()
-        if opt_cfg.grad_clip_norm:
-            torch.nn.utils.clip_grad_norm_(policy.parameters(), opt_cfg.grad_clip_norm)
-        optimizer.step()
-        scheduler.step()
-        losses.append(float(loss.detach()))
-    loop_s = time.perf_counter() - t_loop
-    policy.eval()
+    optimizer, sched_cfg, scheduler, losses, loop_s = _fit(policy, train, budget, seed, opt_cfg)
 
     train_cfg = TrainPipelineConfig(
         dataset=DatasetConfig(repo_id=repo_id, root=str(dataset_root), episodes=list(train_eps)),
