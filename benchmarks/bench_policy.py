@@ -47,7 +47,7 @@ import torch
 torch.set_num_threads(1)
 
 import lerobot_pnp  # noqa: E402,F401  (registers env + policy)
-from lerobot_pnp.dataset.splits import is_dataset  # noqa: E402
+from lerobot_pnp.dataset.layout import is_dataset  # noqa: E402
 
 EVAL_SEED = 100_000
 CONDITIONS = {

@@ -49,7 +49,7 @@ def default_args(name: str, out: Path, dataset: Path) -> list[str]:
 
 
 def ensure_dataset(out: Path) -> Path:
-    from lerobot_pnp.dataset.splits import is_dataset
+    from lerobot_pnp.dataset.layout import is_dataset
 
     demo = ROOT / "outputs" / "demo" / "dataset"
     if is_dataset(demo):

@@ -12,9 +12,8 @@ import pytest
 import torch
 
 from lerobot_pnp.dataset import load_split
+from lerobot_pnp.dataset.layout import info_path, is_dataset
 from lerobot_pnp.dataset.splits import (
-    info_path,
-    is_dataset,
     parse_range,
     range_spec,
     recorded_split,

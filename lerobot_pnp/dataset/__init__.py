@@ -9,7 +9,7 @@ Modules, one job each: ``schema`` (the feature spec), ``episodes`` (slot seeds, 
 ``shards`` (the datatrove step writing one shard), ``merge`` (aggregate, verify, split, commit),
 ``executors`` (local / SLURM runs, progress), ``workdir`` (root layout, lock, what may be deleted),
 ``generation`` (``GenerateConfig``, ``generate``), ``validation`` (read-side checks, opener, hash), ``splits``
-(the train/test split: parser, train-fraction rule; the meta file paths),
+(the train/test split: parser, train-fraction rule), ``layout`` (the meta file paths, the JSON reader),
 ``hub`` (``push``).
 """
 

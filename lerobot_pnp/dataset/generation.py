@@ -28,9 +28,10 @@ from lerobot_pnp.dataset.executors import (
     run_local,
     submit_slurm,
 )
+from lerobot_pnp.dataset.layout import recorded_task_path
 from lerobot_pnp.dataset.merge import GENERATION_FILE, MergeShards, merge_and_commit
 from lerobot_pnp.dataset.shards import GenerateShard, shard_dir, shard_is_valid
-from lerobot_pnp.dataset.splits import TRAIN_FRACTION, recorded_task_path
+from lerobot_pnp.dataset.splits import TRAIN_FRACTION
 from lerobot_pnp.dataset.validation import WORK_DIR, read_json, validate_dataset, write_json_atomic
 from lerobot_pnp.dataset.workdir import RootLock, disk_error, remove_generation, root_state
 from lerobot_pnp.env_config import BaxterPnPEnvConfig

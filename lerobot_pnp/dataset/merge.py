@@ -16,8 +16,9 @@ from pathlib import Path
 from datatrove.pipeline.base import PipelineStep
 
 from lerobot_pnp import robot
+from lerobot_pnp.dataset.layout import is_dataset
 from lerobot_pnp.dataset.shards import SHARD_FILE, read_shard_record, shard_dir
-from lerobot_pnp.dataset.splits import is_dataset, split_of
+from lerobot_pnp.dataset.splits import split_of
 from lerobot_pnp.dataset.validation import WORK_DIR, read_json, verify_dataset, write_json_atomic
 from lerobot_pnp.dataset.workdir import TRASH_DIR, RootLock, remove_partial_commit
 from lerobot_pnp.errors import DatasetError

@@ -1,4 +1,4 @@
-"""A dataset's train/test split and the files that describe it: one parser, one train-fraction rule.
+"""A dataset's train/test split: one parser, one train-fraction rule.
 
 LeRobot keeps the split in ``meta/info.json`` ``"splits"`` as ``"start:stop"`` strings (``{"train": "0:1120",
 "test": "1120:1400"}``). Every reader of a split goes through ``parse_range`` / ``recorded_splits`` here, and
@@ -10,37 +10,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from lerobot_pnp.dataset.layout import read_info
 from lerobot_pnp.errors import ConfigError, DatasetError
 
-INFO_FILE = "meta/info.json"  # LeRobot's INFO_PATH: the dataset's metadata, with its "splits"
 TRAIN_FRACTION = 0.8  # the generator's default: the first 80 % of the episodes train, the rest are held out
 TEST_SPLIT_NAMES = ("test", "val", "validation", "eval")  # what the fast trainer accepts as the held-out split
 FALLBACK_TEST_FRACTION = 0.2  # held out by the fast trainer when the dataset records no test split
-
-
-# ---------------------------------------------------------------------------------------------- files
-def info_path(root: str | Path) -> Path:
-    """``meta/info.json`` of the dataset folder ``root``."""
-    return Path(root) / INFO_FILE
-
-
-def recorded_task_path(root: str | Path) -> Path:
-    """The task a dataset was recorded in (``meta/baxter_pnp_env.json``, written by ``write_recorded``)."""
-    from lerobot_pnp.env_config import RECORDED_FILE
-
-    return Path(root) / RECORDED_FILE
-
-
-def is_dataset(root: str | Path) -> bool:
-    """Whether ``root`` holds a (finalized) LeRobot dataset: it has a ``meta/info.json``."""
-    return info_path(Path(root).expanduser()).is_file()
-
-
-def read_info(root: str | Path) -> dict:
-    """``meta/info.json`` as a dict (DatasetError when it is missing or corrupt)."""
-    from lerobot_pnp.dataset.validation import read_json  # validation reads the info through this module
-
-    return read_json(info_path(root), INFO_FILE)
 
 
 # ---------------------------------------------------------------------------------------------- ranges

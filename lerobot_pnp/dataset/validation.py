@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lerobot_pnp.dataset.splits import read_info
+from lerobot_pnp.dataset.layout import read_info, read_json
 from lerobot_pnp.errors import DatasetError
 
 WORK_DIR = ".pnp_work"  # present while a generation is in progress (see generation.py)
@@ -25,15 +25,6 @@ _INDEX_COLUMNS = ("index", "episode_index", "task_index")
 
 
 # ---------------------------------------------------------------------------------------------- io helpers
-def read_json(path: Path, what: str) -> dict:
-    try:
-        return json.loads(Path(path).read_text())
-    except FileNotFoundError:
-        raise DatasetError(f"{what} missing: {path}") from None
-    except (json.JSONDecodeError, UnicodeDecodeError) as err:
-        raise DatasetError(f"{what} is corrupt ({path}): {err}") from None
-
-
 def write_json_atomic(path: Path, data: dict) -> None:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -22,7 +22,7 @@ import os
 import shutil
 from pathlib import Path
 
-from lerobot_pnp.dataset.splits import is_dataset
+from lerobot_pnp.dataset.layout import is_dataset
 from lerobot_pnp.dataset.validation import WORK_DIR
 from lerobot_pnp.errors import DatasetError
 

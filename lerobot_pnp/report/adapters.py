@@ -13,7 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-from lerobot_pnp.dataset.splits import read_info, recorded_splits
+from lerobot_pnp.dataset.layout import read_info
+from lerobot_pnp.dataset.splits import recorded_splits
 from lerobot_pnp.errors import DatasetError, PnPError
 
 BATCH_SIZE = 64  # episodes per batch (the fast trainer's default)

@@ -67,7 +67,7 @@ class EpisodeData:
 def open_dataset(repo_id: str, root: str | None):
     """Open a LeRobotDataset; a missing local folder is a ``DatasetNotFoundError`` (no Hub download)."""
     from lerobot_pnp.dataset import open_local_dataset
-    from lerobot_pnp.dataset.splits import is_dataset
+    from lerobot_pnp.dataset.layout import is_dataset
 
     if root is not None and not is_dataset(root):
         raise DatasetNotFoundError(
