@@ -49,7 +49,7 @@ import lerobot_pnp  # noqa: E402,F401
 from lerobot_pnp.dagger import DaggerConfig, evaluate_checkpoint, run_dagger, write_table  # noqa: E402
 from lerobot_pnp.dagger.loop import _base_env_cfg  # noqa: E402
 from lerobot_pnp.dagger.writer import LabelledEpisode, write_episodes  # noqa: E402
-from lerobot_pnp.dataset.splits import range_spec, recorded_split  # noqa: E402
+from lerobot_pnp.dataset.splits import range_spec, recorded_split, test_split  # noqa: E402
 
 
 def log(msg: str) -> None:
@@ -87,7 +87,7 @@ def ten_frame_demos(cfg: DaggerConfig, out: Path) -> tuple[Path, str, str]:
             )
         )
     n = len(episodes)
-    test = f"{n - max(1, n // 10)}:{n}"
+    test = test_split(n, cfg.test_fraction)  # held out as DAgger's demos are
     if not root.is_dir():
         write_episodes(root, "local/clocked_demos", _base_env_cfg(cfg), episodes, {"test": test})
     return root, "local/clocked_demos", test
