@@ -73,14 +73,13 @@ def _demos(cfg: DaggerConfig, out: Path, env_cfg) -> tuple[Path, str, str, str]:
     the last ``test_fraction`` is held out by the generator's rule (``split_of``).
     """
     from lerobot_pnp.dataset import GenerateConfig, generate
-    from lerobot_pnp.dataset.splits import test_split
+    from lerobot_pnp.dataset.layout import read_info
+    from lerobot_pnp.dataset.splits import range_spec, recorded_splits, test_split
 
     if cfg.base_root:
-        from lerobot.datasets.io_utils import load_info
-
-        info = load_info(Path(cfg.base_root))
-        n = int(info.total_episodes)
-        test = (info.splits or {}).get("test") or test_split(n, cfg.test_fraction)
+        recorded = recorded_splits(cfg.base_root).get("test")
+        n = int(read_info(cfg.base_root)["total_episodes"])
+        test = range_spec(recorded) if recorded is not None else test_split(n, cfg.test_fraction)
         key = _stage(Path(), "base", content=digest_files(Path(cfg.base_root), DATASET_FILES), test=test).key
         return Path(cfg.base_root), cfg.base_repo_id, test, key
     root, repo_id = out / "demos", f"{cfg.base_repo_id}_demos"
