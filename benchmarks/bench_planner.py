@@ -49,6 +49,7 @@ import lerobot_pnp  # noqa: E402,F401
 from lerobot_pnp.dagger import DaggerConfig, evaluate_checkpoint, run_dagger, write_table  # noqa: E402
 from lerobot_pnp.dagger.loop import _base_env_cfg  # noqa: E402
 from lerobot_pnp.dagger.writer import LabelledEpisode, write_episodes  # noqa: E402
+from lerobot_pnp.dataset.splits import range_spec, recorded_split, test_split  # noqa: E402
 
 
 def log(msg: str) -> None:
@@ -86,7 +87,7 @@ def ten_frame_demos(cfg: DaggerConfig, out: Path) -> tuple[Path, str, str]:
             )
         )
     n = len(episodes)
-    test = f"{n - max(1, n // 10)}:{n}"
+    test = test_split(n, cfg.test_fraction)  # held out as DAgger's demos are
     if not root.is_dir():
         write_episodes(root, "local/clocked_demos", _base_env_cfg(cfg), episodes, {"test": test})
     return root, "local/clocked_demos", test
@@ -151,6 +152,89 @@ def cli_check(cfg: DaggerConfig, out: Path, rnd: int) -> dict:
     return report
 
 
+def _section_dagger(cfg: DaggerConfig, out: Path, env_cfg, results: dict, rows: list) -> None:
+    t0 = time.perf_counter()
+    summary = run_dagger(cfg)
+    results["dagger"] = summary
+    timings = summary["timings_s"]
+    train_total = sum(v for k, v in timings.items() if k != "demos_s")
+    log(f"dagger timings (s): {timings}")
+    log(f"recovering policy, training incl. {cfg.rounds} DAgger rounds (rollouts, labels, aggregation, "
+        f"retraining; demos and evaluation excluded): {train_total / 60:.1f} min; whole run incl. evaluation "
+        f"{(time.perf_counter() - t0) / 60:.1f} min")  # fmt: skip
+    for rnd in range(cfg.rounds + 1):
+        f = out / "dagger" / f"round_{rnd:02d}" / "eval.json"
+        if f.is_file():
+            rows.append((f"recovering, round {rnd}" + (" (no DAgger)" if rnd == 0 else ""), json.loads(f.read_text())))
+
+
+def _section_clocked(cfg: DaggerConfig, out: Path, env_cfg, results: dict, rows: list) -> None:
+    root, repo, test = ten_frame_demos(cfg, out)
+    policy = copy.deepcopy(cfg.policy)
+    policy.mode, policy.subtask_loss_weight, policy.phase_loss_weight = "clocked", 0.0, 0.0
+    ckpt, train_s = train(root, repo, test, policy, cfg, out / "clocked")
+    log(f"clocked: trained in {train_s:.0f} s")
+    res = evaluate_checkpoint(cfg, ckpt, env_cfg, out / "clocked" / "eval.json")
+    rows.insert(0, ("clocked (paper), 10-frame demos", res))
+    results["clocked_checkpoint"] = str(ckpt)
+
+
+# The memoryless controls with both recipes: with the late episodes (the planner's recipe) and on current
+# observations only (a model without memory cannot tell a late observation from a current one; measured,
+# the late episodes help the plain MLP and hurt the phase-told one, so both are reported).
+def _recipes(cfg: DaggerConfig) -> tuple[tuple[str, float], ...]:
+    return (("late", cfg.policy.latency_augment_prob), ("current", 0.0))
+
+
+def _section_memoryless(cfg: DaggerConfig, out: Path, env_cfg, results: dict, rows: list) -> None:
+    """Round-0 data, like the phase-told control and the round-0 planner."""
+    data, repo = out / "dagger" / "demos", f"{cfg.base_repo_id}_demos"
+    test = range_spec(recorded_split(data, "test"))  # the split DAgger's demos were generated with
+    for name, prob in _recipes(cfg):
+        policy = copy.deepcopy(cfg.policy)
+        policy.recurrent, policy.latency_augment_prob = False, prob
+        rdir = out / ("memoryless_late" if name == "late" else "memoryless")
+        ckpt, train_s = train(data, repo, test, policy, cfg, rdir)
+        res = evaluate_checkpoint(cfg, ckpt, env_cfg, rdir / "eval.json")
+        rows.append((f"memoryless (matched MLP), round-0 data, {name} observations in training", res))
+
+
+def _section_phase_told(cfg: DaggerConfig, out: Path, env_cfg, results: dict, rows: list) -> None:
+    for name, prob in reversed(_recipes(cfg)):  # "current" first: it writes the phase-told demonstrations
+        told = copy.deepcopy(cfg)
+        told.output_dir, told.rounds = str(out / ("phase_told_late" if name == "late" else "phase_told")), 0
+        told.env_changes = {**cfg.env_changes, "observe_phase": True}
+        told.policy.recurrent, told.policy.latency_augment_prob = False, prob
+        if name == "late":  # the same phase-told demonstrations, written by the "current" run
+            told.base_root, told.base_repo_id = str(out / "phase_told" / "demos"), f"{cfg.base_repo_id}_demos"
+        summary = run_dagger(told)
+        log(f"phase-told MLP ({name}) timings (s): {summary['timings_s']}")
+        res = json.loads((Path(told.output_dir) / "round_00" / "eval.json").read_text())
+        rows.append((f"memoryless (matched MLP) told the phase, round-0 data, {name} observations in training", res))
+
+
+def _section_latency(cfg: DaggerConfig, out: Path, env_cfg, results: dict, rows: list) -> None:
+    lat = {}
+    for name, ckpt in (
+        ("recovering", results.get("dagger", {}).get("final_checkpoint")),
+        ("clocked", results.get("clocked_checkpoint")),
+    ):
+        if ckpt:
+            lat[name] = latency(Path(ckpt))
+            log(f"select_action batch 1, {name}: median {lat[name]:.3f} ms")
+    results["select_action_ms"] = lat
+
+
+# --sections, run in this order
+SECTIONS = {
+    "dagger": _section_dagger,
+    "clocked": _section_clocked,
+    "memoryless": _section_memoryless,
+    "phase_told": _section_phase_told,
+    "latency": _section_latency,
+}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--config", default="configs/dagger.json")
@@ -168,76 +252,9 @@ def main() -> None:
     env_cfg = _base_env_cfg(cfg)
     results: dict = {}
     rows: list[tuple[str, dict]] = []
-
-    if "dagger" in sections:
-        t0 = time.perf_counter()
-        summary = run_dagger(cfg)
-        results["dagger"] = summary
-        timings = summary["timings_s"]
-        train_total = sum(v for k, v in timings.items() if k != "demos_s")
-        log(f"dagger timings (s): {timings}")
-        log(f"recovering policy, training incl. {cfg.rounds} DAgger rounds (rollouts, labels, aggregation, "
-            f"retraining; demos and evaluation excluded): {train_total / 60:.1f} min; whole run incl. evaluation "
-            f"{(time.perf_counter() - t0) / 60:.1f} min")  # fmt: skip
-        for rnd in range(cfg.rounds + 1):
-            f = out / "dagger" / f"round_{rnd:02d}" / "eval.json"
-            if f.is_file():
-                rows.append(
-                    (f"recovering, round {rnd}" + (" (no DAgger)" if rnd == 0 else ""), json.loads(f.read_text()))
-                )
-
-    if "clocked" in sections:
-        root, repo, test = ten_frame_demos(cfg, out)
-        policy = copy.deepcopy(cfg.policy)
-        policy.mode, policy.subtask_loss_weight, policy.phase_loss_weight = "clocked", 0.0, 0.0
-        ckpt, train_s = train(root, repo, test, policy, cfg, out / "clocked")
-        log(f"clocked: trained in {train_s:.0f} s")
-        res = evaluate_checkpoint(cfg, ckpt, env_cfg, out / "clocked" / "eval.json")
-        rows.insert(0, ("clocked (paper), 10-frame demos", res))
-        results["clocked_checkpoint"] = str(ckpt)
-
-    # The memoryless controls with both recipes: with the late episodes (the planner's recipe) and on current
-    # observations only (a model without memory cannot tell a late observation from a current one; measured,
-    # the late episodes help the plain MLP and hurt the phase-told one, so both are reported).
-    recipes = (("late", cfg.policy.latency_augment_prob), ("current", 0.0))
-    if "memoryless" in sections:  # round-0 data, like the phase-told control and the round-0 planner
-        data, repo = out / "dagger" / "demos", f"{cfg.base_repo_id}_demos"
-        n_demos = cfg.num_demos
-        test = f"{n_demos - max(1, round(cfg.test_fraction * n_demos))}:{n_demos}"
-        for name, prob in recipes:
-            policy = copy.deepcopy(cfg.policy)
-            policy.recurrent, policy.latency_augment_prob = False, prob
-            rdir = out / ("memoryless_late" if name == "late" else "memoryless")
-            ckpt, train_s = train(data, repo, test, policy, cfg, rdir)
-            res = evaluate_checkpoint(cfg, ckpt, env_cfg, rdir / "eval.json")
-            rows.append((f"memoryless (matched MLP), round-0 data, {name} observations in training", res))
-
-    if "phase_told" in sections:
-        for name, prob in reversed(recipes):  # "current" first: it writes the phase-told demonstrations
-            told = copy.deepcopy(cfg)
-            told.output_dir, told.rounds = str(out / ("phase_told_late" if name == "late" else "phase_told")), 0
-            told.env_changes = {**cfg.env_changes, "observe_phase": True}
-            told.policy.recurrent, told.policy.latency_augment_prob = False, prob
-            if name == "late":  # the same phase-told demonstrations, written by the "current" run
-                told.base_root, told.base_repo_id = str(out / "phase_told" / "demos"), f"{cfg.base_repo_id}_demos"
-            summary = run_dagger(told)
-            log(f"phase-told MLP ({name}) timings (s): {summary['timings_s']}")
-            res = json.loads((Path(told.output_dir) / "round_00" / "eval.json").read_text())
-            rows.append(
-                (f"memoryless (matched MLP) told the phase, round-0 data, {name} observations in training", res)
-            )
-
-    if "latency" in sections:
-        lat = {}
-        for name, ckpt in (
-            ("recovering", results.get("dagger", {}).get("final_checkpoint")),
-            ("clocked", results.get("clocked_checkpoint")),
-        ):
-            if ckpt:
-                lat[name] = latency(Path(ckpt))
-                log(f"select_action batch 1, {name}: median {lat[name]:.3f} ms")
-        results["select_action_ms"] = lat
-
+    for name, section in SECTIONS.items():
+        if name in sections:
+            section(cfg, out, env_cfg, results, rows)
     if "lerobot_eval" in sections:
         results["lerobot_eval"] = cli_check(cfg, out, cfg.rounds if args.eval_round is None else args.eval_round)
 

@@ -47,6 +47,7 @@ import torch
 torch.set_num_threads(1)
 
 import lerobot_pnp  # noqa: E402,F401  (registers env + policy)
+from lerobot_pnp.dataset.layout import is_dataset  # noqa: E402
 
 EVAL_SEED = 100_000
 CONDITIONS = {
@@ -506,7 +507,7 @@ def main(argv: list[str] | None = None) -> dict:
         if getattr(args, k) is None:
             setattr(args, k, small if quick else full)
     root = Path(args.dataset_root)
-    if args.sections != "c" and not (root / "meta" / "info.json").is_file():
+    if args.sections != "c" and not is_dataset(root):
         p.error(f"no finished dataset at {root}: run `lerobot-pnp generate --root {root}` (or the demo) first")
     dataset = (args.repo_id, str(root))
     work = Path(args.workdir)

@@ -49,11 +49,13 @@ def default_args(name: str, out: Path, dataset: Path) -> list[str]:
 
 
 def ensure_dataset(out: Path) -> Path:
+    from lerobot_pnp.dataset.layout import is_dataset
+
     demo = ROOT / "outputs" / "demo" / "dataset"
-    if (demo / "meta" / "info.json").is_file():
+    if is_dataset(demo):
         return demo
     root = out / "dataset"
-    if not (root / "meta" / "info.json").is_file():
+    if not is_dataset(root):
         cli = Path(sys.executable).with_name("lerobot-pnp")
         cmd = [str(cli), "generate", "--root", str(root), "--num_episodes", "200", "--progress", "false"]
         cmd += ["--resume"] if root.exists() else []

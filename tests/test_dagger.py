@@ -116,6 +116,15 @@ def test_rounds_run_and_resume(tmp_path):
 
     merged = LeRobotDataset("x", root=out / "round_01" / "data")
     assert merged.meta.total_episodes == 8  # 6 demos + 2 labelled rollouts
+    # the round-0 demonstrations come from the dataset pipeline: slot i is seed i, the generator's split
+    from lerobot_pnp.dataset import episode_seeds, load_split
+    from lerobot_pnp.dataset.merge import GENERATION_FILE
+
+    demos = out / "demos"
+    seeds = episode_seeds(demos)
+    assert (demos / GENERATION_FILE).is_file() and [s % 6 for s in seeds] == list(range(6))  # seed + i + 6 * retry
+    assert load_split(demos) == {"train": list(range(5)), "test": [5]}
+    assert merged.meta.info.splits == {"test": "5:6"}
     second = run_dagger(DaggerConfig(**cfg))  # everything finished is reused
     assert (ckpt / "model.safetensors").stat().st_mtime_ns == stamp
     assert second["table"] == first["table"]

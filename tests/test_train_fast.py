@@ -35,7 +35,6 @@ from lerobot_pnp.train_fast import (  # noqa: E402
     TrainFastConfig,
     load_keyframe_data,
     normalize_episode_range,
-    split_episodes,
     train_fast,
 )
 
@@ -130,15 +129,6 @@ def test_train_fast_config_from_lerobot_train_json():
     for key, value in raw["policy"].items():
         if key != "type":
             assert getattr(cfg.policy, key) == value, key
-
-
-def test_split_episodes():
-    assert split_episodes({"train": "0:8", "test": "8:10"}, 10)[:2] == (list(range(8)), [8, 9])
-    train, test, source = split_episodes({"train": "0:10"}, 10)
-    assert (train, test) == (list(range(8)), [8, 9]) and "fallback" in source
-    assert split_episodes({}, 10, test_override="0:2")[:2] == (list(range(2, 10)), [0, 1])
-    with pytest.raises(ConfigError, match="outside the dataset's episodes 0:10"):
-        split_episodes({"test": "0:20"}, 10)
 
 
 def test_episode_ranges_survive_the_command_line_parser():

@@ -90,8 +90,10 @@ class DaggerConfig:
         round0_checkpoint: A policy already trained on the round-0 data (a ``pretrained_model`` folder): round 0
             is not trained again, the first rollouts run this policy (the study's ``recovering_dagger``
             continues its ``recovering`` run of the same seed this way).
-        num_demos: Expert demonstrations written for round 0 (``full`` task as recorded: every perturbation
-            at its preset probability, so recoveries are demonstrated); the last ``test_fraction`` is held out.
+        num_demos: Expert demonstrations generated for round 0 by the dataset pipeline (``full`` task as
+            recorded: every perturbation at its preset probability, so recoveries are demonstrated; slot ``i`` is
+            seed ``seed + i``, reseeded as ``lerobot-pnp generate`` does); the last ``test_fraction`` is held out
+            (``lerobot_pnp.dataset.splits.test_split``).
         rounds: DAgger rounds after round 0.
         rollouts_per_round: Policy episodes per round, cycled over ``rollout_suites``.
         test_fraction: The fraction of the round-0 episodes (the last ones) held out of training.

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from lerobot_pnp import robot
-from lerobot_pnp.errors import ExpertFailure, UnreachableError
+from lerobot_pnp.errors import UnreachableError
 from lerobot_pnp.evaluation.checkpoints import LoadedPolicy
 from lerobot_pnp.evaluation.suites import SUITES
 
@@ -23,17 +23,6 @@ def suite_env(base_cfg, suite: str):
     from lerobot_pnp.env_config import make_env
 
     return make_env(SUITES[suite].env_configs(base_cfg)[0])
-
-
-def expert_episode(env, seed: int, suite: str = "") -> LabelledEpisode | None:
-    """The expert's demonstration for ``seed`` (None if the expert fails on it: the caller takes another)."""
-    from lerobot_pnp.expert import run_expert_episode
-
-    try:
-        ep = run_expert_episode(env, seed)
-    except (UnreachableError, ExpertFailure):
-        return None
-    return LabelledEpisode(seed, ep.states, ep.object_positions, ep.actions, ep.phases, True, suite)
 
 
 # A policy "followed" the last label when every joint setpoint is within this of it (rad): learned keyframes

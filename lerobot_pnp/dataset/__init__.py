@@ -8,17 +8,18 @@ config it was made with in ``meta/baxter_pnp_env.json``.
 Modules, one job each: ``schema`` (the feature spec), ``episodes`` (slot seeds, expert episode -> frames),
 ``shards`` (the datatrove step writing one shard), ``merge`` (aggregate, verify, split, commit),
 ``executors`` (local / SLURM runs, progress), ``workdir`` (root layout, lock, what may be deleted),
-``generation`` (``GenerateConfig``, ``generate``), ``validation`` (read-side checks, opener, split, hash),
+``generation`` (``GenerateConfig``, ``generate``), ``validation`` (read-side checks, opener, hash), ``splits``
+(the train/test split: parser, train-fraction rule), ``layout`` (the meta file paths, the JSON reader),
 ``hub`` (``push``).
 """
 
 from lerobot_pnp.dataset.generation import GenerateConfig, SlurmOptions, generate
 from lerobot_pnp.dataset.hub import PushConfig, push
 from lerobot_pnp.dataset.schema import ROBOT_TYPE, dataset_features
+from lerobot_pnp.dataset.splits import load_split
 from lerobot_pnp.dataset.validation import (
     data_hash,
     episode_seeds,
-    load_split,
     open_local_dataset,
     validate_dataset,
     verify_dataset,

@@ -28,8 +28,10 @@ from lerobot_pnp.dataset.executors import (
     run_local,
     submit_slurm,
 )
+from lerobot_pnp.dataset.layout import recorded_task_path
 from lerobot_pnp.dataset.merge import GENERATION_FILE, MergeShards, merge_and_commit
 from lerobot_pnp.dataset.shards import GenerateShard, shard_dir, shard_is_valid
+from lerobot_pnp.dataset.splits import TRAIN_FRACTION
 from lerobot_pnp.dataset.validation import WORK_DIR, read_json, validate_dataset, write_json_atomic
 from lerobot_pnp.dataset.workdir import RootLock, disk_error, remove_generation, root_state
 from lerobot_pnp.env_config import BaxterPnPEnvConfig
@@ -73,7 +75,7 @@ class GenerateConfig:
     workers: int = 0  # local: tasks run at once (0 = one per core); slurm: max array tasks at once (0 = no cap)
     slurm: SlurmOptions = field(default_factory=SlurmOptions)
     logging_dir: str | None = None  # datatrove logs; default ROOT/.pnp_work/logs (local), ROOT.logs (slurm)
-    train_fraction: float = 0.8  # first episodes -> "train", the rest -> "test" (meta/info.json "splits")
+    train_fraction: float = TRAIN_FRACTION  # first episodes -> "train", the rest -> "test" (meta/info.json "splits")
     max_retries: int = 10  # reseeds per slot when the expert fails
     resume: bool = False  # finish an interrupted run in root (completed shards are kept)
     overwrite: bool = False  # delete the dataset (or interrupted run) in root first; other files are kept
@@ -149,7 +151,8 @@ def generate(cfg: GenerateConfig) -> dict:
         ) from None
 
 
-def _generate_locked(cfg: GenerateConfig, root: Path, t_start: float) -> dict:
+def _root_state_for(cfg: GenerateConfig, root: Path) -> str:
+    """The state of ``root`` this run starts from, after ``--overwrite``; DatasetError when it may not start."""
     work = root / WORK_DIR
     state = root_state(root)
     jobs = _slurm_jobs(work)
@@ -173,14 +176,25 @@ def _generate_locked(cfg: GenerateConfig, root: Path, t_start: float) -> dict:
         raise DatasetError(
             f"{root} already exists ({what}); pass --resume to finish/keep it or --overwrite to replace it"
         )
-    if state == "complete":  # --resume on a finished dataset: verify it matches and report
-        info = validate_dataset(root)
-        record = read_json(root / GENERATION_FILE, "generation record")
-        _check_same_run(record.get("generation", {}), cfg, read_json(root / "meta/baxter_pnp_env.json", "env"))
-        if cfg.subtask_annotations:
-            annotate_subtasks(root)
-        return {"root": str(root), "status": "already complete", "episodes": info["total_episodes"],
-                "frames": info["total_frames"], "splits": info.get("splits")}  # fmt: skip
+    return state
+
+
+def _verify_complete(cfg: GenerateConfig, root: Path) -> dict:
+    """``--resume`` on a finished dataset: verify it matches this run's settings and report it."""
+    info = validate_dataset(root)
+    record = read_json(root / GENERATION_FILE, "generation record")
+    _check_same_run(record.get("generation", {}), cfg, read_json(recorded_task_path(root), "env"))
+    if cfg.subtask_annotations:
+        annotate_subtasks(root)
+    return {"root": str(root), "status": "already complete", "episodes": info["total_episodes"],
+            "frames": info["total_frames"], "splits": info.get("splits")}  # fmt: skip
+
+
+def _generate_locked(cfg: GenerateConfig, root: Path, t_start: float) -> dict:
+    work = root / WORK_DIR
+    state = _root_state_for(cfg, root)
+    if state == "complete":
+        return _verify_complete(cfg, root)
 
     # The run's settings: recorded on a fresh start, checked on a resume (the shard layout comes from disk).
     workers = cfg.workers or default_workers()

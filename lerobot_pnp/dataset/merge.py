@@ -16,24 +16,14 @@ from pathlib import Path
 from datatrove.pipeline.base import PipelineStep
 
 from lerobot_pnp import robot
+from lerobot_pnp.dataset.layout import is_dataset
 from lerobot_pnp.dataset.shards import SHARD_FILE, read_shard_record, shard_dir
+from lerobot_pnp.dataset.splits import split_of
 from lerobot_pnp.dataset.validation import WORK_DIR, read_json, verify_dataset, write_json_atomic
 from lerobot_pnp.dataset.workdir import TRASH_DIR, RootLock, remove_partial_commit
 from lerobot_pnp.errors import DatasetError
 
 GENERATION_FILE = "meta/pnp_generate.json"  # how the data was made (the env config is in baxter_pnp_env.json)
-
-
-def split_of(num_episodes: int, train_fraction: float) -> dict[str, str]:
-    """First episodes -> "train", the rest -> "test" (a test split is never empty when one was asked for)."""
-    n = num_episodes
-    n_train = min(n, max(1, round(train_fraction * n)))
-    if train_fraction < 1 and n >= 2:
-        n_train = min(n_train, n - 1)
-    splits = {"train": f"0:{n_train}"}
-    if n_train < n:
-        splits["test"] = f"{n_train}:{n}"
-    return splits
 
 
 def merge_and_commit(root: Path) -> dict:
@@ -157,7 +147,7 @@ class MergeShards(PipelineStep):
 
     def run(self, data=None, rank: int = 0, world_size: int = 1):
         root = Path(self.root)
-        if not (root / WORK_DIR).exists() and (root / "meta" / "info.json").is_file():
+        if not (root / WORK_DIR).exists() and is_dataset(root):
             return None  # already merged (a requeued merge job)
         with RootLock(root):
             merge_and_commit(root)

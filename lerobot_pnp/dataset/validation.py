@@ -1,4 +1,4 @@
-"""Reading a dataset folder safely: validation, content verification, the local opener, split, content hash.
+"""Reading a dataset folder safely: validation, content verification, the local opener, content hash.
 
 ``validate_dataset`` is what every reader calls first (train, viz, push, ``--resume``): it turns a missing,
 interrupted, truncated or inconsistent folder into one DatasetError naming the problem, instead of a
@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from lerobot_pnp.dataset.layout import read_info, read_json
 from lerobot_pnp.errors import DatasetError
 
 WORK_DIR = ".pnp_work"  # present while a generation is in progress (see generation.py)
@@ -24,15 +25,6 @@ _INDEX_COLUMNS = ("index", "episode_index", "task_index")
 
 
 # ---------------------------------------------------------------------------------------------- io helpers
-def read_json(path: Path, what: str) -> dict:
-    try:
-        return json.loads(Path(path).read_text())
-    except FileNotFoundError:
-        raise DatasetError(f"{what} missing: {path}") from None
-    except (json.JSONDecodeError, UnicodeDecodeError) as err:
-        raise DatasetError(f"{what} is corrupt ({path}): {err}") from None
-
-
 def write_json_atomic(path: Path, data: dict) -> None:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -80,7 +72,7 @@ def validate_dataset(root: str | Path) -> dict:
             f"{root} holds an interrupted generation (found {WORK_DIR}/); finish it with "
             "`lerobot-pnp generate ... --resume` or start over with --overwrite"
         )
-    info = read_json(root / "meta" / "info.json", "meta/info.json")
+    info = read_info(root)
     for key in ("codebase_version", "total_episodes", "total_frames", "features", "data_path"):
         if key not in info:
             raise DatasetError(f"meta/info.json in {root} is incomplete: no {key!r}")
@@ -226,21 +218,7 @@ def episode_seeds(root: str | Path) -> list[int]:
     return table.column("episode.seed").to_numpy()[first].tolist()
 
 
-# ---------------------------------------------------------------------------------------------- split, hash
-def load_split(root: str | Path) -> dict[str, list[int]]:
-    """Episode indices of each split stored in ``meta/info.json`` ("splits": {"train": "0:1120", ...})."""
-    info = read_json(Path(root) / "meta" / "info.json", "meta/info.json")
-    splits = info.get("splits") or {}
-    out = {}
-    for name, spec in splits.items():
-        try:
-            start, stop = (int(v) for v in str(spec).split(":"))
-        except ValueError:
-            raise DatasetError(f"meta/info.json split {name!r} = {spec!r} is not 'start:end'") from None
-        out[name] = list(range(start, stop))
-    return out
-
-
+# ---------------------------------------------------------------------------------------------- hash
 def data_hash(root: str | Path) -> str:
     """SHA-256 of the data table content (all columns, in frame order), independent of file layout."""
     table = _data_table(Path(root))

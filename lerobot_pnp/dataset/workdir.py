@@ -22,6 +22,7 @@ import os
 import shutil
 from pathlib import Path
 
+from lerobot_pnp.dataset.layout import is_dataset
 from lerobot_pnp.dataset.validation import WORK_DIR
 from lerobot_pnp.errors import DatasetError
 
@@ -107,7 +108,7 @@ def root_state(root: Path) -> str:
     entries = {p.name for p in root.iterdir()} - {TRASH_DIR, LOCK_FILE}
     if WORK_DIR in entries:
         return "interrupted"
-    if (root / "meta" / "info.json").is_file():
+    if is_dataset(root):
         return "complete"
     return "foreign" if entries else "empty"
 

@@ -25,7 +25,6 @@ few hundredths of a standard deviation: dropout noise and an undecayed learning 
 from __future__ import annotations
 
 import json
-import random
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -33,6 +32,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from lerobot_pnp.dataset.splits import recorded_split
 from lerobot_pnp.env_config import copy_recorded
 from lerobot_pnp.errors import DatasetError
 
@@ -90,29 +90,19 @@ class _Frames:
     episode_end: np.ndarray  # (N,) index of the last frame of each frame's episode (exclusive end - 1)
 
 
-def _read_frames(dataset_root: Path, episodes: np.ndarray) -> _Frames:
+def _read_frames(dataset_root: Path, episodes: range) -> _Frames:
     from lerobot_pnp.report.adapters import read_frames
 
     cols = read_frames(dataset_root, ["observation.state", "observation.environment_state", "action"])
     keep = np.isin(cols["episode_index"], episodes)
     ep = cols["episode_index"][keep]
     if not len(ep):
-        raise DatasetError(f"{dataset_root}: none of the episodes {episodes[:5].tolist()}... are in the data")
+        raise DatasetError(f"{dataset_root}: none of the episodes {list(episodes[:5])}... are in the data")
     state, env_state, action = (
         cols[n][keep].astype(np.float32) for n in ("observation.state", "observation.environment_state", "action")
     )
     ends = np.searchsorted(ep, ep, side="right") - 1
     return _Frames(state, env_state, action, ep, ends)
-
-
-def split_episodes(dataset_root: Path, split: str) -> np.ndarray:
-    """Episode indices of ``split`` (``meta/info.json`` ``splits``, as the rest of the study reads them)."""
-    from lerobot_pnp.report.adapters import split_episodes as recorded_split
-
-    episodes = recorded_split(dataset_root, split)
-    if episodes is None:
-        raise DatasetError(f"{dataset_root}: no {split!r} split in meta/info.json")
-    return episodes
 
 
 class _ChunkBatches:
@@ -142,12 +132,6 @@ class _ChunkBatches:
         return {s: self.state[rows], e: self.env_state[rows], a: self.action[idx], "action_is_pad": pad}
 
 
-def _seed_everything(seed: int) -> None:
-    random.seed(seed)
-    np.random.seed(seed % 2**32)
-    torch.manual_seed(seed)
-
-
 @torch.no_grad()
 def _held_out_l1(policy, data: _ChunkBatches, n_max: int = 4096, batch: int = 512) -> float:
     policy.eval()
@@ -155,6 +139,33 @@ def _held_out_l1(policy, data: _ChunkBatches, n_max: int = 4096, batch: int = 51
     losses = [float(policy.forward(data.batch(rows[i : i + batch]))[0]) for i in range(0, len(rows), batch)]
     policy.train()
     return float(np.mean(losses))
+
+
+def _fit(policy, train: _ChunkBatches, budget: ActBudget, seed: int, opt_cfg):
+    """``budget.steps`` optimiser steps on random frames of ``train``; returns (optimizer, scheduler config,
+    scheduler, per-step losses, loop seconds), what the checkpoint saves. Leaves the policy in eval mode."""
+    from tqdm.auto import tqdm
+
+    optimizer = opt_cfg.build(policy.get_optim_params())
+    sched_cfg = budget.scheduler()
+    scheduler = sched_cfg.build(optimizer, budget.steps)
+    gen = torch.Generator().manual_seed(seed)
+    policy.train()
+    losses: list[float] = []
+    t_loop = time.perf_counter()
+    for _ in tqdm(range(budget.steps), desc=f"ACT seed {seed}", unit="step", mininterval=10):
+        rows = torch.randint(0, train.n, (budget.batch_size,), generator=gen)
+        loss, _ = policy.forward(train.batch(rows))
+        optimizer.zero_grad(set_to_none=True)
+        loss.backward()
+        if opt_cfg.grad_clip_norm:
+            torch.nn.utils.clip_grad_norm_(policy.parameters(), opt_cfg.grad_clip_norm)
+        optimizer.step()
+        scheduler.step()
+        losses.append(float(loss.detach()))
+    loop_s = time.perf_counter() - t_loop
+    policy.eval()
+    return optimizer, sched_cfg, scheduler, losses, loop_s
 
 
 def train_act(dataset_root: Path, output_dir: Path, seed: int, budget: ActBudget, n_demos: int | None = None) -> Path:
@@ -170,12 +181,14 @@ def train_act(dataset_root: Path, output_dir: Path, seed: int, budget: ActBudget
     from lerobot.policies.act.configuration_act import ACTConfig
     from lerobot.policies.factory import make_policy, make_pre_post_processors
 
+    from lerobot_pnp.train_fast import seed_everything
+
     t0 = time.perf_counter()
-    _seed_everything(seed)
+    seed_everything(seed)
     repo_id = f"local/{dataset_root.name}"
     meta = LeRobotDatasetMetadata(repo_id, root=dataset_root)
-    train_eps = split_episodes(dataset_root, "train")[:n_demos]
-    test_eps = split_episodes(dataset_root, "test")
+    train_eps = recorded_split(dataset_root, "train")[:n_demos]
+    test_eps = recorded_split(dataset_root, "test")
 
     policy_cfg = ACTConfig(**{**ACT_OVERRIDES, **budget.overrides}, device="cpu", push_to_hub=False)
     policy_cfg.optimizer_lr = budget.lr
@@ -185,30 +198,10 @@ def train_act(dataset_root: Path, output_dir: Path, seed: int, budget: ActBudget
     test = _ChunkBatches(_read_frames(dataset_root, test_eps), preprocessor, policy_cfg.chunk_size)
 
     opt_cfg = policy_cfg.get_optimizer_preset()
-    optimizer = opt_cfg.build(policy.get_optim_params())
-    sched_cfg = budget.scheduler()
-    scheduler = sched_cfg.build(optimizer, budget.steps)
-    gen = torch.Generator().manual_seed(seed)
-    policy.train()
-    losses: list[float] = []
-    t_loop = time.perf_counter()
-    from tqdm.auto import tqdm
-
-    for _ in tqdm(range(budget.steps), desc=f"ACT seed {seed}", unit="step", mininterval=10):
-        rows = torch.randint(0, train.n, (budget.batch_size,), generator=gen)
-        loss, _ = policy.forward(train.batch(rows))
-        optimizer.zero_grad(set_to_none=True)
-        loss.backward()
-        if opt_cfg.grad_clip_norm:
-            torch.nn.utils.clip_grad_norm_(policy.parameters(), opt_cfg.grad_clip_norm)
-        optimizer.step()
-        scheduler.step()
-        losses.append(float(loss.detach()))
-    loop_s = time.perf_counter() - t_loop
-    policy.eval()
+    optimizer, sched_cfg, scheduler, losses, loop_s = _fit(policy, train, budget, seed, opt_cfg)
 
     train_cfg = TrainPipelineConfig(
-        dataset=DatasetConfig(repo_id=repo_id, root=str(dataset_root), episodes=train_eps.tolist()),
+        dataset=DatasetConfig(repo_id=repo_id, root=str(dataset_root), episodes=list(train_eps)),
         policy=policy.config,
         output_dir=output_dir,
         job_name="act_dense",
@@ -266,7 +259,7 @@ def dense_nudge_step(dataset_root: Path) -> int:
         cols = read_frames(Path(dataset_root), ["phase.index"])
         ep, frame = cols["episode_index"], cols["frame_index"]
         phase = cols["phase.index"].reshape(len(ep))
-        rows = np.isin(ep, split_episodes(Path(dataset_root), "train")) & (phase >= 1)
+        rows = np.isin(ep, recorded_split(dataset_root, "train")) & (phase >= 1)
         ep, frame = ep[rows], frame[rows]
         _, first = np.unique(ep, return_index=True)  # each episode's first frame in phase >= 1 (rows sorted)
         if not len(first):

@@ -7,13 +7,14 @@ LeRobot's own dataset/policy APIs.
 from __future__ import annotations
 
 import csv
-import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from lerobot_pnp.dataset.layout import read_info
+from lerobot_pnp.dataset.splits import recorded_splits
 from lerobot_pnp.errors import DatasetError, PnPError
 
 BATCH_SIZE = 64  # episodes per batch (the fast trainer's default)
@@ -66,13 +67,12 @@ def train_pnp_lstm(
 
     test_episodes, steps = None, None
     if n_demos is not None:
-        info = json.loads((dataset_root / "meta" / "info.json").read_text())
-        total = int(info["total_episodes"])
+        total = int(read_info(dataset_root)["total_episodes"])
         if not 1 <= n_demos < total:
             raise PnPError(f"n_demos must be in [1, {total - 1}] for {dataset_root}, got {n_demos}")
         test_episodes = f"{n_demos}:{total}"
         # the same number of optimiser steps as a run on the whole training split (not the same epochs)
-        n_full = len(range(*(int(v) for v in info.get("splits", {}).get("train", f"0:{total}").split(":"))))
+        n_full = len(recorded_splits(dataset_root).get("train", range(total)))
         steps = epochs * math.ceil(n_full / BATCH_SIZE)
 
     train_fast(
@@ -142,16 +142,6 @@ def read_frames(dataset_root: Path, columns: list[str]) -> dict[str, np.ndarray]
     return out
 
 
-def split_episodes(dataset_root: Path, split: str) -> np.ndarray | None:
-    """Episode indices of ``split`` from ``meta/info.json`` ``splits`` (None if the dataset records none)."""
-    info = json.loads((Path(dataset_root) / "meta" / "info.json").read_text())
-    spec = (info.get("splits") or {}).get(split)
-    if not spec:
-        return None
-    a, b = (int(v) for v in str(spec).split(":"))
-    return np.arange(a, b)
-
-
 def load_train_episodes(dataset_root: Path, split: str = "train", limit: int | None = None) -> Episodes:
     """Episodes of ``split`` (meta/info.json ``splits``; all episodes if absent), read with LeRobot's dataset.
 
@@ -161,11 +151,13 @@ def load_train_episodes(dataset_root: Path, split: str = "train", limit: int | N
     ep = frames["episode_index"]
     env_state = frames["observation.environment_state"].astype(np.float32)
     action = frames["action"].astype(np.float32)
-    wanted = split_episodes(dataset_root, split)
-    if wanted is None:
+    recorded = recorded_splits(dataset_root).get(split)
+    if recorded is None:
         if split != "train":
             raise DatasetError(f"{dataset_root}: no {split!r} split in meta/info.json")
         wanted = np.unique(ep)
+    else:
+        wanted = np.arange(recorded.start, recorded.stop)
     if limit is not None:
         wanted = wanted[:limit]
     starts = np.searchsorted(ep, wanted, side="left")
@@ -195,7 +187,7 @@ def check_same_demonstrations(root: Path, other: Path) -> int:
         ep, seed = cols["episode_index"], cols["episode.seed"].reshape(len(cols["episode_index"]))
         _, first = np.unique(ep, return_index=True)
         seeds.append(seed[first])
-        splits.append(json.loads((Path(path) / "meta" / "info.json").read_text()).get("splits"))
+        splits.append(read_info(path).get("splits"))
     if len(seeds[0]) != len(seeds[1]) or not np.array_equal(seeds[0], seeds[1]) or splits[0] != splits[1]:
         differ = np.flatnonzero(seeds[0][: len(seeds[1])] != seeds[1][: len(seeds[0])])[:5].tolist()
         raise DatasetError(

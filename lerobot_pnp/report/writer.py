@@ -14,6 +14,7 @@ from dataclasses import asdict
 from pathlib import Path
 
 from lerobot_pnp import robot
+from lerobot_pnp.dataset.splits import train_count
 from lerobot_pnp.evaluation.stats import Rate, paired_comparison
 from lerobot_pnp.evaluation.suites import RECOVERY_BUDGET, SUITES
 from lerobot_pnp.report import adapters, plots
@@ -204,7 +205,7 @@ def _markdown(cfg, methods, results, suite_names, table, comparisons, figures, s
         "called in process on the `SyncVectorEnv` of `BaxterPnPEnvConfig.create_envs`, with a recording wrapper "
         f"for the final `info` of each episode. Every method runs the same seeds ({cfg.eval_seed} onwards, unseen "
         f"by the dataset's seeds 0..). Learned methods: {len(cfg.train_seeds)} training seeds {cfg.train_seeds}, "
-        f"{cfg.epochs} epochs each on {int(cfg.num_episodes * 0.8)} demonstrations"
+        f"{cfg.epochs} epochs each on {train_count(cfg.num_episodes)} demonstrations"
         + (" (dense-control methods: their budget is under Methods)" if any(m.data == "dense" for m in methods) else "")
         + "; their rate pools the seeds.",
         *_cli_lines(summary.get("lerobot_eval_cli_check")),

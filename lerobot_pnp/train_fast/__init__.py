@@ -14,7 +14,8 @@ A keyframe dataset is tiny (1400 episodes x 10 frames in the paper), so this loa
 * ``train_fast_config.json``: the config of the run.
 
 The train/test split is read from the dataset's ``meta/info.json`` ``splits`` (``{"train": "0:1120",
-"test": "1120:1400"}``); without a test split the last 20 % of the episodes are held out.
+"test": "1120:1400"}``); without a test split the last 20 % of the episodes are held out
+(``lerobot_pnp.dataset.splits.train_test``).
 
 Modules: ``config`` (the validated config), ``data`` (load, check, split), ``loop`` (training and
 checkpoints), ``report`` (held-out keyframe error, loss curve).
@@ -28,8 +29,8 @@ Command line: ``lerobot-pnp train --dataset_root=... --epochs=300 --policy.hidde
 """
 
 from .config import TrainFastConfig, normalize_episode_range, policy_config_from_dict
-from .data import KeyframeData, load_keyframe_data, split_episodes, validate_keyframe_dataset
-from .loop import TrainFastResult, train_fast
+from .data import KeyframeData, load_keyframe_data, validate_keyframe_dataset
+from .loop import TrainFastResult, seed_everything, train_fast
 from .report import keyframe_error
 
 __all__ = [
@@ -40,7 +41,7 @@ __all__ = [
     "load_keyframe_data",
     "normalize_episode_range",
     "policy_config_from_dict",
-    "split_episodes",
+    "seed_everything",
     "train_fast",
     "validate_keyframe_dataset",
 ]

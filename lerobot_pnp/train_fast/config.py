@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -164,17 +165,18 @@ def normalize_episode_range(spec: Any) -> str:
     turned back into ``a:b`` (exact: ``a = n // 60``, ``b = n % 60``). ``"1120:1400"`` (``b >= 60``) and
     ``"0:20"`` reach us as strings.
     """
+    from lerobot_pnp.dataset.splits import parse_range, range_spec
+
     if (_is_int(spec) or (isinstance(spec, str) and spec.strip().isdigit())) and int(spec) >= 60:
         n = int(spec)  # the smallest base-60 reading is '1:00' = 60
         spec = f"{n // 60}:{n % 60}"
     text = str(spec).strip()
-    parts = text.split(":")
-    if len(parts) != 2 or not all(p.strip().isdigit() for p in parts):
+    if not re.fullmatch(r"\s*\d+\s*:\s*\d+\s*", text):  # two whole numbers: no sign, no third part
         raise ConfigError(f"test_episodes must be a range 'start:stop' of episode indices, got {spec!r}")
-    start, stop = (int(p) for p in parts)
-    if start >= stop:
+    episodes = parse_range(text)
+    if not episodes:
         raise ConfigError(f"test_episodes {text!r} is empty: start must be smaller than stop")
-    return f"{start}:{stop}"
+    return range_spec(episodes)
 
 
 def policy_config_from_dict(policy: dict[str, Any]) -> PnpLstmConfig:

@@ -16,7 +16,8 @@ import torch
 from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_STATE
 
 from lerobot_pnp import robot
-from lerobot_pnp.errors import ConfigError, DatasetError
+from lerobot_pnp.dataset.splits import train_test
+from lerobot_pnp.errors import DatasetError
 
 SUBTASK_KEY = "phase.subtask"
 PHASE_KEY = "phase.index"
@@ -27,8 +28,6 @@ KEYFRAME_FEATURES: dict[str, tuple[int, ...]] = {
     OBS_ENV_STATE: (robot.OBJECT_DIM,),
     ACTION: (robot.ACTION_DIM,),
 }
-TEST_SPLIT_NAMES = ("test", "val", "validation", "eval")
-FALLBACK_TEST_FRACTION = 0.2
 
 
 @dataclass
@@ -120,44 +119,6 @@ def validate_keyframe_dataset(
         )
 
 
-def parse_range(spec: str, n_episodes: int) -> list[int]:
-    """Episode indices of ``"start:stop"``, which must lie within ``0:n_episodes``."""
-    try:
-        a, b = (int(x) for x in str(spec).split(":"))
-    except ValueError:
-        raise ConfigError(f"episode range {spec!r} is not of the form 'start:stop'") from None
-    if not 0 <= a <= b <= n_episodes:
-        raise ConfigError(f"episode range {spec!r} is outside the dataset's episodes 0:{n_episodes}")
-    return list(range(a, b))
-
-
-def split_episodes(
-    splits: dict[str, str] | None, n_episodes: int, test_override: str | None = None
-) -> tuple[list[int], list[int], str]:
-    """(train episodes, test episodes, source) from LeRobot's ``info.json`` ``splits`` or the 80/20 fallback."""
-    splits = dict(splits or {})
-    if test_override is not None:
-        test = parse_range(test_override, n_episodes)
-        source = f"override test={test_override}"
-    else:
-        name = next((n for n in TEST_SPLIT_NAMES if n in splits), None)
-        if name is not None:
-            test = parse_range(splits[name], n_episodes)
-            source = f"meta/info.json splits {splits}"
-        else:
-            n_test = max(1, round(FALLBACK_TEST_FRACTION * n_episodes)) if n_episodes > 1 else 0
-            test = list(range(n_episodes - n_test, n_episodes))
-            source = f"fallback: last {n_test} of {n_episodes} episodes held out (no test split in meta/info.json)"
-    test_set = set(test)
-    if test_override is None and "train" in splits and any(n in splits for n in TEST_SPLIT_NAMES):
-        train = [e for e in parse_range(splits["train"], n_episodes) if e not in test_set]
-    else:
-        train = [e for e in range(n_episodes) if e not in test_set]
-    if not train:
-        raise ConfigError(f"the split leaves no training episodes ({source})")
-    return train, test, source
-
-
 def load_keyframe_data(
     repo_id: str, root: str | Path | None, test_override: str | None = None, max_length: int | None = None
 ) -> tuple[Any, KeyframeData]:
@@ -205,7 +166,7 @@ def load_keyframe_data(
         return table[key][rows].reshape(n_ep, t_max).long() if key in labels else None
 
     episode_index = torch.as_tensor(episodes)
-    train_eps, test_eps, source = split_episodes(ds.meta.info.splits, ds.meta.total_episodes, test_override)
+    train_eps, test_eps, source = train_test(ds.meta.info.splits, ds.meta.total_episodes, test_override)
     row_of = {int(e): i for i, e in enumerate(episode_index.tolist())}
     data = KeyframeData(
         state=seq(OBS_STATE),

@@ -103,7 +103,9 @@ class _Run:
         return ckpt / "pretrained_model"
 
 
-def _seed_everything(seed: int) -> None:
+def seed_everything(seed: int) -> None:
+    """Seed Python's, numpy's and torch's global generators (LeRobot's ``set_seed``, with numpy's seed taken
+    modulo 2**32: numpy accepts 32 bits, the configs accept seeds up to 2**63). The trainers call it first."""
     random.seed(seed)
     np.random.seed(seed % 2**32)
     torch.manual_seed(seed)
@@ -120,6 +122,90 @@ def _mse(policy: PnpLstmPolicy, batch: dict[str, torch.Tensor] | None) -> float:
     return float(loss)
 
 
+def _normalised(preprocessor, data, rows: torch.Tensor, device) -> dict[str, torch.Tensor] | None:
+    """The episodes ``rows`` normalised once, with the same pre-processor lerobot-train uses (None if empty)."""
+    if not len(rows):
+        return None
+    out = preprocessor(data.batch(rows))
+    out = {k: out[k].to(device) for k in (OBS_STATE, OBS_ENV_STATE, ACTION)}
+    return {**out, **{k: v.to(device) for k, v in data.extras(rows).items()}}
+
+
+def _optimisation(cfg: TrainFastConfig, out_dir: Path, policy, preprocessor, postprocessor, n_train: int):
+    """The optimiser and scheduler of the policy's presets (``cfg.lr`` overrides the rate) over the run's
+    steps (``cfg.steps``, else ``cfg.epochs`` whole epochs); returns ``(_Run, epochs)``."""
+    opt_cfg = cfg.policy.get_optimizer_preset()
+    if cfg.lr is not None:
+        opt_cfg.lr = cfg.lr
+    sched_cfg = cfg.policy.get_scheduler_preset()
+    steps_per_epoch = math.ceil(n_train / cfg.batch_size)
+    total_steps = cfg.steps if cfg.steps is not None else cfg.epochs * steps_per_epoch
+    n_epochs = math.ceil(total_steps / steps_per_epoch)
+    optimizer = opt_cfg.build(policy.get_optim_params())
+    scheduler = sched_cfg.build(optimizer, total_steps) if sched_cfg is not None else None
+    run = _Run(cfg, out_dir, total_steps, policy, optimizer, scheduler, preprocessor, postprocessor, opt_cfg, sched_cfg)
+    return run, n_epochs
+
+
+def _epoch(run: _Run, train_all: dict[str, torch.Tensor], perm: torch.Tensor, step: int) -> tuple[list[float], int]:
+    """One pass over the training episodes in the order ``perm`` (stops at the run's last step); returns the
+    batch losses and the step count after it."""
+    policy, optimizer, scheduler, opt_cfg = run.policy, run.optimizer, run.scheduler, run.opt_cfg
+    losses: list[float] = []
+    for i in range(0, len(perm), run.cfg.batch_size):
+        rows = perm[i : i + run.cfg.batch_size]
+        loss, _ = policy.forward({k: v[rows] for k, v in train_all.items()})
+        optimizer.zero_grad(set_to_none=True)
+        loss.backward()
+        if opt_cfg.grad_clip_norm and opt_cfg.grad_clip_norm > 0:
+            torch.nn.utils.clip_grad_norm_(policy.parameters(), opt_cfg.grad_clip_norm)
+        optimizer.step()
+        if scheduler is not None:
+            scheduler.step()
+        losses.append(float(loss.detach()))
+        step += 1
+        if step >= run.total_steps:
+            break
+    return losses, step
+
+
+def _final_report(
+    run: _Run, ds, data, train_all, test_all, step: int, ckpt_dir: Path, history: list
+) -> TrainFastResult:
+    """The final MSEs and the held-out keyframe error (``test_keyframe_error.json``), the loss curve."""
+    cfg, policy, out_dir = run.cfg, run.policy, run.out_dir
+    final_train = _mse(policy, train_all)
+    final_test = _mse(policy, test_all)
+    if test_all is not None:
+        pad = data.pad[data.test_idx] if cfg.policy.recovering else None
+        err = keyframe_error(
+            policy, run.postprocessor, test_all, data.action[data.test_idx], action_names(ds.meta), pad
+        )
+    else:
+        err = {"n_episodes": 0}
+    err.update(
+        {
+            "split": data.split_source,
+            "n_train_episodes": len(data.train_idx),
+            "n_test_episodes": len(data.test_idx),
+            "final_train_mse": final_train,
+            "final_test_mse": final_test,
+            "steps": step,
+            "checkpoint": str(ckpt_dir),
+        }
+    )
+    (out_dir / "test_keyframe_error.json").write_text(json.dumps(err, indent=2))
+    write_curve(history, out_dir)
+    logger.info(
+        "pnp_lstm fast training done: train MSE %.4g, test MSE %.4g, test joint MAE %.3f deg -> %s",
+        final_train,
+        final_test,
+        err.get("mean_joint_mae_deg", float("nan")),
+        ckpt_dir,
+    )
+    return TrainFastResult(ckpt_dir, step, final_train, final_test, err, history)
+
+
 def train_fast(cfg: TrainFastConfig) -> TrainFastResult:
     """Train ``pnp_lstm`` on whole keyframe episodes; see the package docstring for what is written."""
     from lerobot.policies.factory import make_policy, make_pre_post_processors
@@ -127,7 +213,7 @@ def train_fast(cfg: TrainFastConfig) -> TrainFastResult:
     if cfg.num_threads is not None:
         torch.set_num_threads(cfg.num_threads)
     out_dir = Path(cfg.output_dir)
-    _seed_everything(cfg.seed)
+    seed_everything(cfg.seed)
 
     max_length = cfg.policy.max_episode_length if cfg.policy.recovering else None
     ds, data = load_keyframe_data(cfg.dataset_repo_id, cfg.dataset_root, cfg.test_episodes, max_length)
@@ -146,29 +232,13 @@ def train_fast(cfg: TrainFastConfig) -> TrainFastResult:
     preprocessor, postprocessor = make_pre_post_processors(policy_cfg, dataset_stats=ds.meta.stats)
     device = next(policy.parameters()).device
 
-    # Normalise everything once with the same pre-processor lerobot-train uses.
-    def prep(rows: torch.Tensor) -> dict[str, torch.Tensor] | None:
-        if not len(rows):
-            return None
-        out = preprocessor(data.batch(rows))
-        out = {k: out[k].to(device) for k in (OBS_STATE, OBS_ENV_STATE, ACTION)}
-        return {**out, **{k: v.to(device) for k, v in data.extras(rows).items()}}
+    train_all = _normalised(preprocessor, data, data.train_idx, device)
+    test_all = _normalised(preprocessor, data, data.test_idx, device)
+    assert train_all is not None  # train_test guarantees training episodes
 
-    train_all = prep(data.train_idx)
-    test_all = prep(data.test_idx)
-    assert train_all is not None  # split_episodes guarantees training episodes
-
-    opt_cfg = policy_cfg.get_optimizer_preset()
-    if cfg.lr is not None:
-        opt_cfg.lr = cfg.lr
-    sched_cfg = policy_cfg.get_scheduler_preset()
     n_train = len(data.train_idx)
-    steps_per_epoch = math.ceil(n_train / cfg.batch_size)
-    total_steps = cfg.steps if cfg.steps is not None else cfg.epochs * steps_per_epoch
-    n_epochs = math.ceil(total_steps / steps_per_epoch)
-    optimizer = opt_cfg.build(policy.get_optim_params())
-    scheduler = sched_cfg.build(optimizer, total_steps) if sched_cfg is not None else None
-    run = _Run(cfg, out_dir, total_steps, policy, optimizer, scheduler, preprocessor, postprocessor, opt_cfg, sched_cfg)
+    run, n_epochs = _optimisation(cfg, out_dir, policy, preprocessor, postprocessor, n_train)
+    optimizer = run.optimizer
 
     out_dir.mkdir(parents=True, exist_ok=True)
     with open(out_dir / "train_fast_config.json", "w") as f, draccus.config_type("json"):
@@ -197,21 +267,7 @@ def train_fast(cfg: TrainFastConfig) -> TrainFastResult:
     policy.train()
     for epoch in range(1, n_epochs + 1):
         perm = torch.randperm(n_train, generator=gen).to(device)
-        losses: list[float] = []
-        for i in range(0, n_train, cfg.batch_size):
-            rows = perm[i : i + cfg.batch_size]
-            loss, _ = policy.forward({k: v[rows] for k, v in train_all.items()})
-            optimizer.zero_grad(set_to_none=True)
-            loss.backward()
-            if opt_cfg.grad_clip_norm and opt_cfg.grad_clip_norm > 0:
-                torch.nn.utils.clip_grad_norm_(policy.parameters(), opt_cfg.grad_clip_norm)
-            optimizer.step()
-            if scheduler is not None:
-                scheduler.step()
-            losses.append(float(loss.detach()))
-            step += 1
-            if step >= total_steps:
-                break
+        losses, step = _epoch(run, train_all, perm, step)
         last = epoch == n_epochs
         if last or epoch % cfg.eval_every_epochs == 0:
             history.append(point(epoch, step, float(np.mean(losses)), time.perf_counter() - t0))
@@ -226,32 +282,4 @@ def train_fast(cfg: TrainFastConfig) -> TrainFastResult:
         pbar.close()
     policy.eval()
     ckpt_dir = run.save(step)
-
-    final_train = _mse(policy, train_all)
-    final_test = _mse(policy, test_all)
-    if test_all is not None:
-        pad = data.pad[data.test_idx] if cfg.policy.recovering else None
-        err = keyframe_error(policy, postprocessor, test_all, data.action[data.test_idx], action_names(ds.meta), pad)
-    else:
-        err = {"n_episodes": 0}
-    err.update(
-        {
-            "split": data.split_source,
-            "n_train_episodes": n_train,
-            "n_test_episodes": len(data.test_idx),
-            "final_train_mse": final_train,
-            "final_test_mse": final_test,
-            "steps": step,
-            "checkpoint": str(ckpt_dir),
-        }
-    )
-    (out_dir / "test_keyframe_error.json").write_text(json.dumps(err, indent=2))
-    write_curve(history, out_dir)
-    logger.info(
-        "pnp_lstm fast training done: train MSE %.4g, test MSE %.4g, test joint MAE %.3f deg -> %s",
-        final_train,
-        final_test,
-        err.get("mean_joint_mae_deg", float("nan")),
-        ckpt_dir,
-    )
-    return TrainFastResult(ckpt_dir, step, final_train, final_test, err, history)
+    return _final_report(run, ds, data, train_all, test_all, step, ckpt_dir, history)

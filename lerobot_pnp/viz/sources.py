@@ -66,11 +66,13 @@ class EpisodeData:
 
 def open_dataset(repo_id: str, root: str | None):
     """Open a LeRobotDataset; a missing local folder is a ``DatasetNotFoundError`` (no Hub download)."""
-    if root is not None and not (Path(root).expanduser() / "meta" / "info.json").is_file():
+    from lerobot_pnp.dataset import open_local_dataset
+    from lerobot_pnp.dataset.layout import is_dataset
+
+    if root is not None and not is_dataset(root):
         raise DatasetNotFoundError(
             f"no LeRobot dataset at root={root!r} (no meta/info.json); generate one with `lerobot-pnp generate`"
         )
-    from lerobot_pnp.dataset import open_local_dataset
 
     try:
         with warnings.catch_warnings():
