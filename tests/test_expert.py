@@ -13,7 +13,7 @@ from lerobot_pnp.expert import ExpertConfig, FSMExpert, grasp_yaw, run_expert_ep
 def test_expert_episode_has_the_papers_ten_states(keyframe_env):
     ep = run_expert_episode(keyframe_env, seed=0)
     assert ep.success
-    assert ep.states.shape == (10, 8) and ep.object_positions.shape == (10, 3) and ep.actions.shape == (10, 8)
+    assert ep.states.shape == (10, 8) and ep.env_states.shape == (10, 3) and ep.actions.shape == (10, 8)
     assert ep.keyframes.shape == (10, 8) and ep.keyframe_states.shape == (10, 11)
     np.testing.assert_array_equal(ep.phases, np.arange(10))
     # action k is the keyframe of state k + 1; the last frame holds
@@ -55,7 +55,7 @@ def test_expert_is_deterministic(keyframe_env):
     b = run_expert_episode(keyframe_env, seed=21)
     np.testing.assert_array_equal(a.states, b.states)
     np.testing.assert_array_equal(a.actions, b.actions)
-    np.testing.assert_array_equal(a.object_positions, b.object_positions)
+    np.testing.assert_array_equal(a.env_states, b.env_states)
 
 
 def test_expert_success_on_a_seeded_sample(keyframe_env):
@@ -157,7 +157,7 @@ def test_full_preset_observes_yaw_and_goal_and_is_deterministic():
     np.testing.assert_allclose(again["environment_state"][3:5], obs["environment_state"][3:5], atol=1e-4)
     a, b = run_expert_episode(env, 21), run_expert_episode(env, 21)
     np.testing.assert_array_equal(a.actions, b.actions)
-    np.testing.assert_array_equal(a.object_positions, b.object_positions)
+    np.testing.assert_array_equal(a.env_states, b.env_states)
 
 
 def test_env_info_reports_phase_and_failure_cause():
