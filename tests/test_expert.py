@@ -224,3 +224,30 @@ def test_a_short_carry_keeps_a_heavy_cube_only_when_gentle(carry_min_time, kept)
     assert physics.object_in_grasp()
     env.step(expert.next_keyframe())  # the place approach: an 8 cm carry
     assert physics.object_in_grasp() == kept
+
+
+def test_phase_is_an_int_enum_with_the_papers_names_and_subtasks():
+    import json
+
+    assert [int(p) for p in robot.Phase] == list(range(robot.N_KEYFRAMES))
+    assert [p.label for p in robot.Phase] == list(robot.PHASE_NAMES)
+    assert [p.subtask for p in robot.Phase] == [0] * 5 + [1] * 5
+    # it serialises exactly as the plain ints it replaces (the dataset and the records do not change)
+    assert json.dumps([robot.Phase.PLACE_OPEN]) == "[8]" and f"{robot.Phase.PICK_CLOSE}" == "3"
+    assert np.asarray([robot.Phase.PICK_GRASP], dtype=np.int64).tolist() == [2]
+
+
+def test_infer_phase_is_a_pure_query_and_step_info_records_the_grasp(keyframe_env):
+    base = keyframe_env.unwrapped
+    _, info = keyframe_env.reset(seed=0)
+    assert type(info["phase"]) is int and info["phase"] == robot.Phase.PICK_START
+    expert = FSMExpert(keyframe_env)
+    while expert.phase != robot.Phase.PICK_RETRACT:  # up to the lift: the cube is held
+        _, _, _, _, info = keyframe_env.step(expert.next_keyframe())
+    task, physics = base.pnp_task, base.physics
+    assert physics.object_in_grasp() and info["phase"] >= robot.Phase.PICK_CLOSE
+    task._was_grasped = False
+    assert isinstance(task.infer_phase(physics), robot.Phase) and task.infer_phase(physics) == info["phase"]
+    expert.label()  # the expert's query reads the inferred phase: no side effect either
+    assert task._was_grasped is False
+    assert type(task.step_info(physics, False, False)["phase"]) is int and task._was_grasped
