@@ -151,6 +151,40 @@ def cli_check(cfg: DaggerConfig, out: Path, rnd: int) -> dict:
     return report
 
 
+def _memoryless_controls(cfg, out: Path, env_cfg, sections: set[str], rows: list) -> None:
+    """The ``memoryless`` and ``phase_told`` sections: train and evaluate the MLP controls, append their rows."""
+    # The memoryless controls with both recipes: with the late episodes (the planner's recipe) and on current
+    # observations only (a model without memory cannot tell a late observation from a current one; measured,
+    # the late episodes help the plain MLP and hurt the phase-told one, so both are reported).
+    recipes = (("late", cfg.policy.latency_augment_prob), ("current", 0.0))
+    if "memoryless" in sections:  # round-0 data, like the phase-told control and the round-0 planner
+        data, repo = out / "dagger" / "demos", f"{cfg.base_repo_id}_demos"
+        n_demos = cfg.num_demos
+        test = f"{n_demos - max(1, round(cfg.test_fraction * n_demos))}:{n_demos}"
+        for name, prob in recipes:
+            policy = copy.deepcopy(cfg.policy)
+            policy.recurrent, policy.latency_augment_prob = False, prob
+            rdir = out / ("memoryless_late" if name == "late" else "memoryless")
+            ckpt, train_s = train(data, repo, test, policy, cfg, rdir)
+            res = evaluate_checkpoint(cfg, ckpt, env_cfg, rdir / "eval.json")
+            rows.append((f"memoryless (matched MLP), round-0 data, {name} observations in training", res))
+
+    if "phase_told" in sections:
+        for name, prob in reversed(recipes):  # "current" first: it writes the phase-told demonstrations
+            told = copy.deepcopy(cfg)
+            told.output_dir, told.rounds = str(out / ("phase_told_late" if name == "late" else "phase_told")), 0
+            told.env_changes = {**cfg.env_changes, "observe_phase": True}
+            told.policy.recurrent, told.policy.latency_augment_prob = False, prob
+            if name == "late":  # the same phase-told demonstrations, written by the "current" run
+                told.base_root, told.base_repo_id = str(out / "phase_told" / "demos"), f"{cfg.base_repo_id}_demos"
+            summary = run_dagger(told)
+            log(f"phase-told MLP ({name}) timings (s): {summary['timings_s']}")
+            res = json.loads((Path(told.output_dir) / "round_00" / "eval.json").read_text())
+            rows.append(
+                (f"memoryless (matched MLP) told the phase, round-0 data, {name} observations in training", res)
+            )
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--config", default="configs/dagger.json")
@@ -196,36 +230,7 @@ def main() -> None:
         rows.insert(0, ("clocked (paper), 10-frame demos", res))
         results["clocked_checkpoint"] = str(ckpt)
 
-    # The memoryless controls with both recipes: with the late episodes (the planner's recipe) and on current
-    # observations only (a model without memory cannot tell a late observation from a current one; measured,
-    # the late episodes help the plain MLP and hurt the phase-told one, so both are reported).
-    recipes = (("late", cfg.policy.latency_augment_prob), ("current", 0.0))
-    if "memoryless" in sections:  # round-0 data, like the phase-told control and the round-0 planner
-        data, repo = out / "dagger" / "demos", f"{cfg.base_repo_id}_demos"
-        n_demos = cfg.num_demos
-        test = f"{n_demos - max(1, round(cfg.test_fraction * n_demos))}:{n_demos}"
-        for name, prob in recipes:
-            policy = copy.deepcopy(cfg.policy)
-            policy.recurrent, policy.latency_augment_prob = False, prob
-            rdir = out / ("memoryless_late" if name == "late" else "memoryless")
-            ckpt, train_s = train(data, repo, test, policy, cfg, rdir)
-            res = evaluate_checkpoint(cfg, ckpt, env_cfg, rdir / "eval.json")
-            rows.append((f"memoryless (matched MLP), round-0 data, {name} observations in training", res))
-
-    if "phase_told" in sections:
-        for name, prob in reversed(recipes):  # "current" first: it writes the phase-told demonstrations
-            told = copy.deepcopy(cfg)
-            told.output_dir, told.rounds = str(out / ("phase_told_late" if name == "late" else "phase_told")), 0
-            told.env_changes = {**cfg.env_changes, "observe_phase": True}
-            told.policy.recurrent, told.policy.latency_augment_prob = False, prob
-            if name == "late":  # the same phase-told demonstrations, written by the "current" run
-                told.base_root, told.base_repo_id = str(out / "phase_told" / "demos"), f"{cfg.base_repo_id}_demos"
-            summary = run_dagger(told)
-            log(f"phase-told MLP ({name}) timings (s): {summary['timings_s']}")
-            res = json.loads((Path(told.output_dir) / "round_00" / "eval.json").read_text())
-            rows.append(
-                (f"memoryless (matched MLP) told the phase, round-0 data, {name} observations in training", res)
-            )
+    _memoryless_controls(cfg, out, env_cfg, sections, rows)
 
     if "latency" in sections:
         lat = {}

@@ -26,7 +26,6 @@ JOINT_NAMES: tuple[str, ...] = (
 JOINT_LOWER = np.array([-1.70167993878, -2.147, -3.05417993878, -0.05, -3.059, -1.57079632679, -3.059])
 JOINT_UPPER = np.array([1.70167993878, 1.047, 3.05417993878, 2.618, 3.059, 2.094, 3.059])
 JOINT_VEL_LIMIT = np.array([1.5, 1.5, 1.5, 1.5, 4.0, 4.0, 4.0])  # rad/s
-JOINT_EFFORT_LIMIT = np.array([50.0, 50.0, 50.0, 50.0, 15.0, 15.0, 15.0])  # N m
 N_JOINTS = len(JOINT_NAMES)
 
 # Rethink's "neutral" left-arm pose.
