@@ -84,11 +84,11 @@ def breakdown(control_mode: str, episodes: int, out: Path) -> dict:
     """Run one shard in this process with timers around physics and IK."""
     import mujoco
 
-    from lerobot_pnp.dataset.shards import GenerateShard, _quiet_and_single_threaded, read_shard_record
+    from lerobot_pnp.dataset.shards import GenerateShard, quiet_and_single_threaded, read_shard_record
     from lerobot_pnp.env_config import BaxterPnPEnvConfig
     from lerobot_pnp.ik import ArmIK
 
-    _quiet_and_single_threaded()
+    quiet_and_single_threaded()
     physics, ik = _Timer(), _Timer()
     saved = (mujoco.mj_step, ArmIK.solve, ArmIK.refine, ArmIK.forward)
     mujoco.mj_step = physics.wrap(mujoco.mj_step)

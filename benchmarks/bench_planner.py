@@ -47,7 +47,7 @@ torch.set_num_threads(1)
 
 import lerobot_pnp  # noqa: E402,F401
 from lerobot_pnp.dagger import DaggerConfig, evaluate_checkpoint, run_dagger, write_table  # noqa: E402
-from lerobot_pnp.dagger.loop import _base_env_cfg  # noqa: E402
+from lerobot_pnp.dagger.loop import base_env_config  # noqa: E402
 from lerobot_pnp.dagger.writer import LabelledEpisode, write_episodes  # noqa: E402
 from lerobot_pnp.dataset.splits import range_spec, recorded_split, test_split  # noqa: E402
 
@@ -89,7 +89,7 @@ def ten_frame_demos(cfg: DaggerConfig, out: Path) -> tuple[Path, str, str]:
     n = len(episodes)
     test = test_split(n, cfg.test_fraction)  # held out as DAgger's demos are
     if not root.is_dir():
-        write_episodes(root, "local/clocked_demos", _base_env_cfg(cfg), episodes, {"test": test})
+        write_episodes(root, "local/clocked_demos", base_env_config(cfg), episodes, {"test": test})
     return root, "local/clocked_demos", test
 
 
@@ -249,7 +249,7 @@ def main() -> None:
     cfg = load_config(args.config, str(out / "dagger"))
     if args.rounds is not None:
         cfg.rounds = args.rounds
-    env_cfg = _base_env_cfg(cfg)
+    env_cfg = base_env_config(cfg)
     results: dict = {}
     rows: list[tuple[str, dict]] = []
     for name, section in SECTIONS.items():

@@ -18,6 +18,7 @@ import numpy as np
 from lerobot_pnp import robot
 from lerobot_pnp.errors import ConfigError, ExpertFailure, UnreachableError
 from lerobot_pnp.interpolation import joint_trajectory
+from lerobot_pnp.robot import Phase
 from lerobot_pnp.task import grasp_yaw
 
 
@@ -47,9 +48,9 @@ class ExpertEpisode:
 
     seed: int
     states: np.ndarray  # (T, 8) observed joints + gripper opening
-    object_positions: np.ndarray  # (T, E) observed environment state (object xyz [+ yaw, goal])
+    env_states: np.ndarray  # (T, E) observed environment state (object xyz [+ yaw] [+ goal] [+ phase one-hot])
     actions: np.ndarray  # (T, 8) commanded joint targets + gripper command
-    phases: np.ndarray  # (T,) FSM state index 0..9 (the state being left; recoveries reuse the indices)
+    phases: np.ndarray  # (T,) int64 robot.Phase values (the state being left; recoveries reuse the indices)
     keyframes: np.ndarray  # (K+1, 8) the commanded keyframes (row 0 = the start state); K = 9 undisturbed
     keyframe_states: np.ndarray  # (K+1, D) observed state + environment state at each keyframe (the paper's sample)
     success: bool
@@ -91,32 +92,32 @@ class FSMExpert:
         self.reset()
 
     def reset(self) -> None:
-        self.phase = 0
-        self.last_phase = 0
+        self.phase = Phase.PICK_START
+        self.last_phase = Phase.PICK_START
         self.recoveries: list[str] = []
         self._cmd = np.append(self.physics.arm_qpos(), robot.GRIPPER_OPEN)
         self._yaw = 0.0
-        self._next_phase: int | None = None
+        self._next_phase: Phase | None = None
 
-    # The FSM state to plan from, for each inferred task progress (task.PickPlaceTask.progress): e.g. "held and
-    # lifted" (4) continues with the place approach (5), "placed but the gripper still around it" (8) retracts.
-    _PHASE_FROM_PROGRESS = (0, 1, 2, 3, 5, 5, 6, 7, 8, 9)
+    # The FSM state to plan from, for each phase the task infers (task.PickPlaceTask.infer_phase): "held and
+    # lifted" (pick/retract) continues with place/start, "placed but the gripper still around it" (place/open) retracts.
+    _PLAN_FROM_INFERRED = {p: p for p in Phase} | {Phase.PICK_RETRACT: Phase.PLACE_START}
 
     def sync_to_state(self) -> None:
         """Forget the episode's history and plan from the current physical state (DAgger labelling).
 
-        The FSM state comes from the task's inferred progress; the last command is the servos' current
+        The FSM state comes from the task's inferred phase; the last command is the servos' current
         setpoints with the gripper command matching its measured state (open above half-open).
         """
-        progress = self.task.progress(self.physics)
-        self.phase = self._PHASE_FROM_PROGRESS[progress]
+        inferred = self.task.infer_phase(self.physics)
+        self.phase = self._PLAN_FROM_INFERRED[inferred]
         grip = robot.GRIPPER_OPEN if self.physics.gripper_opening() > 0.5 else robot.GRIPPER_CLOSED
         self._cmd = np.append(self.physics.arm_command(), grip)
         _, cube_yaw = self.physics.object_pose()
-        self._yaw = grasp_yaw(cube_yaw) if progress <= 5 else 0.0
+        self._yaw = grasp_yaw(cube_yaw) if inferred <= Phase.PLACE_START else 0.0
         self._next_phase = None
 
-    def label(self) -> tuple[np.ndarray, int]:
+    def label(self) -> tuple[np.ndarray, Phase]:
         """The expert's next keyframe and its phase label from the current state (no side effects on the sim)."""
         self.sync_to_state()
         keyframe = self.next_keyframe()
@@ -130,19 +131,20 @@ class FSMExpert:
         """The last commanded keyframe (the start state before the first call)."""
         return self._cmd.astype(np.float32)
 
-    def _check(self, p: int) -> tuple[int, float | None]:
+    def _check(self, p: Phase) -> tuple[Phase, float | None]:
         """The phase to plan from the observed state, and a gripper override for recovery lifts."""
         held = self.physics.object_in_grasp()
-        if p == 3 and not held:  # the close found nothing: a missed grasp
+        if p == Phase.PICK_CLOSE and not held:  # the close found nothing: a missed grasp
             self.recoveries.append("grasp_missed")
-            self._next_phase = 0
-            return 3, robot.GRIPPER_OPEN
-        if 4 <= p <= 7 and not held and not self.task.object_placed(self.physics):  # dropped in transport
+            self._next_phase = Phase.PICK_START
+            return Phase.PICK_CLOSE, robot.GRIPPER_OPEN
+        in_transport = Phase.PICK_RETRACT <= p <= Phase.PLACE_DESCEND
+        if in_transport and not held and not self.task.object_placed(self.physics):  # dropped in transport
             self.recoveries.append("dropped")
-            return 0, None
-        if p == 9 and not self.task.is_success(self.physics):  # moved off the target after release
+            return Phase.PICK_START, None
+        if p == Phase.PLACE_RETRACT and not self.task.is_success(self.physics):  # moved off the target after release
             self.recoveries.append("displaced")
-            return 0, None
+            return Phase.PICK_START, None
         return p, None
 
     def next_keyframe(self) -> np.ndarray:
@@ -185,7 +187,7 @@ class FSMExpert:
             grip = grip_override
         self._cmd = np.append(q, grip)
         self.last_phase = p
-        self.phase = self._next_phase if self._next_phase is not None else min(p + 1, robot.N_KEYFRAMES - 1)
+        self.phase = self._next_phase if self._next_phase is not None else Phase(min(p + 1, robot.N_KEYFRAMES - 1))
         self._next_phase = None
         return self._cmd.astype(np.float32)
 
@@ -224,19 +226,19 @@ def run_expert_episode(env: gym.Env, seed: int, config: ExpertConfig | None = No
                 cube, _ = physics.object_pose()
                 raise ExpertFailure(
                     f"seed {seed}: expert failed within the {base.config.episode_length}-step budget: {cause} "
-                    f"(last phase {robot.PHASE_NAMES[phase]}, object at {np.round(cube, 3).tolist()})",
+                    f"(last phase {phase.label}, object at {np.round(cube, 3).tolist()})",
                     cause,
-                    robot.PHASE_NAMES[info.get("furthest_phase", phase)],
+                    Phase(info.get("furthest_phase", phase)).label,
                 )
             done = done or terminated  # a dense keyframe's segment is finished even after success
         kf_states.append(np.concatenate(_frame(obs)))
     # The final observed state, with a hold action, ends the episode.
     state, obj = _frame(obs)
-    states.append(state), objects.append(obj), actions.append(keyframes[-1]), phases.append(robot.N_KEYFRAMES - 1)
+    states.append(state), objects.append(obj), actions.append(keyframes[-1]), phases.append(Phase.PLACE_RETRACT)
     return ExpertEpisode(
         seed=seed,
         states=np.stack(states),
-        object_positions=np.stack(objects),
+        env_states=np.stack(objects),
         actions=np.stack(actions).astype(np.float32),
         phases=np.asarray(phases, dtype=np.int64),
         keyframes=np.stack(keyframes),

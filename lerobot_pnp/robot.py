@@ -7,6 +7,7 @@ this module (it knows LeRobot features only).
 
 from __future__ import annotations
 
+from enum import IntEnum
 from importlib import resources
 from pathlib import Path
 
@@ -25,7 +26,6 @@ JOINT_NAMES: tuple[str, ...] = (
 JOINT_LOWER = np.array([-1.70167993878, -2.147, -3.05417993878, -0.05, -3.059, -1.57079632679, -3.059])
 JOINT_UPPER = np.array([1.70167993878, 1.047, 3.05417993878, 2.618, 3.059, 2.094, 3.059])
 JOINT_VEL_LIMIT = np.array([1.5, 1.5, 1.5, 1.5, 4.0, 4.0, 4.0])  # rad/s
-JOINT_EFFORT_LIMIT = np.array([50.0, 50.0, 50.0, 50.0, 15.0, 15.0, 15.0])  # N m
 N_JOINTS = len(JOINT_NAMES)
 
 # Rethink's "neutral" left-arm pose.
@@ -57,6 +57,37 @@ SUBTASKS: tuple[str, ...] = ("pick", "place")
 PHASE_NAMES: tuple[str, ...] = tuple(f"pick/{p}" for p in PICK_PHASES) + tuple(f"place/{p}" for p in PLACE_PHASES)
 N_PHASES_PER_SUBTASK = 5
 N_KEYFRAMES = len(PHASE_NAMES)
+
+
+class Phase(IntEnum):
+    """An FSM state of the expert, the task's inferred phase and the dataset's ``phase.index``.
+
+    An ``IntEnum``, so it serialises as today's plain ints (JSON, ``np.int64`` arrays, f-strings): the
+    dataset content does not depend on it being typed.
+    """
+
+    PICK_START = 0
+    PICK_APPROACH = 1
+    PICK_GRASP = 2
+    PICK_CLOSE = 3
+    PICK_RETRACT = 4
+    PLACE_START = 5
+    PLACE_APPROACH = 6
+    PLACE_DESCEND = 7
+    PLACE_OPEN = 8
+    PLACE_RETRACT = 9
+
+    @property
+    def label(self) -> str:
+        """The phase's name in ``PHASE_NAMES`` (``"pick/start"`` ...)."""
+        return PHASE_NAMES[self]
+
+    @property
+    def subtask(self) -> int:
+        """Index into ``SUBTASKS`` (0 pick, 1 place): the dataset's ``phase.subtask``."""
+        return self // N_PHASES_PER_SUBTASK
+
+
 KEYFRAME_FPS = 1  # nominal frame rate of a keyframe stream (dataset and env): one FSM state per frame
 
 # Scene facts (Baxter base frame = MuJoCo world frame; provenance in docs/baxter.md).

@@ -16,14 +16,12 @@ from lerobot_pnp import robot
 from lerobot_pnp.disturbances import Disturbances
 from lerobot_pnp.errors import ConfigError, ResetOptionError, UnreachableError
 from lerobot_pnp.physics import BaxterPhysics
+from lerobot_pnp.robot import Phase
 
 RESET_OPTIONS = ("arm_qpos", "object_pos", "object_yaw")
 _START_TRIES = 20
 _OBJECT_TRIES = 10_000  # rejection draws for an object position outside the excluded box
 
-
-# Inferred task progress, as the index of the FSM state reached (robot.PHASE_NAMES), from the physical state.
-PROGRESS_NAMES = {i: name for i, name in enumerate(robot.PHASE_NAMES)}
 FAILURE_CAUSES = ("not_grasped", "dropped", "not_transported", "not_placed", "not_released")
 
 
@@ -192,7 +190,7 @@ class PickPlaceTask:
         if c.observe_goal:
             env_state.append(self.place_xy)
         if c.observe_phase:  # privileged: from the true state, never noisy (latency still applies)
-            env_state.append(np.eye(robot.N_KEYFRAMES)[self.progress(physics)])
+            env_state.append(np.eye(robot.N_KEYFRAMES)[self.infer_phase(physics)])
         obs = {"agent_pos": state, "environment_state": np.concatenate(env_state).astype(np.float32)}
         longest = max(c.obs_latency, c.obs_latency_max)
         if longest <= 0:
@@ -225,40 +223,45 @@ class PickPlaceTask:
         # The contact query is skipped unless the object is placed (most steps).
         return self.object_placed(physics) and self.gripper_released(physics)
 
-    def progress(self, physics: BaxterPhysics) -> int:
-        """The FSM state the physical situation corresponds to (index into robot.PHASE_NAMES)."""
+    def infer_phase(self, physics: BaxterPhysics) -> Phase:
+        """The FSM state the physical situation corresponds to. A pure query (no state of the task changes)."""
         obj, _ = physics.object_pose()
         ee, _ = physics.ee_pose()
-        held = physics.object_in_grasp()
         at_target = np.linalg.norm(obj[:2] - self.place_xy) <= self.config.success_xy_tol
-        if held:
-            self._was_grasped = True
+        if physics.object_in_grasp():
             if obj[2] < physics.object_rest_z() + 0.01:
-                return 7 if at_target else 3  # place/descend (at the target) or pick/close
-            return 6 if np.linalg.norm(obj[:2] - self.place_xy) < 0.03 else 4  # place/approach or pick/retract
+                return Phase.PLACE_DESCEND if at_target else Phase.PICK_CLOSE
+            return Phase.PLACE_APPROACH if np.linalg.norm(obj[:2] - self.place_xy) < 0.03 else Phase.PICK_RETRACT
         if self.object_placed(physics):
-            return 9 if self.gripper_released(physics) else 8  # place/retract or place/open
+            return Phase.PLACE_RETRACT if self.gripper_released(physics) else Phase.PLACE_OPEN
         if np.linalg.norm(ee[:2] - obj[:2]) < 0.02:
-            return 2 if physics.pad_bottom_z() < obj[2] + physics.object_size / 2 else 1  # pick/grasp or approach
-        return 0
+            above = physics.pad_bottom_z() < obj[2] + physics.object_size / 2
+            return Phase.PICK_GRASP if above else Phase.PICK_APPROACH
+        return Phase.PICK_START
 
     def step_info(self, physics: BaxterPhysics, success: bool, truncated: bool) -> dict:
-        """``info`` entries: the inferred phase, the furthest reached, the perturbations, the failure cause."""
-        phase = self.progress(physics)
+        """``info`` entries: the inferred phase, the furthest reached, the perturbations, the failure cause.
+
+        The env calls it once per reset and per step, on the state it then observes, so it is the one place that
+        records whether the object was ever held (for the ``dropped`` / ``not_grasped`` cause). The phases are
+        plain ints in ``info``: gymnasium's vector envs stack ``info`` values by their exact type.
+        """
+        self._was_grasped |= physics.object_in_grasp()
+        phase = self.infer_phase(physics)
         self._furthest = max(self._furthest, phase)
         cause = None
         if truncated and not success:
-            if phase >= 8:
+            if phase >= Phase.PLACE_OPEN:
                 cause = "not_released"
-            elif phase >= 6:
+            elif phase >= Phase.PLACE_APPROACH:
                 cause = "not_placed"
-            elif phase >= 3:
+            elif phase >= Phase.PICK_CLOSE:
                 cause = "not_transported"
             else:
                 cause = "dropped" if self._was_grasped else "not_grasped"
         return {
-            "phase": phase,
-            "furthest_phase": self._furthest,
+            "phase": int(phase),
+            "furthest_phase": int(self._furthest),
             "perturbations": ",".join(self.disturbances.fired),
             "failure_cause": cause or "",
         }

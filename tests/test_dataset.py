@@ -129,7 +129,7 @@ def test_keyframe_episodes_reproduce_the_expert_exactly(kf):
             )
             np.testing.assert_array_equal(np.array([table["action"][i] for i in rows], np.float32), ep.actions)
             np.testing.assert_array_equal(
-                np.array([table["observation.environment_state"][i] for i in rows], np.float32), ep.object_positions
+                np.array([table["observation.environment_state"][i] for i in rows], np.float32), ep.env_states
             )
             np.testing.assert_array_equal([table["phase.index"][i] for i in rows], np.arange(robot.N_KEYFRAMES))
             np.testing.assert_array_equal([table["phase.subtask"][i] for i in rows], np.arange(10) // 5)

@@ -156,7 +156,7 @@ def test_a_late_drop_happens_in_the_middle_of_the_transport_and_the_expert_re_pi
         assert ep.success and ep.info["perturbations"] == ["drop"] and "dropped" in ep.info["recoveries"]
         ((kind, at, transported, lift),) = fired
         assert kind == "drop" and 0.5 <= at <= transported and lift >= 0.02  # mid-air, after `at` of the way
-        assert np.all(ep.object_positions[:, :2].min(axis=0) >= lows - 0.03)
+        assert np.all(ep.env_states[:, :2].min(axis=0) >= lows - 0.03)
 
 
 @pytest.mark.parametrize(

@@ -165,7 +165,7 @@ def test_dagger_evaluate_equals_its_former_loop():
     demo = run_expert_episode(env, 3)  # replayed by the lookup table: a success on seed 3, failures elsewhere
     env.close()
     pre, post = identity_processors()
-    table = LookupTablePolicy(Episodes(np.arange(1), demo.object_positions[:1], [demo.actions]))
+    table = LookupTablePolicy(Episodes(np.arange(1), demo.env_states[:1], [demo.actions]))
     loaded = LoadedPolicy(table, pre, post, path=None, type="pnp_lookup_table")
 
     def former(suite):

@@ -13,7 +13,7 @@ from lerobot_pnp.expert import ExpertConfig, FSMExpert, grasp_yaw, run_expert_ep
 def test_expert_episode_has_the_papers_ten_states(keyframe_env):
     ep = run_expert_episode(keyframe_env, seed=0)
     assert ep.success
-    assert ep.states.shape == (10, 8) and ep.object_positions.shape == (10, 3) and ep.actions.shape == (10, 8)
+    assert ep.states.shape == (10, 8) and ep.env_states.shape == (10, 3) and ep.actions.shape == (10, 8)
     assert ep.keyframes.shape == (10, 8) and ep.keyframe_states.shape == (10, 11)
     np.testing.assert_array_equal(ep.phases, np.arange(10))
     # action k is the keyframe of state k + 1; the last frame holds
@@ -55,7 +55,7 @@ def test_expert_is_deterministic(keyframe_env):
     b = run_expert_episode(keyframe_env, seed=21)
     np.testing.assert_array_equal(a.states, b.states)
     np.testing.assert_array_equal(a.actions, b.actions)
-    np.testing.assert_array_equal(a.object_positions, b.object_positions)
+    np.testing.assert_array_equal(a.env_states, b.env_states)
 
 
 def test_expert_success_on_a_seeded_sample(keyframe_env):
@@ -157,7 +157,7 @@ def test_full_preset_observes_yaw_and_goal_and_is_deterministic():
     np.testing.assert_allclose(again["environment_state"][3:5], obs["environment_state"][3:5], atol=1e-4)
     a, b = run_expert_episode(env, 21), run_expert_episode(env, 21)
     np.testing.assert_array_equal(a.actions, b.actions)
-    np.testing.assert_array_equal(a.object_positions, b.object_positions)
+    np.testing.assert_array_equal(a.env_states, b.env_states)
 
 
 def test_env_info_reports_phase_and_failure_cause():
@@ -224,3 +224,30 @@ def test_a_short_carry_keeps_a_heavy_cube_only_when_gentle(carry_min_time, kept)
     assert physics.object_in_grasp()
     env.step(expert.next_keyframe())  # the place approach: an 8 cm carry
     assert physics.object_in_grasp() == kept
+
+
+def test_phase_is_an_int_enum_with_the_papers_names_and_subtasks():
+    import json
+
+    assert [int(p) for p in robot.Phase] == list(range(robot.N_KEYFRAMES))
+    assert [p.label for p in robot.Phase] == list(robot.PHASE_NAMES)
+    assert [p.subtask for p in robot.Phase] == [0] * 5 + [1] * 5
+    # it serialises exactly as the plain ints it replaces (the dataset and the records do not change)
+    assert json.dumps([robot.Phase.PLACE_OPEN]) == "[8]" and f"{robot.Phase.PICK_CLOSE}" == "3"
+    assert np.asarray([robot.Phase.PICK_GRASP], dtype=np.int64).tolist() == [2]
+
+
+def test_infer_phase_is_a_pure_query_and_step_info_records_the_grasp(keyframe_env):
+    base = keyframe_env.unwrapped
+    _, info = keyframe_env.reset(seed=0)
+    assert type(info["phase"]) is int and info["phase"] == robot.Phase.PICK_START
+    expert = FSMExpert(keyframe_env)
+    while expert.phase != robot.Phase.PICK_RETRACT:  # up to the lift: the cube is held
+        _, _, _, _, info = keyframe_env.step(expert.next_keyframe())
+    task, physics = base.pnp_task, base.physics
+    assert physics.object_in_grasp() and info["phase"] >= robot.Phase.PICK_CLOSE
+    task._was_grasped = False
+    assert isinstance(task.infer_phase(physics), robot.Phase) and task.infer_phase(physics) == info["phase"]
+    expert.label()  # the expert's query reads the inferred phase: no side effect either
+    assert task._was_grasped is False
+    assert type(task.step_info(physics, False, False)["phase"]) is int and task._was_grasped

@@ -67,7 +67,7 @@ def _write_dataset(root: Path, config: BaxterPnPEnvConfig, seeds, record_task: b
             ds.add_frame(
                 {
                     "observation.state": ep.states[k],
-                    "observation.environment_state": ep.object_positions[k],
+                    "observation.environment_state": ep.env_states[k],
                     "action": ep.actions[k],
                     "next.done": np.array([last]),
                     "next.success": np.array([last and ep.success]),
@@ -224,7 +224,7 @@ def test_dataset_episodes_recording(dataset, tmp_path):
 
         # The 3D replay (simulated, not copied from the dataset) puts the object where the dataset saw it.
         cube = _translations(_rows(chunks, f"{run}/world/cube", "frame_index"))
-        np.testing.assert_allclose(cube, ep.object_positions, atol=1e-4)
+        np.testing.assert_allclose(cube, ep.env_states, atol=1e-4)
 
         # Continuous motion: many samples on `time` between the frames, no jumps between samples.
         all_rows = _rows(chunks, f"{run}/plots/joints/left_s1", "time")
@@ -281,7 +281,7 @@ def test_replay_uses_the_recorded_task(custom_dataset, tmp_path, caplog):
     np.testing.assert_allclose(target[:2], PLACE, atol=1e-6)
     ep = custom_dataset["episodes"][0]
     cube = _translations(_rows(chunks, "/episode_0/world/cube", "frame_index"))
-    np.testing.assert_allclose(cube, ep.object_positions, atol=1e-4)
+    np.testing.assert_allclose(cube, ep.env_states, atol=1e-4)
     assert np.all(cube[0, :2] >= CUSTOM_TASK["object_low"]) and np.all(cube[0, :2] <= CUSTOM_TASK["object_high"])
     np.testing.assert_allclose(cube[-1, :2], PLACE, atol=0.02)  # placed on the custom target
 
@@ -309,7 +309,7 @@ def test_kinematic_replay_without_seed(dataset):
         frame_index=np.arange(n),
         timestamp=np.arange(n, dtype=np.float64),
         state=ep.states,
-        object=ep.object_positions,
+        object=ep.env_states,
         action=ep.actions,
         phase=ep.phases,
         success=np.zeros(n),
@@ -318,7 +318,7 @@ def test_kinematic_replay_without_seed(dataset):
     run = replay_episode(data, BaxterPnPEnvConfig(preset="paper"), hz=25)
     assert run.info["mode"].startswith("kinematic")
     rows = run.frames.sample
-    np.testing.assert_allclose(run.samples["object"][rows], ep.object_positions, atol=1e-9)
+    np.testing.assert_allclose(run.samples["object"][rows], ep.env_states, atol=1e-9)
     np.testing.assert_allclose(run.samples["q"][rows], ep.states[:, :7], atol=1e-9)
     np.testing.assert_allclose(run.samples["gripper"][rows], ep.states[:, 7], atol=1e-6)
     np.testing.assert_allclose(run.samples["t"][rows], np.arange(n))

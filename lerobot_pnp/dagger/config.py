@@ -13,7 +13,8 @@ from lerobot_pnp.policy import PnpLstmConfig
 
 # Rollouts under observation latency are left out by default: their recorded observations are already late,
 # and training shows half of all episodes one step later still (policy.latency_augment_prob). With an earlier
-# recipe that had no late episodes, adding them also cost nominal success (round 1: 93 % with, 98.5 % without).
+# recipe that had no late episodes, adding them also cost nominal success in round 1 (docs/results/planner.md
+# has the current recipe's measurements).
 DEFAULT_ROLLOUT_SUITES = ["nominal", "quiet_grasp_miss", "quiet_drop", "quiet_nudge_0.03", "quiet_displace"]
 DEFAULT_EVAL_SUITES = [
     "quiet", "quiet_grasp_miss", "quiet_drop", "quiet_nudge_0.03", "quiet_displace", "quiet_noise_latency",

@@ -59,7 +59,8 @@ def _tqdm(total: int, desc: str, enabled: bool):
     return tqdm(total=total, desc=desc, disable=not enabled, leave=False)
 
 
-def _base_env_cfg(cfg: DaggerConfig):
+def base_env_config(cfg: DaggerConfig):
+    """The task DAgger runs on: ``base_root``'s recorded task, or the preset, with ``env_changes`` applied."""
     from lerobot_pnp.env_config import BaxterPnPEnvConfig
 
     if cfg.base_root:
@@ -235,7 +236,7 @@ def _run_rounds(cfg: DaggerConfig, out: Path) -> dict:
     import torch
 
     torch.set_num_threads(1)
-    env_cfg = _base_env_cfg(cfg)
+    env_cfg = base_env_config(cfg)
     t0 = time.perf_counter()
     timings: dict[str, float] = {}
     demo_root, demo_repo, test, demo_key = _demos(cfg, out, env_cfg)

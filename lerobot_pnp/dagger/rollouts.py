@@ -25,8 +25,8 @@ def suite_env(base_cfg, suite: str):
     return make_env(SUITES[suite].env_configs(base_cfg)[0])
 
 
-# A policy "followed" the last label when every joint setpoint is within this of it (rad): learned keyframes
-# are ~0.3 deg off on average, a different keyframe is tens of degrees away.
+# A policy "followed" the last label when every joint setpoint is within this of it (rad): a learned keyframe
+# lands a fraction of a degree from its label, a different keyframe is tens of degrees away.
 FOLLOW_TOL = 0.05
 
 
@@ -39,12 +39,12 @@ class Teacher:
     * after the pick retract the FSM holds once (place/start, the paper's state 4); ``label()`` goes straight
       to the place approach;
     * after the place descent the FSM opens the gripper; ``label()`` plans the descent again (the object is
-      still a clearance above the table, so its inferred progress has not advanced);
+      still a clearance above the table, so its inferred phase has not advanced);
     * when the object slid away during the grasp descent the FSM closes, finds the gripper empty, lifts with
       it open and re-approaches; ``label()`` re-approaches at once.
 
-    Mixing both teachers gives contradictory targets for the same state (a DAgger round trained on both lost
-    half its success). So: when the previous label was followed (the arm's setpoints are at its target), the
+    Mixing both teachers gives contradictory targets for the same state (a DAgger round trained on both did
+    much worse). So: when the previous label was followed (the arm's setpoints are at its target), the
     teacher plans from the next FSM state as the demonstrating expert does (with the expert's own checks for
     a miss, a drop or a displacement); otherwise, and at the first step, it is ``label()``.
     """
@@ -54,14 +54,14 @@ class Teacher:
 
         self.expert = FSMExpert(env)
         self.physics = env.unwrapped.physics
-        self.prev: tuple[int, np.ndarray] | None = None
+        self.prev: tuple[robot.Phase, np.ndarray] | None = None
 
-    def label(self) -> tuple[np.ndarray, int]:
+    def label(self) -> tuple[np.ndarray, robot.Phase]:
         prev = self.prev
         command = np.asarray(self.physics.arm_command(), np.float32)
         if prev is not None and np.abs(command - prev[1][: robot.N_JOINTS]).max() < FOLLOW_TOL:
             self.expert.sync_to_state()
-            self.expert.phase = min(prev[0] + 1, robot.N_KEYFRAMES - 1)
+            self.expert.phase = robot.Phase(min(prev[0] + 1, robot.N_KEYFRAMES - 1))
             keyframe, phase = self.expert.next_keyframe(), self.expert.last_phase
         else:
             keyframe, phase = self.expert.label()

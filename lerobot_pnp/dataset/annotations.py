@@ -31,7 +31,7 @@ def subtask_rows(timestamps: np.ndarray, phases: np.ndarray) -> list[dict]:
     return [
         {
             "role": "assistant",
-            "content": robot.PHASE_NAMES[int(phases[i])],
+            "content": robot.Phase(int(phases[i])).label,
             "style": "subtask",
             "timestamp": float(timestamps[i]),
             "camera": None,

@@ -78,7 +78,7 @@ def episode_frames(ep, pixels=None, cameras=()) -> list[dict]:
     """The LeRobot frames (``add_frame`` dicts) of one expert episode, in the layout of ``dataset_features``."""
     if cameras and len(pixels) != ep.num_frames:
         raise DatasetError(f"seed {ep.seed}: {len(pixels)} camera frames for {ep.num_frames} states (bug)")
-    frames = frames_from_arrays(ep.states, ep.object_positions, ep.actions, ep.phases, ep.seed, ep.success)
+    frames = frames_from_arrays(ep.states, ep.env_states, ep.actions, ep.phases, ep.seed, ep.success)
     for frame, images in zip(frames, pixels if cameras else [], strict=False):
         for cam in cameras:
             frame[f"observation.images.{cam}"] = images[cam]
@@ -89,7 +89,8 @@ def frames_from_arrays(states, env_states, actions, phases, seed: int, success: 
     """``add_frame`` dicts of one episode from its per-frame arrays (expert demonstrations, DAgger episodes).
 
     The last frame carries ``next.done`` (and ``next.success`` when the episode succeeded); ``phase.subtask``
-    is derived from the phase (0 pick, 1 place).
+    is derived from the phase (0 pick, 1 place). ``phases`` holds ``robot.Phase`` values; they are stored as
+    plain int64.
     """
     n = len(actions)
     return [
@@ -99,8 +100,8 @@ def frames_from_arrays(states, env_states, actions, phases, seed: int, success: 
             "action": actions[i].astype(np.float32),
             "next.done": np.array([i == n - 1]),
             "next.success": np.array([i == n - 1 and success]),
-            "phase.index": np.array([phases[i]], dtype=np.int64),
-            "phase.subtask": np.array([phases[i] // robot.N_PHASES_PER_SUBTASK], dtype=np.int64),
+            "phase.index": np.array([int(phases[i])], dtype=np.int64),
+            "phase.subtask": np.array([int(phases[i]) // robot.N_PHASES_PER_SUBTASK], dtype=np.int64),
             "episode.seed": np.array([seed], dtype=np.int64),
             "task": robot.TASK,
         }

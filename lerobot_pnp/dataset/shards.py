@@ -97,7 +97,7 @@ class GenerateShard(PipelineStep):
 
         from lerobot_pnp.env_config import BaxterPnPEnvConfig
 
-        _quiet_and_single_threaded()
+        quiet_and_single_threaded()
         start, stop = shard_range(self.num_episodes, world_size, rank)
         final = shard_dir(self.work, rank)
         tmp = final.with_name(final.name + ".tmp")
@@ -145,7 +145,7 @@ class GenerateShard(PipelineStep):
         return record
 
 
-def _quiet_and_single_threaded() -> None:
+def quiet_and_single_threaded() -> None:
     """One thread per worker (workers are the parallelism) and no per-episode progress bars from `datasets`."""
     for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
         os.environ[var] = "1"

@@ -137,12 +137,12 @@ def eval_expert(env_cfg: BaxterPnPEnvConfig, n_episodes: int, start_seed: int) -
 
 @dataclass
 class PolicyEpisode:
-    """One closed-loop episode. Row ``k`` of ``states``/``object_positions`` is the observation the policy saw
+    """One closed-loop episode. Row ``k`` of ``states``/``env_states`` is the observation the policy saw
     at step ``k``; ``actions[k]`` is what it answered. The last row of ``states`` is the final observation."""
 
     seed: int
     states: np.ndarray  # (T+1, 8)
-    object_positions: np.ndarray  # (T+1, 3)
+    env_states: np.ndarray  # (T+1, E) observed environment state (object xyz [+ yaw] [+ goal] [+ phase])
     actions: np.ndarray  # (T, 8)
     successes: np.ndarray  # (T,) env success flag after each step
     success: bool
@@ -194,7 +194,7 @@ def run_episode(
     return PolicyEpisode(
         seed=seed,
         states=np.stack(states),
-        object_positions=np.stack(objects),
+        env_states=np.stack(objects),
         actions=np.stack(actions) if actions else np.zeros((0, robot.ACTION_DIM), np.float32),
         successes=np.asarray(successes, dtype=bool),
         success=bool(successes and successes[-1]),

@@ -12,8 +12,8 @@ from lerobot_pnp import robot
 
 
 def phase_name(index: int) -> str:
-    """The name of FSM phase ``index`` (``robot.PHASE_NAMES``); ``"unknown"`` for -1 or any other index."""
-    return robot.PHASE_NAMES[index] if 0 <= index < len(robot.PHASE_NAMES) else "unknown"
+    """The name of FSM phase ``index`` (``robot.Phase``); ``"unknown"`` for -1 or any other index."""
+    return robot.Phase(index).label if 0 <= index < len(robot.Phase) else "unknown"
 
 
 @dataclass

@@ -180,7 +180,7 @@ def merged_labels(positions: np.ndarray, phases: list[int]) -> tuple[np.ndarray,
 
 
 def _subtask(phase: int) -> str:
-    return robot.SUBTASKS[min(max(int(phase), 0) // robot.N_PHASES_PER_SUBTASK, len(robot.SUBTASKS) - 1)]
+    return robot.SUBTASKS[robot.Phase(min(max(int(phase), 0), len(robot.Phase) - 1)).subtask]
 
 
 def label_anchors(positions: np.ndarray) -> np.ndarray:

@@ -99,7 +99,7 @@ def rollout_with_expert(
         frame_index=np.arange(n + 1),
         sample=np.asarray(frame_samples, dtype=np.int64),
         state=pe.states,
-        object=pe.object_positions,
+        object=pe.env_states,
         action=actions,
         phase=np.minimum(np.asarray(phases), robot.N_KEYFRAMES - 1),
         success=np.concatenate([[0.0], pe.successes.astype(float)]),

@@ -121,4 +121,4 @@ class Sampler:
 
 
 def phase_name(p: int) -> str:
-    return robot.PHASE_NAMES[int(p)] if 0 <= int(p) < robot.N_KEYFRAMES else f"phase {int(p)}"
+    return robot.Phase(int(p)).label if 0 <= int(p) < len(robot.Phase) else f"phase {int(p)}"
