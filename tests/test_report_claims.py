@@ -193,3 +193,27 @@ def test_the_quick_preset_renders_its_three_claims_in_order():
         "Feedback at every step corrects a disturbed object",
     ]
     assert claims.render_claims({}, {}) == ["- (no suite with the clocked LSTM was evaluated)"]
+
+
+# ---------------------------------------------------------------------------------- held-out axes (issue 19)
+def test_held_out_axes_pool_each_side_and_need_both():
+    from lerobot_pnp.report import markdown
+
+    results = {
+        "recovering": {
+            str(SEED): {
+                "train_latency": _records(90),
+                "heldout_latency_2": _records(30),
+                "heldout_latency_jitter": _records(50),
+                "train_mixture": _records(80),  # combination axis: its held-out suite was not run
+            }
+        }
+    }
+    methods = get_methods(["recovering"])
+    lines = markdown._held_out_section(results, methods)
+    rows = [line for line in lines if line.startswith("| latency")]
+    assert len(rows) == 1 and not any(line.startswith("| combination") for line in lines)
+    assert "90.0% [" in rows[0] and "n=100" in rows[0]
+    assert "40.0% [" in rows[0] and "n=200" in rows[0]  # 80 of 200 over the two held-out suites
+    assert rows[0].endswith("worse beyond the intervals: does not generalise |")
+    assert markdown._held_out_section({"recovering": {str(SEED): {"train_latency": _records(90)}}}, methods) == []

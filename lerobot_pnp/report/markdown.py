@@ -11,7 +11,7 @@ import math
 from lerobot_pnp.evaluation.records import summarize
 from lerobot_pnp.evaluation.suites import SUITES
 from lerobot_pnp.report.claims import render_claims
-from lerobot_pnp.report.results import main_records
+from lerobot_pnp.report.results import held_out_rates, main_records
 
 
 def render(layout, cfg, methods, results, suite_names, table, comparisons, figures, summary) -> str:
@@ -28,6 +28,7 @@ def render(layout, cfg, methods, results, suite_names, table, comparisons, figur
         lines += [f"### {caption}", "", f"![{caption}](figures/{name})", ""]
     lines += ["## Claims", "", *render_claims(table, comparisons), ""]
     lines += ["## Where the methods differ beyond their intervals", "", *_separations(table, methods), ""]
+    lines += _held_out_section(results, methods)
     lines += _notes(methods)
     return "\n".join(lines)
 
@@ -120,6 +121,36 @@ def _failure_table(methods, results, suite_names) -> list[str]:
             if recs and any(not r.success for r in recs):
                 sm = summarize(recs)
                 lines.append(f"| {m.label} | `{s}` | {_fmt(sm['by_cause'])} | {_fmt(sm['by_phase'])} |")
+    return [*lines, ""]
+
+
+def _held_out_section(results, methods) -> list[str]:
+    """Per disturbance axis, each method's success in distribution vs held out (only the axes whose suites on
+    both sides were evaluated): whether recovery generalises beyond what the planner was trained on."""
+    rows = held_out_rates(results, methods)
+    if not rows:
+        return []
+    labels = {m.name: m.label for m in methods}
+    lines = [
+        "## In distribution vs held out, per disturbance axis",
+        "",
+        "Each side pools every episode of the axis' suites that were evaluated (all training seeds); 95 % Wilson.",
+        "",
+        "| axis | what is held out | method | in distribution | held out | verdict |",
+        "|---|---|---|---|---|---|",
+    ]
+    for axis, method, inside, outside in rows:
+        verdict = (
+            "worse beyond the intervals: does not generalise"
+            if outside.interval[1] < inside.interval[0]
+            else "better beyond the intervals"
+            if outside.interval[0] > inside.interval[1]
+            else "no difference beyond the intervals"
+        )
+        lines.append(
+            f"| {axis.name} | {axis.description} | {labels[method]} | {inside} n={inside.n} | "
+            f"{outside} n={outside.n} | {verdict} |"
+        )
     return [*lines, ""]
 
 

@@ -10,7 +10,7 @@ lookup table are paired (exact McNemar per training seed; the largest p-value ov
 from __future__ import annotations
 
 from lerobot_pnp.evaluation.stats import Rate, paired_comparison
-from lerobot_pnp.evaluation.suites import SUITES
+from lerobot_pnp.evaluation.suites import HELD_OUT_AXES, SUITES, Axis
 
 BASELINE = "lookup_table"
 
@@ -81,3 +81,21 @@ def build_comparisons(results, methods, suite_names) -> dict:
                     "per_seed": [str(c) for c in comps],
                 }
     return comparisons
+
+
+def _pool(results, method: str, suites: tuple[str, ...]) -> Rate | None:
+    """One rate over every record of ``method`` on the evaluated ones of ``suites`` (all training seeds)."""
+    recs = [r for s in suites for r in main_records(results, method, s)]
+    return Rate(sum(r.success for r in recs), len(recs)) if recs else None
+
+
+def held_out_rates(results, methods) -> list[tuple[Axis, str, Rate, Rate]]:
+    """Per disturbance axis of ``HELD_OUT_AXES`` and method: (axis, method, in distribution, held out), each
+    pooled over the axis' suites that were evaluated; only where both sides were."""
+    rows = []
+    for axis in HELD_OUT_AXES:
+        for m in methods:
+            inside, outside = _pool(results, m.name, axis.in_distribution), _pool(results, m.name, axis.held_out)
+            if inside and outside:
+                rows.append((axis, m.name, inside, outside))
+    return rows
