@@ -5,8 +5,8 @@ every name is a method of ``methods.METHODS`` and a suite (or a group) of ``eval
 method or suite is an ImportError in CI, not a claim that silently vanishes from the report. A claim whose
 inputs were not evaluated renders nothing (the quick preset evaluates two methods on two suites).
 
-``table``: suite -> method -> ``{"rate", "interval", "n", "per_seed"}`` (``results.build_table``);
-``comparisons``: method -> suite -> ``{"difference", "max_p", "per_seed"}`` (``results.build_comparisons``).
+``table``: suite -> method -> ``results.Pooled`` (``results.build_table``);
+``comparisons``: method -> suite -> ``results.Comparison`` (``results.build_comparisons``).
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.evaluation.suites import RECOVERY_BUDGET, SUITES
 from lerobot_pnp.report.methods import METHODS
+from lerobot_pnp.report.results import Pooled
 
 BASELINE = "lookup_table"
 FEEDBACK_SUITES = ("nudge_0.03", "nudge_0.05", "obs_noise_0.005")
@@ -38,17 +39,17 @@ class Claim:
     optional: tuple[str, ...] = ()
 
 
-def _pct(v: dict) -> str:
-    return f"{100 * v['rate']:.1f}% [{100 * v['interval'][0]:.1f}, {100 * v['interval'][1]:.1f}]"
+def _pct(v: Pooled) -> str:
+    return str(v.rate)
 
 
 def _generalises(table, comparisons) -> list[str]:
     nom = table.get("nominal", {}).get("clocked_lstm")
     if not nom:
         return []
-    lo = nom["interval"][0]
+    lo = nom.rate.interval[0]
     return [
-        f"- *The LSTM planner generalises to unseen object positions*: {100 * nom['rate']:.1f}% "
+        f"- *The LSTM planner generalises to unseen object positions*: {100 * nom.rate.rate:.1f}% "
         f"(95 % interval from {100 * lo:.1f}%) -> {'holds' if lo >= 0.9 else 'does not hold (below 90 %)'}."
     ]
 
@@ -59,12 +60,8 @@ def _planner_needed(table, comparisons) -> list[str]:
         return []
     return [
         f"- *A learned planner is needed for unseen positions*: against an open-loop lookup table of the same "
-        f"demonstrations the nominal difference is {100 * c['difference']:+.1f} pts (max p {c['max_p']:.2g}) -> "
-        + (
-            "holds."
-            if c["max_p"] < 0.05 and c["difference"] > 0
-            else "not shown: the paper's task does not separate them."
-        )
+        f"demonstrations the nominal difference is {100 * c.difference:+.1f} pts (max p {c.max_p:.2g}) -> "
+        + ("holds." if c.max_p < 0.05 and c.difference > 0 else "not shown: the paper's task does not separate them.")
     ]
 
 
@@ -73,10 +70,10 @@ def _feedback_corrects(table, comparisons) -> list[str]:
     for s in FEEDBACK_SUITES:
         c = comparisons.get("clocked_lstm", {}).get(s)
         if c:
-            holds = c["max_p"] < 0.05 and c["difference"] > 0
+            holds = c.max_p < 0.05 and c.difference > 0
             out.append(
                 f"- *Feedback at every step corrects a disturbed object* (suite `{s}`): clocked LSTM vs lookup table "
-                f"{100 * c['difference']:+.1f} pts (max p {c['max_p']:.2g}) -> "
+                f"{100 * c.difference:+.1f} pts (max p {c.max_p:.2g}) -> "
                 + ("holds: the benchmark discriminates here." if holds else "not shown on this suite.")
             )
     return out
@@ -86,11 +83,11 @@ def _feedback_cost(table, comparisons) -> list[str]:
     worse = [
         (s, c)
         for s, c in comparisons.get("clocked_lstm", {}).items()
-        if c["max_p"] < 0.05 and c["difference"] < 0 and all(str(x).startswith("-") for x in c["per_seed"])
+        if c.max_p < 0.05 and c.difference < 0 and all(str(x).startswith("-") for x in c.per_seed)
     ]
     if not worse:
         return []
-    listed = "; ".join(f"`{s}` {100 * c['difference']:+.1f} pts (max p {c['max_p']:.2g})" for s, c in worse)
+    listed = "; ".join(f"`{s}` {100 * c.difference:+.1f} pts (max p {c.max_p:.2g})" for s, c in worse)
     return [
         "- *Feedback has a cost*: the open-loop lookup table beats the clocked LSTM, with every training seed, on "
         f"{listed}. The planner acts on what it observes, so a stale observation or a disturbance it never saw "
@@ -120,13 +117,13 @@ def _memory_clocked(table, comparisons) -> list[str]:
     ]
 
 
-def _told_verdict(lstm: dict, mlp: dict, told: dict) -> str:
+def _told_verdict(lstm: Pooled, mlp: Pooled, told: Pooled) -> str:
     """How much of the LSTM's lead over the memoryless MLP being told the phase recovers."""
-    gap = lstm["rate"] - mlp["rate"]
-    closed = (told["rate"] - mlp["rate"]) / gap if gap > 0 else float("nan")
+    gap = lstm.rate.rate - mlp.rate.rate
+    closed = (told.rate.rate - mlp.rate.rate) / gap if gap > 0 else float("nan")
     return f" Told the phase (privileged), the MLP gets {_pct(told)}" + (
         ": below the plain MLP, so being told the phase does not replace memory."
-        if told["interval"][1] < mlp["interval"][0]
+        if told.rate.interval[1] < mlp.rate.interval[0]
         else f": {100 * closed:.0f} % of the gap closed, so the phase is most of what memory supplies."
         if gap > 0 and closed >= 0.8
         else f": {100 * closed:.0f} % of the gap closed, so memory supplies more than the phase."
@@ -141,7 +138,7 @@ def _memory_phase(table, comparisons) -> list[str]:
     lstm, mlp, told = nominal.get("recovering"), nominal.get("memoryless_mlp"), nominal.get("phase_told_mlp")
     if not (lstm and mlp):
         return []
-    matters = lstm["interval"][0] > mlp["interval"][1]
+    matters = lstm.rate.interval[0] > mlp.rate.interval[1]
     line = (
         f"- *Memory tracks the phase (nominal, same recipe and capacity)*: recovering LSTM {_pct(lstm)}, the "
         f"matched memoryless MLP {_pct(mlp)}"
@@ -156,7 +153,7 @@ def _memory_phase(table, comparisons) -> list[str]:
     slack = table.get("slack", {})
     if all(m in slack for m in ("recovering", "memoryless_mlp", "phase_told_mlp")):
         told_slack = slack["phase_told_mlp"]
-        slower = told and told_slack["interval"][0] > told["interval"][1]
+        slower = told and told_slack.rate.interval[0] > told.rate.interval[1]
         line += (
             f" With a {RECOVERY_BUDGET}-keyframe budget (suite `slack`) the told MLP reaches {_pct(told_slack)} "
             f"(LSTM {_pct(slack['recovering'])}, plain MLP {_pct(slack['memoryless_mlp'])})"
@@ -176,7 +173,7 @@ def _corrects_itself(table, comparisons) -> list[str]:
         rates = [(s, table.get(s, {}).get(name)) for s in RECOVERY_SUITES]
         rates = [(s, v) for s, v in rates if v]
         if rates:
-            held = [s for s, v in rates if v["interval"][0] >= 0.5]
+            held = [s for s, v in rates if v.rate.interval[0] >= 0.5]
             out.append(
                 f"- *The planner corrects itself* ({label}): "
                 + ", ".join(f"`{s}` {_pct(v)}" for s, v in rates)
@@ -198,8 +195,8 @@ def _teacher_adds(table, comparisons) -> list[str]:
     ]
     if not before_after:
         return []
-    better = [f"`{s}` {_pct(a)} -> {_pct(b)}" for s, a, b in before_after if b["interval"][0] > a["interval"][1]]
-    worse = [f"`{s}` {_pct(a)} -> {_pct(b)}" for s, a, b in before_after if b["interval"][1] < a["interval"][0]]
+    better = [f"`{s}` {_pct(a)} -> {_pct(b)}" for s, a, b in before_after if b.rate.interval[0] > a.rate.interval[1]]
+    worse = [f"`{s}` {_pct(a)} -> {_pct(b)}" for s, a, b in before_after if b.rate.interval[1] < a.rate.interval[0]]
     return [
         "- *What the teacher adds (DAgger, one round)*: beyond the intervals better on "
         + ("; ".join(better) or "no suite")

@@ -63,7 +63,7 @@ def _robustness(layout, methods, results, suite_names, prov):
             pts = [(SUITES[s].x * SUITES[s].x_scale, pooled(results.get(m.name, {}), s)) for s in members]
             if "nominal" in suite_names:
                 pts.append((0.0, pooled(results.get(m.name, {}), "nominal")))
-            curves[m.label] = [(x, p[0]) for x, p in pts if p]
+            curves[m.label] = [(x, p.rate) for x, p in pts if p]
         name = f"robustness_{group}.png"
         out.append((f"Robustness: {group} sweep (x = 0 is the nominal suite)", name))
         plots.rate_curves(curves, layout.figure(name), prov, SUITES[members[0]].x_label, f"success vs {group}")
@@ -90,7 +90,7 @@ def _recovery(layout, methods, results, suite_names, prov):
     recovery = [s for s in RECOVERY_FIGURE_SUITES if s in suite_names]
     if not any(s != "nominal" for s in recovery):  # nominal alone says nothing about corrections
         return []
-    rates = {m.label: {s: p[0] for s in recovery if (p := pooled(results.get(m.name, {}), s))} for m in methods}
+    rates = {m.label: {s: p.rate for s in recovery if (p := pooled(results.get(m.name, {}), s))} for m in methods}
     plots.rate_bars(
         rates, layout.figure("recovery.png"), prov, "nominal vs disturbances that need a correction or a retry"
     )

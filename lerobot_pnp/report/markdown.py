@@ -11,7 +11,7 @@ import math
 from lerobot_pnp.evaluation.records import summarize
 from lerobot_pnp.evaluation.suites import SUITES
 from lerobot_pnp.report.claims import render_claims
-from lerobot_pnp.report.results import held_out_rates, main_records
+from lerobot_pnp.report.results import Pooled, held_out_rates, main_records
 
 
 def render(layout, cfg, methods, results, suite_names, table, comparisons, figures, summary) -> str:
@@ -98,10 +98,10 @@ def _comparison_table(comparisons) -> list[str]:
     ]
     for m, rows in comparisons.items():
         for s, c in rows.items():
-            verdict = " (significant)" if c["max_p"] < 0.05 else ""
+            verdict = " (significant)" if c.max_p < 0.05 else ""
             lines.append(
-                f"| {m} | `{s}` | {100 * c['difference']:+.1f} pts{verdict} | {c['max_p']:.2g} | "
-                + "; ".join(c["per_seed"])
+                f"| {m} | `{s}` | {100 * c.difference:+.1f} pts{verdict} | {c.max_p:.2g} | "
+                + "; ".join(c.per_seed)
                 + " |"
             )
     return lines
@@ -168,14 +168,15 @@ def _notes(methods) -> list[str]:
     ]
 
 
-def _cell(v: dict | None) -> str:
+def _cell(v: Pooled | None) -> str:
     if not v:
         return "-"
-    lo, hi = v["interval"]
+    lo, hi = v.rate.interval
     spread = ""
-    if len(v["per_seed"]) > 1:
-        spread = f"<br>seeds {min(v['per_seed']) * 100:.0f}-{max(v['per_seed']) * 100:.0f}%"
-    return f"**{100 * v['rate']:.1f}%** [{100 * lo:.1f}, {100 * hi:.1f}] n={v['n']}{spread}"
+    if len(v.per_seed) > 1:
+        rates = [q.rate for q in v.per_seed]
+        spread = f"<br>seeds {min(rates) * 100:.0f}-{max(rates) * 100:.0f}%"
+    return f"**{100 * v.rate.rate:.1f}%** [{100 * lo:.1f}, {100 * hi:.1f}] n={v.rate.n}{spread}"
 
 
 def _parameter_counts(layout, methods, cfg) -> dict[str, int]:
@@ -240,12 +241,12 @@ def _separations(table, methods) -> list[str]:
         cands = {m: v for m, v in row.items() if m != "expert"}
         if len(cands) < 2:
             continue
-        best = max(cands, key=lambda m: (cands[m]["interval"][0], cands[m]["rate"]))
-        below = [m for m, v in cands.items() if v["interval"][1] < cands[best]["interval"][0]]
+        best = max(cands, key=lambda m: (cands[m].rate.interval[0], cands[m].rate.rate))
+        below = [m for m, v in cands.items() if v.rate.interval[1] < cands[best].rate.interval[0]]
         separated += bool(below)
         rows.append(
-            f"| `{s}` | {labels.get(best, best)} {100 * cands[best]['rate']:.1f}% | "
-            + (", ".join(f"{labels.get(m, m)} {100 * cands[m]['rate']:.1f}%" for m in below) or "-")
+            f"| `{s}` | {labels.get(best, best)} {100 * cands[best].rate.rate:.1f}% | "
+            + (", ".join(f"{labels.get(m, m)} {100 * cands[m].rate.rate:.1f}%" for m in below) or "-")
             + " |"
         )
     return [f"The methods are told apart on {separated} of {len(rows) - 2} suites.", "", *rows]

@@ -9,10 +9,38 @@ lookup table are paired (exact McNemar per training seed; the largest p-value ov
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 from lerobot_pnp.evaluation.stats import Rate, paired_comparison
 from lerobot_pnp.evaluation.suites import HELD_OUT_AXES, SUITES, Axis
 
 BASELINE = "lookup_table"
+
+
+@dataclass(frozen=True)
+class Pooled:
+    """A method's success on a suite: its training seeds pooled, and each seed's own rate."""
+
+    rate: Rate
+    per_seed: tuple[Rate, ...]
+
+    def to_json(self) -> dict:
+        """``summary.json``'s cell: the pooled rate, its interval and episodes, and the per-seed rates."""
+        return {"rate": self.rate.rate, "interval": self.rate.interval, "n": self.rate.n,
+                "per_seed": [q.rate for q in self.per_seed]}  # fmt: skip
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """A method against the lookup table on one suite: the mean difference over training seeds, the largest
+    p-value over them (so "beats" means with every seed) and each seed's paired comparison as text."""
+
+    difference: float
+    max_p: float
+    per_seed: tuple[str, ...]
+
+    def to_json(self) -> dict:
+        return {"difference": self.difference, "max_p": self.max_p, "per_seed": list(self.per_seed)}
 
 
 def is_main(tag: str) -> bool:
@@ -20,12 +48,12 @@ def is_main(tag: str) -> bool:
     return tag == "-" or tag.isdigit()
 
 
-def pooled(runs: dict[str, dict[str, list]], suite: str) -> tuple[Rate, list[Rate]] | None:
+def pooled(runs: dict[str, dict[str, list]], suite: str) -> Pooled | None:
     """Pooled rate over training seeds and the per-seed rates (seed tags that are numbers, or "-")."""
     per = [Rate(sum(r.success for r in s[suite]), len(s[suite])) for t, s in runs.items() if is_main(t) and suite in s]
     if not per:
         return None
-    return Rate(sum(p.successes for p in per), sum(p.n for p in per)), per
+    return Pooled(Rate(sum(p.successes for p in per), sum(p.n for p in per)), tuple(per))
 
 
 def main_records(results, method: str, suite: str) -> list:
@@ -52,34 +80,27 @@ def evaluated_suites(results) -> list[str]:
     return [s for s in SUITES if any(s in runs for r in results.values() for runs in r.values())]
 
 
-def build_table(results, methods, suite_names) -> dict:
-    """suite -> method -> ``{"rate", "interval", "n", "per_seed"}`` (``summary.json``'s ``success``)."""
-    table = {}
+def build_table(results, methods, suite_names) -> dict[str, dict[str, Pooled]]:
+    """suite -> method -> its pooled success (``summary.json``'s ``success``), for what was evaluated."""
+    table: dict[str, dict[str, Pooled]] = {}
     for m in methods:
         for s in suite_names:
             p = pooled(results.get(m.name, {}), s)
             if p:
-                table.setdefault(s, {})[m.name] = {
-                    "rate": p[0].rate,
-                    "interval": p[0].interval,
-                    "n": p[0].n,
-                    "per_seed": [q.rate for q in p[1]],
-                }
+                table.setdefault(s, {})[m.name] = p
     return table
 
 
-def build_comparisons(results, methods, suite_names) -> dict:
-    """method -> suite -> ``{"difference", "max_p", "per_seed"}`` against the lookup table."""
-    comparisons = {}
+def build_comparisons(results, methods, suite_names) -> dict[str, dict[str, Comparison]]:
+    """method -> suite -> its paired comparison with the lookup table (``summary.json``'s ``vs_lookup_table``)."""
+    comparisons: dict[str, dict[str, Comparison]] = {}
     for m in methods:
         for s in suite_names:
             comps = compare(results, m.name, s)
             if comps:
-                comparisons.setdefault(m.name, {})[s] = {
-                    "difference": sum(c.difference for c in comps) / len(comps),
-                    "max_p": max(c.p_value for c in comps),
-                    "per_seed": [str(c) for c in comps],
-                }
+                comparisons.setdefault(m.name, {})[s] = Comparison(
+                    sum(c.difference for c in comps) / len(comps), max(c.p_value for c in comps), tuple(map(str, comps))
+                )
     return comparisons
 
 

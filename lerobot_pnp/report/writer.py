@@ -48,8 +48,8 @@ def write_report(layout: StudyLayout, study: StudyInputs) -> dict:
         "machine": study.machine,
         "config": asdict(cfg),
         "generation": study.generation,
-        "success": table,
-        "vs_lookup_table": comparisons,
+        "success": {s: {m: cell.to_json() for m, cell in row.items()} for s, row in table.items()},
+        "vs_lookup_table": {m: {s: c.to_json() for s, c in row.items()} for m, row in comparisons.items()},
         "timings_s": study.timings,
         "lerobot_eval_cli_check": study.cli_check,
         "figures": [f for _, f in figs],
@@ -67,7 +67,7 @@ def write_report(layout: StudyLayout, study: StudyInputs) -> dict:
     return {
         "report": str(layout.report),
         **{
-            f"{labels[m]} / {s}": f"{100 * v['rate']:.1f}% [{100 * v['interval'][0]:.1f}, {100 * v['interval'][1]:.1f}]"
+            f"{labels[m]} / {s}": str(v.rate)
             for s, row in table.items()
             if s in HEADLINE_SUITES
             for m, v in row.items()
