@@ -41,6 +41,7 @@ class Suite:
     group: str = ""  # suites of one sweep share a group (a robustness curve)
     x: float | None = None  # the swept value in that group
     x_label: str = ""
+    x_scale: float = 1.0  # x in the unit of x_label (a figure's axis): 100 for cm, 1000 for mm
 
     def part_episodes(self, n_episodes: int) -> list[int]:
         """Episodes of each part (as equal as possible, summing to ``n_episodes``)."""
@@ -82,7 +83,9 @@ def _r(v: float) -> float:
     return round(float(v), 4)
 
 
-def _sweep(group: str, x_label: str, field_name: str, values, extra: dict | None = None, desc: str = "") -> list:
+def _sweep(
+    group: str, x_label: str, field_name: str, values, extra: dict | None = None, desc: str = "", x_scale: float = 1.0
+) -> list:
     return [
         Suite(
             f"{group}_{v:g}",
@@ -91,6 +94,7 @@ def _sweep(group: str, x_label: str, field_name: str, values, extra: dict | None
             group=group,
             x=float(v),
             x_label=x_label,
+            x_scale=x_scale,
         )
         for v in values
     ]
@@ -122,6 +126,7 @@ def _catalogue() -> dict[str, Suite]:
             "nudge_max",
             (0.01, 0.02, 0.03, 0.05),
             desc="object pushed up to {v} m after the first keyframe, before the grasp",
+            x_scale=100,
         ),
         *_sweep(
             "obs_noise",
@@ -129,6 +134,7 @@ def _catalogue() -> dict[str, Suite]:
             "obs_noise_object",
             (0.002, 0.005, 0.01),
             desc="Gaussian noise of std {v} m on the observed object position",
+            x_scale=1000,
         ),
         Suite("latency", "observations one step old", ({"obs_latency": 1},)),
         Suite(

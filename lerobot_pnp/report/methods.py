@@ -311,6 +311,10 @@ def keyed_train(method: Method, ctx: TrainContext) -> tuple[Path | None, bool]:
     return artifact, True
 
 
+# The methods trained again on fewer demonstrations (``StudyConfig.data_efficiency``): the paper's comparison.
+DATA_EFFICIENCY_METHODS = ("lookup_table", "clocked_lstm")
+
+
 def get_methods(names: list[str]) -> list[Method]:
     unknown = [n for n in names if n not in METHODS]
     if unknown:

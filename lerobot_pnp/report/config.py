@@ -1,0 +1,129 @@
+"""The study's configuration: ``StudyConfig`` (the ``lerobot-pnp report`` / ``demo`` flags) and its presets.
+
+Presets (``preset``): ``demo`` (the README's main command), ``quick`` (CI-sized, a few minutes) and ``full``
+(the whole study; its timings are in ``docs/results/report_full_summary.json``). Fields left at None take the
+preset's value.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from lerobot_pnp.errors import ConfigError
+from lerobot_pnp.evaluation.suites import get_suites
+from lerobot_pnp.report.methods import get_methods
+
+
+@dataclass
+class SuiteSpec:
+    name: str  # a suite of suites.SUITES, or a sweep group ("nudge")
+    n_episodes: int = 200
+
+
+# Episode counts: the 95 % Wilson half-width is <= 4.4 pts at n = 500, <= 7 pts at n = 200 and <= 10 pts at
+# n = 100 (worst case, p = 0.5); near 0 or 100 % it is far smaller (n = 100, 98 %: [93.0, 99.4]). A learned
+# method pools 3 training seeds (3 n episodes). The demo's headline gets 500 per seed. The full study gives
+# 300 to nominal and 100 to each other suite: enough to separate 50 % from 80 %, or 100 % from 90 %, on the
+# paired test. Its stage timings from scratch: ``timings_s`` in docs/results/report_full_summary.json.
+PRESETS: dict[str, dict] = {
+    "demo": {
+        "num_episodes": 1400,
+        "epochs": 300,
+        "train_seeds": [1000, 1001, 1002],
+        "methods": ["expert", "lookup_table", "clocked_lstm"],
+        "suites": [SuiteSpec("nominal", 500), SuiteSpec("nudge_0.03", 200)],
+        "data_efficiency": [],
+        "cli_check_episodes": 50,
+    },
+    "quick": {
+        "num_episodes": 300,
+        "epochs": 150,
+        "train_seeds": [1000],
+        "methods": ["lookup_table", "clocked_lstm"],
+        "suites": [SuiteSpec("nominal", 100), SuiteSpec("nudge_0.03", 100)],
+        "data_efficiency": [],
+        "cli_check_episodes": 0,
+    },
+    "full": {
+        "num_episodes": 1400,
+        "epochs": 300,
+        "train_seeds": [1000, 1001, 1002],
+        # the costliest: act (its dense recording once, then training and dense evaluation per seed) and
+        # recovering_dagger (rollouts and retraining per seed); timings in docs/results/report_full_summary.json
+        "methods": [
+            "expert",
+            "lookup_table",
+            "clocked_lstm",
+            "shared_lstm",
+            "memoryless",
+            "memoryless_mlp",
+            "phase_told_mlp",
+            "recovering",
+            "recovering_dagger",
+            "act",
+        ],
+        "suites": [
+            SuiteSpec("nominal", 300),
+            SuiteSpec("slack", 100),
+            SuiteSpec("edge_strip", 100),
+            SuiteSpec("outside_ring", 100),
+            SuiteSpec("nudge", 100),
+            SuiteSpec("obs_noise", 100),
+            SuiteSpec("latency", 100),
+            SuiteSpec("grasp_miss", 100),
+            SuiteSpec("drop", 100),
+            SuiteSpec("displace", 100),
+            SuiteSpec("random_yaw", 100),
+            SuiteSpec("random_place", 100),
+        ],
+        "data_efficiency": [10, 30, 100, 300, 1120],  # 1120 = the whole training split
+        "cli_check_episodes": 200,
+    },
+}
+
+
+@dataclass
+class StudyConfig:
+    """``lerobot-pnp demo`` / ``lerobot-pnp report``: the study (see the module doc for the presets)."""
+
+    output_dir: str = "outputs/demo"  # everything the study writes (datasets, checkpoints, report.md); resumable
+    preset: str = "demo"  # the study's size: demo (the README's main run), quick (CI-sized) or full (the whole study)
+    quick: bool = False  # shorthand for preset=quick
+    full: bool = False  # shorthand for preset=full
+    num_episodes: int | None = None  # demonstrations generated (80 % train / 20 % held out)
+    dataset_seed: int = 0  # seed of the first demonstration (episode i uses dataset_seed + i)
+    # processes for generation and for the train-and-evaluate jobs (each single-threaded); 0 = one per core
+    workers: int = 0
+    epochs: int | None = None  # training epochs of each learned method that trains by epochs
+    train_seeds: list[int] | None = None  # one training (and evaluation) per learned method and seed
+    methods: list[str] | None = None  # methods compared (methods.METHODS), e.g. '["lookup_table", "clocked_lstm"]'
+    # evaluation suites and episodes of each, e.g. '[{"name": "nominal", "n_episodes": 100}]'; a group name: its sweep
+    suites: list[SuiteSpec] | None = None
+    data_efficiency: list[int] | None = None  # numbers of training demonstrations (clocked LSTM vs lookup)
+    # episodes of the nominal suite re-run through the real `lerobot-eval` CLI (first learned method, first
+    # seed) to show the in-process evaluation gives the same per-episode successes; 0 = skip
+    cli_check_episodes: int | None = None
+    eval_seed: int = 100_000  # first evaluation seed (disjoint from the dataset's seeds 0..)
+    eval_batch_size: int = 50  # sub-envs of the SyncVectorEnv
+    act_steps: int | None = None  # ACT training steps per seed (None = act_baseline.ActBudget's default)
+    fresh: bool = False  # delete output_dir first
+    report_only: bool = False  # write the report from the finished evaluations only (train/evaluate nothing)
+
+    def __post_init__(self):
+        if self.quick and self.full:
+            raise ConfigError("pass either --quick or --full, not both")
+        self.preset = "quick" if self.quick else "full" if self.full else self.preset
+        if self.preset not in PRESETS:
+            raise ConfigError(f"preset must be one of {sorted(PRESETS)}, got {self.preset!r}")
+        for key, value in PRESETS[self.preset].items():
+            if getattr(self, key) is None:
+                setattr(self, key, value)
+        self.suites = [SuiteSpec(**s) if isinstance(s, dict) else s for s in self.suites]
+        if self.num_episodes < 10:
+            raise ConfigError(f"num_episodes must be >= 10 for an 80/20 split, got {self.num_episodes}")
+        if self.epochs < 1 or not self.train_seeds:
+            raise ConfigError("epochs must be >= 1 and train_seeds non-empty")
+        if any(s.n_episodes < 1 for s in self.suites):
+            raise ConfigError("every suite needs n_episodes >= 1")
+        get_methods(self.methods)  # unknown names fail now, not after an hour
+        get_suites([s.name for s in self.suites])

@@ -1,0 +1,117 @@
+"""The report's figures, drawn from the evaluation records (``plots`` draws; this picks what to draw).
+
+Each function returns the ``(caption, file name)`` of the figures it wrote under ``layout.figures``.
+"""
+
+from __future__ import annotations
+
+from lerobot_pnp import robot
+from lerobot_pnp.evaluation.stats import Rate
+from lerobot_pnp.evaluation.suites import SUITES
+from lerobot_pnp.report import adapters, plots
+from lerobot_pnp.report.methods import DATA_EFFICIENCY_METHODS
+from lerobot_pnp.report.results import main_records, pooled
+
+RECOVERY_FIGURE_SUITES = ("nominal", "slack", "nudge_0.05", "grasp_miss", "drop", "displace")
+HEATMAP_SUITES = ("nominal", "nudge_0.03")
+FAILURE_SUITES = ("nudge_0.03", "grasp_miss")
+
+
+def make_figures(layout, cfg, methods, results, suite_names, base_env, prov: str) -> list[tuple[str, str]]:
+    """Every figure the records support, in the report's order."""
+    return [
+        *_loss_figure(layout, cfg, prov),
+        *_heatmaps(layout, cfg, methods, results, suite_names, base_env, prov),
+        *_robustness(layout, methods, results, suite_names, prov),
+        *_data_efficiency(layout, cfg, methods, results, prov),
+        *_recovery(layout, methods, results, suite_names, prov),
+        *_failures(layout, methods, results, suite_names, prov),
+    ]
+
+
+def _loss_figure(layout, cfg, prov):
+    histories = {f"seed {s}": adapters.loss_history(layout.train("clocked_lstm", str(s))) for s in cfg.train_seeds}
+    if not any(histories.values()):
+        return []
+    name = "loss_clocked_lstm.png"
+    plots.loss_curves(histories, layout.figure(name), prov)
+    return [("Train vs held-out loss of the clocked LSTM (paper Fig. 4)", name)]
+
+
+def _heatmaps(layout, cfg, methods, results, suite_names, base_env, prov):
+    out, first_seed = [], str(cfg.train_seeds[0])
+    for suite in [s for s in HEATMAP_SUITES if s in suite_names]:
+        panels = {}
+        for m in methods:
+            tag = "-" if not m.learned else first_seed
+            if suite in results.get(m.name, {}).get(tag, {}):
+                panels[m.label if tag == "-" else f"{m.label} s{tag}"] = results[m.name][tag][suite]
+        name = f"heatmap_{suite}.png"
+        out.append((f"Success over the object box, suite `{suite}` (first training seed)", name))
+        plots.success_heatmap(
+            panels, base_env.object_low, base_env.object_high, layout.figure(name), prov, title=f"suite {suite}"
+        )
+    return out
+
+
+def _robustness(layout, methods, results, suite_names, prov):
+    out = []
+    for group in sorted({SUITES[s].group for s in suite_names if SUITES[s].group}):
+        members = [s for s in suite_names if SUITES[s].group == group]
+        curves = {}
+        for m in methods:
+            pts = [(SUITES[s].x * SUITES[s].x_scale, pooled(results.get(m.name, {}), s)) for s in members]
+            if "nominal" in suite_names:
+                pts.append((0.0, pooled(results.get(m.name, {}), "nominal")))
+            curves[m.label] = [(x, p.rate) for x, p in pts if p]
+        name = f"robustness_{group}.png"
+        out.append((f"Robustness: {group} sweep (x = 0 is the nominal suite)", name))
+        plots.rate_curves(curves, layout.figure(name), prov, SUITES[members[0]].x_label, f"success vs {group}")
+    return out
+
+
+def _data_efficiency(layout, cfg, methods, results, prov):
+    if not cfg.data_efficiency:
+        return []
+    labels, curves = {m.name: m.label for m in methods}, {}
+    for m in DATA_EFFICIENCY_METHODS:
+        pts = []
+        for n in cfg.data_efficiency:
+            recs = results.get(m, {}).get(f"n{n}", {}).get("nominal")
+            if recs:
+                pts.append((float(n), Rate(sum(r.success for r in recs), len(recs))))
+        curves[labels.get(m, m)] = pts
+    name = "data_efficiency.png"
+    plots.rate_curves(curves, layout.figure(name), prov, "training demonstrations", "data efficiency", logx=True)
+    return [("Data efficiency: nominal success vs training demonstrations", name)]
+
+
+def _recovery(layout, methods, results, suite_names, prov):
+    recovery = [s for s in RECOVERY_FIGURE_SUITES if s in suite_names]
+    if not any(s != "nominal" for s in recovery):  # nominal alone says nothing about corrections
+        return []
+    rates = {m.label: {s: p.rate for s in recovery if (p := pooled(results.get(m.name, {}), s))} for m in methods}
+    plots.rate_bars(
+        rates, layout.figure("recovery.png"), prov, "nominal vs disturbances that need a correction or a retry"
+    )
+    return [("Success on the suites that need a correction or a retry (all training seeds)", "recovery.png")]
+
+
+def _failures(layout, methods, results, suite_names, prov):
+    out = []
+    for fail_suite in [s for s in FAILURE_SUITES if s in suite_names] or suite_names[:1]:
+        failures = {}
+        for m in methods:
+            per: dict[str, dict[str, int]] = {}
+            records = main_records(results, m.name, fail_suite)
+            for r in records:
+                if not r.success:
+                    phase = robot.PHASE_NAMES[r.furthest_phase] if r.furthest_phase >= 0 else "unknown"
+                    per.setdefault(phase, {}).setdefault(r.failure_cause, 0)
+                    per[phase][r.failure_cause] += 1
+            if records:  # a method not evaluated on the suite is left out (not "no failures")
+                failures[m.label] = per
+        name = f"failures_{fail_suite}.png"
+        out.append((f"Failures by furthest phase and cause, suite `{fail_suite}` (all training seeds)", name))
+        plots.failures_by_phase(failures, layout.figure(name), prov, f"failures, suite {fail_suite}")
+    return out

@@ -1,0 +1,253 @@
+"""``report.md``'s text from the pooled tables (``results``), the claims (``claims``) and the figure list.
+
+No numbers are computed here beyond formatting: the rates and comparisons come from ``results.build_table``
+and ``results.build_comparisons``, so ``summary.json`` and ``report.md`` state the same values.
+"""
+
+from __future__ import annotations
+
+import math
+
+from lerobot_pnp.dataset.splits import train_count
+from lerobot_pnp.evaluation.records import summarize
+from lerobot_pnp.evaluation.suites import SUITES
+from lerobot_pnp.report.claims import render_claims
+from lerobot_pnp.report.results import Pooled, held_out_rates, main_records
+
+
+def render(layout, cfg, methods, results, suite_names, table, comparisons, figures, summary) -> str:
+    """The whole report, section by section."""
+    lines = [
+        *_header(layout, cfg, methods, summary),
+        *_success_table(methods, suite_names, table),
+        *_comparison_table(comparisons),
+        *_failure_table(methods, results, suite_names),
+        "## Figures",
+        "",
+    ]
+    for caption, name in figures:
+        lines += [f"### {caption}", "", f"![{caption}](figures/{name})", ""]
+    lines += ["## Claims", "", *render_claims(table, comparisons), ""]
+    lines += ["## Where the methods differ beyond their intervals", "", *_separations(table, methods), ""]
+    lines += _held_out_section(results, methods)
+    lines += _notes(methods)
+    return "\n".join(lines)
+
+
+def _header(layout, cfg, methods, summary) -> list[str]:
+    mach, t = summary["machine"], summary["timings_s"]
+    total = sum(v for k, v in t.items() if not k.startswith("run/"))
+    return [
+        "# lerobot_pnp: reproduction report",
+        "",
+        f"Produced by `{summary['command']}` (preset `{cfg.preset}`; full config in `{layout.config.name}`).",
+        f"Machine: {mach['cpu']}, {mach['cores_available']} cores available; Python {mach['python']}, "
+        f"LeRobot {mach['lerobot']}, torch {mach['torch']}, MuJoCo {mach['mujoco']}, gymnasium {mach['gymnasium']}.",
+        f"Stage wall time (s): dataset {t.get('dataset', 0):.0f}"
+        + "".join(f" (+ {k.split('_', 1)[1]} recording {v:.0f})" for k, v in t.items() if k.startswith("dataset_"))
+        + ", training "
+        f"{sum(v for k, v in t.items() if k.startswith('train/')):.0f}, evaluation "
+        f"{sum(v for k, v in t.items() if k.startswith('eval/')):.0f} (total {total:.0f}; an evaluation reused from an "
+        "earlier run shows its original time, a training its original time if it was recorded (none otherwise), a "
+        "reused dataset only the time to find it). "
+        f"This invocation: {t.get('run/wall_clock', 0) / 60:.0f} min wall clock with {t.get('run/processes', 1):.0f} "
+        "job process(es) (training and evaluation jobs run side by side, one core each).",
+        "",
+        "Evaluation: stock LeRobot `lerobot.scripts.lerobot_eval.eval_policy` (the function `lerobot-eval` runs), "
+        "called in process on the `SyncVectorEnv` of `BaxterPnPEnvConfig.create_envs`, with a recording wrapper "
+        f"for the final `info` of each episode. Every method runs the same seeds ({cfg.eval_seed} onwards, unseen "
+        f"by the dataset's seeds 0..). Learned methods: {len(cfg.train_seeds)} training seeds {cfg.train_seeds}, "
+        f"{cfg.epochs} epochs each on {train_count(cfg.num_episodes)} demonstrations"
+        + (" (dense-control methods: their budget is under Methods)" if any(m.data == "dense" for m in methods) else "")
+        + "; their rate pools the seeds.",
+        *_cli_lines(summary.get("lerobot_eval_cli_check")),
+        "Intervals: 95 % Wilson. Pooling seeds treats them as one sample; the per-seed range is shown beside it.",
+        "",
+        "## Methods",
+        "",
+        *_method_lines(methods, t, _parameter_counts(layout, methods, cfg)),
+        "",
+    ]
+
+
+def _success_table(methods, suite_names, table) -> list[str]:
+    lines = [
+        "## Success by suite",
+        "",
+        "| suite | what changes | " + " | ".join(m.label for m in methods) + " |",
+        "|---|---|" + "---|" * len(methods),
+    ]
+    for s in suite_names:
+        lines.append(
+            f"| `{s}` | {SUITES[s].description} | "
+            + " | ".join(_cell(table.get(s, {}).get(m.name)) for m in methods)
+            + " |"
+        )
+    return lines
+
+
+def _comparison_table(comparisons) -> list[str]:
+    lines = [
+        "",
+        "## Paired comparison with the lookup table (same eval seeds)",
+        "",
+        "Difference in success (method minus lookup table), mean over training seeds; p: exact McNemar "
+        "(sign test on the episodes where exactly one of the two succeeds), the largest over training seeds.",
+        "",
+        "| method | suite | difference | max p | per seed |",
+        "|---|---|---|---|---|",
+    ]
+    for m, rows in comparisons.items():
+        for s, c in rows.items():
+            verdict = " (significant)" if c.max_p < 0.05 else ""
+            lines.append(
+                f"| {m} | `{s}` | {100 * c.difference:+.1f} pts{verdict} | {c.max_p:.2g} | "
+                + "; ".join(c.per_seed)
+                + " |"
+            )
+    return lines
+
+
+def _failure_table(methods, results, suite_names) -> list[str]:
+    lines = [
+        "",
+        "## Failures by cause (all seeds pooled)",
+        "",
+        "| method | suite | failures by cause | by furthest phase |",
+        "|---|---|---|---|",
+    ]
+    for m in methods:
+        for s in suite_names:
+            recs = main_records(results, m.name, s)
+            if recs and any(not r.success for r in recs):
+                sm = summarize(recs)
+                lines.append(f"| {m.label} | `{s}` | {_fmt(sm['by_cause'])} | {_fmt(sm['by_phase'])} |")
+    return [*lines, ""]
+
+
+def _held_out_section(results, methods) -> list[str]:
+    """Per disturbance axis, each method's success in distribution vs held out (only the axes whose suites on
+    both sides were evaluated): whether recovery generalises beyond what the planner was trained on."""
+    rows = held_out_rates(results, methods)
+    if not rows:
+        return []
+    labels = {m.name: m.label for m in methods}
+    lines = [
+        "## In distribution vs held out, per disturbance axis",
+        "",
+        "Each side pools every episode of the axis' suites that were evaluated (all training seeds); 95 % Wilson.",
+        "",
+        "| axis | what is held out | method | in distribution | held out | verdict |",
+        "|---|---|---|---|---|---|",
+    ]
+    for axis, method, inside, outside in rows:
+        verdict = (
+            "worse beyond the intervals: does not generalise"
+            if outside.interval[1] < inside.interval[0]
+            else "better beyond the intervals"
+            if outside.interval[0] > inside.interval[1]
+            else "no difference beyond the intervals"
+        )
+        lines.append(
+            f"| {axis.name} | {axis.description} | {labels[method]} | {inside} n={inside.n} | "
+            f"{outside} n={outside.n} | {verdict} |"
+        )
+    return [*lines, ""]
+
+
+def _notes(methods) -> list[str]:
+    return [
+        "## Notes and limits",
+        "",
+        "- The inside strip and the outside ring are sampled exactly uniformly: one box minus an excluded inner box "
+        "(`object_exclude_low/high`, rejection sampling in the env).",
+        "- The expert is privileged (it reads the simulator) and runs its own loop on the same seeds.",
+        "- Perturbations that need room to recover (missed grasp, drop, displacement) get a 20-keyframe budget for "
+        "every method; the clocked LSTM stops acting after its 10-step clock (it holds its last action).",
+        *_dense_notes(methods),
+        "",
+    ]
+
+
+def _cell(v: Pooled | None) -> str:
+    if not v:
+        return "-"
+    lo, hi = v.rate.interval
+    spread = ""
+    if len(v.per_seed) > 1:
+        rates = [q.rate for q in v.per_seed]
+        spread = f"<br>seeds {min(rates) * 100:.0f}-{max(rates) * 100:.0f}%"
+    return f"**{100 * v.rate.rate:.1f}%** [{100 * lo:.1f}, {100 * hi:.1f}] n={v.rate.n}{spread}"
+
+
+def _parameter_counts(layout, methods, cfg) -> dict[str, int]:
+    """Trained parameters of each learned method (its first seed's checkpoint), read from the safetensors header."""
+    from safetensors import safe_open
+
+    counts = {}
+    for m in methods:
+        files = sorted(layout.train(m.name, str(cfg.train_seeds[0])).rglob("model.safetensors"))
+        if m.learned and files:
+            with safe_open(str(files[-1]), "pt") as f:
+                counts[m.name] = sum(math.prod(f.get_slice(k).get_shape()) for k in f.keys())  # noqa: SIM118
+    return counts
+
+
+def _method_lines(methods, timings: dict, params: dict[str, int]) -> list[str]:
+    """One line per method: what it is and, for a learned one, its size and training wall time per seed."""
+    out = []
+    for m in methods:
+        times = [v for k, v in timings.items() if k.startswith(f"train/{m.name}/") and k.split("/")[-1].isdigit()]
+        cost = f" Training wall time per seed: {', '.join(f'{v:.0f} s' for v in times)}." if times else ""
+        if m.name in params:
+            cost = f" {params[m.name]:,} parameters.{cost}"
+        only = f" Evaluated on {', '.join(m.suites)} only (cost)." if m.suites is not None else ""
+        out.append(f"- **{m.label}** (`{m.name}`): {m.description}.{only}{cost}")
+    return out
+
+
+def _dense_notes(methods) -> list[str]:
+    if not any(m.data == "dense" for m in methods):
+        return []
+    return [
+        "- Dense-control methods (ACT) run each suite's task at 20 fps with 3 s of control per keyframe of the "
+        "budget (600 steps nominal, 1200 with the recovery budget). A nudge fires at the dense step where the "
+        "expert reaches its first keyframe (median over the training demonstrations), the keyframe suites' "
+        "'after the first keyframe'. `latency` stays one env step: 50 ms in dense mode against one whole keyframe "
+        "move in keyframe mode, so that row does not compare the two control modes.",
+    ]
+
+
+def _cli_lines(c: dict | None) -> list[str]:
+    if not c:
+        return []
+    return [
+        f"Cross-check with the real `lerobot-eval` CLI (subprocess, `{c['eval_info']}`): {c['method']} seed "
+        f"{c['seed']} on the first {c['n']} nominal seeds: {c['cli_pc_success']:.1f}% success; the in-process "
+        f"records agree on {c['agree']} of {c['n']} episodes.",
+    ]
+
+
+def _fmt(d: dict) -> str:
+    return ", ".join(f"{k} {v}" for k, v in sorted(d.items(), key=lambda kv: -kv[1])) or "-"
+
+
+def _separations(table, methods) -> list[str]:
+    """Per suite: the best learned or baseline method (not the expert) and those whose 95 % interval lies
+    entirely below its interval (the benchmark tells them apart)."""
+    labels = {m.name: m.label for m in methods}
+    rows = ["| suite | best (not the expert) | below it beyond both intervals |", "|---|---|---|"]
+    separated = 0
+    for s, row in table.items():
+        cands = {m: v for m, v in row.items() if m != "expert"}
+        if len(cands) < 2:
+            continue
+        best = max(cands, key=lambda m: (cands[m].rate.interval[0], cands[m].rate.rate))
+        below = [m for m, v in cands.items() if v.rate.interval[1] < cands[best].rate.interval[0]]
+        separated += bool(below)
+        rows.append(
+            f"| `{s}` | {labels.get(best, best)} {100 * cands[best].rate.rate:.1f}% | "
+            + (", ".join(f"{labels.get(m, m)} {100 * cands[m].rate.rate:.1f}%" for m in below) or "-")
+            + " |"
+        )
+    return [f"The methods are told apart on {separated} of {len(rows) - 2} suites.", "", *rows]

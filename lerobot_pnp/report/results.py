@@ -1,0 +1,122 @@
+"""The study's results pooled into the report's tables (no simulation, no text here).
+
+``results``: method -> tag -> suite -> ``EpisodeRecord`` list, where a tag is a training seed, ``"-"``
+(nothing trained) or ``"n<demos>"`` (a data-efficiency run, left out of the pooled rates). Success of a
+learned method pools its training seeds (each seed evaluated on the same eval seeds); comparisons with the
+lookup table are paired (exact McNemar per training seed; the largest p-value over seeds is reported, so
+"beats" means "beats with every training seed").
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from lerobot_pnp.evaluation.stats import Rate, paired_comparison
+from lerobot_pnp.evaluation.suites import HELD_OUT_AXES, SUITES, Axis
+
+BASELINE = "lookup_table"
+
+
+@dataclass(frozen=True)
+class Pooled:
+    """A method's success on a suite: its training seeds pooled, and each seed's own rate."""
+
+    rate: Rate
+    per_seed: tuple[Rate, ...]
+
+    def to_json(self) -> dict:
+        """``summary.json``'s cell: the pooled rate, its interval and episodes, and the per-seed rates."""
+        return {"rate": self.rate.rate, "interval": self.rate.interval, "n": self.rate.n,
+                "per_seed": [q.rate for q in self.per_seed]}  # fmt: skip
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """A method against the lookup table on one suite: the mean difference over training seeds, the largest
+    p-value over them (so "beats" means with every seed) and each seed's paired comparison as text."""
+
+    difference: float
+    max_p: float
+    per_seed: tuple[str, ...]
+
+    def to_json(self) -> dict:
+        return {"difference": self.difference, "max_p": self.max_p, "per_seed": list(self.per_seed)}
+
+
+def is_main(tag: str) -> bool:
+    """A training seed or ``"-"``: a run that the pooled rates count (not a data-efficiency run)."""
+    return tag == "-" or tag.isdigit()
+
+
+def pooled(runs: dict[str, dict[str, list]], suite: str) -> Pooled | None:
+    """Pooled rate over training seeds and the per-seed rates (seed tags that are numbers, or "-")."""
+    per = [Rate(sum(r.success for r in s[suite]), len(s[suite])) for t, s in runs.items() if is_main(t) and suite in s]
+    if not per:
+        return None
+    return Pooled(Rate(sum(p.successes for p in per), sum(p.n for p in per)), tuple(per))
+
+
+def main_records(results, method: str, suite: str) -> list:
+    """Every record of ``method`` on ``suite`` over its training seeds (the data-efficiency runs left out)."""
+    return [r for tag, runs in results.get(method, {}).items() if is_main(tag) for r in runs.get(suite, [])]
+
+
+def compare(results, method: str, suite: str):
+    """Paired comparison of ``method`` with the lookup table on ``suite``, per training seed."""
+    base = results.get(BASELINE, {}).get("-", {}).get(suite)
+    if base is None or method == BASELINE:
+        return None
+    b = {r.seed: r.success for r in base}
+    comps = [
+        paired_comparison({r.seed: r.success for r in runs[suite]}, b)
+        for tag, runs in results.get(method, {}).items()
+        if is_main(tag) and suite in runs
+    ]
+    return comps or None
+
+
+def evaluated_suites(results) -> list[str]:
+    """The suites some method was evaluated on, in catalogue order."""
+    return [s for s in SUITES if any(s in runs for r in results.values() for runs in r.values())]
+
+
+def build_table(results, methods, suite_names) -> dict[str, dict[str, Pooled]]:
+    """suite -> method -> its pooled success (``summary.json``'s ``success``), for what was evaluated."""
+    table: dict[str, dict[str, Pooled]] = {}
+    for m in methods:
+        for s in suite_names:
+            p = pooled(results.get(m.name, {}), s)
+            if p:
+                table.setdefault(s, {})[m.name] = p
+    return table
+
+
+def build_comparisons(results, methods, suite_names) -> dict[str, dict[str, Comparison]]:
+    """method -> suite -> its paired comparison with the lookup table (``summary.json``'s ``vs_lookup_table``)."""
+    comparisons: dict[str, dict[str, Comparison]] = {}
+    for m in methods:
+        for s in suite_names:
+            comps = compare(results, m.name, s)
+            if comps:
+                comparisons.setdefault(m.name, {})[s] = Comparison(
+                    sum(c.difference for c in comps) / len(comps), max(c.p_value for c in comps), tuple(map(str, comps))
+                )
+    return comparisons
+
+
+def _pool(results, method: str, suites: tuple[str, ...]) -> Rate | None:
+    """One rate over every record of ``method`` on the evaluated ones of ``suites`` (all training seeds)."""
+    recs = [r for s in suites for r in main_records(results, method, s)]
+    return Rate(sum(r.success for r in recs), len(recs)) if recs else None
+
+
+def held_out_rates(results, methods) -> list[tuple[Axis, str, Rate, Rate]]:
+    """Per disturbance axis of ``HELD_OUT_AXES`` and method: (axis, method, in distribution, held out), each
+    pooled over the axis' suites that were evaluated; only where both sides were."""
+    rows = []
+    for axis in HELD_OUT_AXES:
+        for m in methods:
+            inside, outside = _pool(results, m.name, axis.in_distribution), _pool(results, m.name, axis.held_out)
+            if inside and outside:
+                rows.append((axis, m.name, inside, outside))
+    return rows

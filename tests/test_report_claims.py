@@ -1,0 +1,219 @@
+"""Every claim of ``report/claims.py``, rendered from hand-made episode records (no simulation): the verdict
+it prints when it holds, when it does not, and nothing when its inputs were not evaluated."""
+
+from __future__ import annotations
+
+import pytest
+
+from lerobot_pnp.errors import ConfigError
+from lerobot_pnp.evaluation.records import EpisodeRecord
+from lerobot_pnp.report import claims
+from lerobot_pnp.report.methods import get_methods
+from lerobot_pnp.report.results import build_comparisons, build_table, evaluated_suites
+
+SEED = 1000  # the training seed of the learned methods
+
+
+def _records(successes: int, n: int = 100) -> list[EpisodeRecord]:
+    """``n`` episodes on the eval seeds 100000.., the first ``successes`` of them successful."""
+    return [
+        EpisodeRecord(100_000 + i, i < successes, "" if i < successes else "dropped", 3, "", 10, 0.6, 0.0)
+        for i in range(n)
+    ]
+
+
+def _render(name: str, rates: dict[tuple[str, str], int]) -> list[str]:
+    """The lines of claim ``name`` from ``{(method, suite): successes out of 100}``."""
+    results: dict = {}
+    for (method, suite), k in rates.items():
+        (m,) = get_methods([method])
+        results.setdefault(method, {}).setdefault(str(SEED) if m.learned else "-", {})[suite] = _records(k)
+    methods = get_methods(list(results))
+    suites = evaluated_suites(results)
+    (claim,) = [c for c in claims.CLAIMS if c.name == name]
+    return claim.render(build_table(results, methods, suites), build_comparisons(results, methods, suites))
+
+
+def test_generalisation():
+    assert "-> holds." in _render("generalisation", {("clocked_lstm", "nominal"): 100})[0]
+    assert "does not hold (below 90 %)" in _render("generalisation", {("clocked_lstm", "nominal"): 50})[0]
+    assert _render("generalisation", {("clocked_lstm", "nudge_0.03"): 100}) == []
+
+
+def test_learned_planner_needed():
+    (line,) = _render("learned planner needed", {("clocked_lstm", "nominal"): 100, ("lookup_table", "nominal"): 50})
+    assert "+50.0 pts" in line and line.endswith("-> holds.")
+    (line,) = _render("learned planner needed", {("clocked_lstm", "nominal"): 90, ("lookup_table", "nominal"): 90})
+    assert "not shown: the paper's task does not separate them." in line
+    assert _render("learned planner needed", {("clocked_lstm", "nominal"): 90}) == []  # no baseline to pair with
+
+
+def test_feedback_corrects_a_disturbance():
+    lines = _render(
+        "feedback corrects a disturbance",
+        {
+            ("clocked_lstm", "nudge_0.03"): 95,
+            ("lookup_table", "nudge_0.03"): 40,
+            ("clocked_lstm", "nudge_0.05"): 60,
+            ("lookup_table", "nudge_0.05"): 60,
+        },
+    )
+    assert len(lines) == 2  # obs_noise_0.005 was not evaluated: no line for it
+    assert "`nudge_0.03`" in lines[0] and lines[0].endswith("holds: the benchmark discriminates here.")
+    assert "`nudge_0.05`" in lines[1] and lines[1].endswith("not shown on this suite.")
+
+
+def test_feedback_has_a_cost():
+    rates = {("clocked_lstm", "latency"): 30, ("lookup_table", "latency"): 90}
+    (line,) = _render(
+        "feedback has a cost", {**rates, ("clocked_lstm", "nominal"): 90, ("lookup_table", "nominal"): 90}
+    )
+    assert "`latency` -60.0 pts" in line and "`nominal`" not in line
+    assert _render("feedback has a cost", {("clocked_lstm", "latency"): 90, ("lookup_table", "latency"): 30}) == []
+
+
+def test_unless_trained_for_it():
+    rates = {("recovering", "latency"): 90, ("recovering", "random_yaw"): 80, ("lookup_table", "latency"): 70}
+    assert _render("unless trained for it", rates) == []  # the lookup table was not run on random_yaw
+    (line,) = _render("unless trained for it", {**rates, ("lookup_table", "random_yaw"): 20})
+    assert "`latency` 90.0%" in line and "`random_yaw` 80.0%" in line and "(lookup table 70.0%" in line
+
+
+def test_memory_matters_clocked():
+    (line,) = _render("memory matters (clocked)", {("clocked_lstm", "nominal"): 95, ("memoryless", "nominal"): 20})
+    assert "95.0% [" in line and "vs 20.0% [" in line
+    assert _render("memory matters (clocked)", {("clocked_lstm", "nominal"): 95}) == []
+
+
+BOTH = {("recovering", "nominal"): 95, ("memoryless_mlp", "nominal"): 45}
+
+
+@pytest.mark.parametrize(
+    ("extra", "expected"),
+    [
+        ({}, "-> memory matters beyond the intervals."),
+        (
+            {("memoryless_mlp", "nominal"): 93},
+            "no difference beyond the intervals: memory is not shown to matter here.",
+        ),
+        ({("phase_told_mlp", "nominal"): 10}, "below the plain MLP, so being told the phase does not replace memory."),
+        (
+            {("phase_told_mlp", "nominal"): 90},
+            ": 90 % of the gap closed, so the phase is most of what memory supplies.",
+        ),
+        ({("phase_told_mlp", "nominal"): 60}, ": 30 % of the gap closed, so memory supplies more than the phase."),
+        (
+            {("memoryless_mlp", "nominal"): 95, ("phase_told_mlp", "nominal"): 95},
+            "Told the phase (privileged), the MLP",
+        ),
+    ],
+)
+def test_memory_tracks_the_phase(extra, expected):
+    (line,) = _render("memory tracks the phase", {**BOTH, **extra})
+    assert expected in line
+    assert "suite `slack`" not in line  # slack not evaluated: its sentence is left out
+    if ("phase_told_mlp", "nominal") not in extra:
+        assert "Told the phase" not in line
+
+
+@pytest.mark.parametrize(("told_slack", "slower"), [(95, True), (62, False)])
+def test_memory_tracks_the_phase_with_the_slack_suite(told_slack, slower):
+    slack = {("recovering", "slack"): 97, ("memoryless_mlp", "slack"): 50, ("phase_told_mlp", "slack"): told_slack}
+    (line,) = _render("memory tracks the phase", {**BOTH, ("phase_told_mlp", "nominal"): 60, **slack})
+    assert f"(suite `slack`) the told MLP reaches {told_slack}.0%" in line
+    assert ("wastes steps where memory keeps time" in line) is slower
+    assert _render("memory tracks the phase", {("recovering", "nominal"): 95}) == []  # no matched MLP
+
+
+def test_planner_corrects_itself():
+    lines = _render(
+        "planner corrects itself",
+        {("clocked_lstm", "grasp_miss"): 90, ("clocked_lstm", "drop"): 20, ("recovering", "displace"): 10},
+    )
+    assert len(lines) == 2  # recovering_dagger was not evaluated
+    assert "(clocked LSTM)" in lines[0] and lines[0].endswith("holds on `grasp_miss` (95 % interval above 50 %).")
+    assert "(recovering LSTM)" in lines[1] and lines[1].endswith("does not hold on any of them.")
+
+
+def test_what_the_teacher_adds():
+    (line,) = _render(
+        "what the teacher adds",
+        {
+            ("recovering", "nominal"): 50,
+            ("recovering_dagger", "nominal"): 95,
+            ("recovering", "drop"): 90,
+            ("recovering_dagger", "drop"): 30,
+            ("recovering", "slack"): 80,
+            ("recovering_dagger", "slack"): 82,
+        },
+    )
+    assert "better on `nominal` 50.0%" in line and "worse on `drop` 90.0%" in line and "slack" not in line
+    assert _render("what the teacher adds", {("recovering", "nominal"): 50}) == []
+
+
+TESTED = {
+    "generalisation",
+    "learned planner needed",
+    "feedback corrects a disturbance",
+    "feedback has a cost",
+    "unless trained for it",
+    "memory matters (clocked)",
+    "memory tracks the phase",
+    "planner corrects itself",
+    "what the teacher adds",
+}
+
+
+def test_every_claim_has_a_test():
+    assert {c.name for c in claims.CLAIMS} == TESTED
+
+
+def test_a_claim_naming_an_unknown_method_or_suite_fails_the_check():
+    bad = claims.Claim("typo", ("recovering_lstm",), ("nominal",), lambda table, comparisons: [])
+    with pytest.raises(ConfigError, match="'recovering_lstm'.*valid:"):
+        claims.check_claims((*claims.CLAIMS, bad))
+    with pytest.raises(ConfigError, match="unknown suite 'nudge_3cm'"):
+        claims.check_claims((claims.Claim("typo", ("recovering",), ("nudge_3cm",), lambda t, c: []),))
+    claims.check_claims(claims.CLAIMS + (claims.Claim("group", ("recovering",), ("nudge",), lambda t, c: []),))
+
+
+def test_the_quick_preset_renders_its_three_claims_in_order():
+    """lookup_table and clocked_lstm on nominal and nudge_0.03 (the quick preset): the claims that render."""
+    rates = {(m, s): k for (m, k) in (("clocked_lstm", 97), ("lookup_table", 60)) for s in ("nominal", "nudge_0.03")}
+    results: dict = {}
+    for (method, suite), k in rates.items():
+        tag = str(SEED) if method == "clocked_lstm" else "-"
+        results.setdefault(method, {}).setdefault(tag, {})[suite] = _records(k)
+    methods = get_methods(["lookup_table", "clocked_lstm"])
+    suites = evaluated_suites(results)
+    lines = claims.render_claims(build_table(results, methods, suites), build_comparisons(results, methods, suites))
+    assert [line.split("*")[1] for line in lines] == [
+        "The LSTM planner generalises to unseen object positions",
+        "A learned planner is needed for unseen positions",
+        "Feedback at every step corrects a disturbed object",
+    ]
+    assert claims.render_claims({}, {}) == ["- (no suite with the clocked LSTM was evaluated)"]
+
+
+# ---------------------------------------------------------------------------------- held-out axes (issue 19)
+def test_held_out_axes_pool_each_side_and_need_both():
+    from lerobot_pnp.report import markdown
+
+    results = {
+        "recovering": {
+            str(SEED): {
+                "train_latency": _records(90),
+                "heldout_latency_2": _records(30),
+                "heldout_latency_jitter": _records(50),
+                "train_mixture": _records(80),  # combination axis: its held-out suite was not run
+            }
+        }
+    }
+    methods = get_methods(["recovering"])
+    lines = markdown._held_out_section(results, methods)
+    rows = [line for line in lines if line.startswith("| latency")]
+    assert len(rows) == 1 and not any(line.startswith("| combination") for line in lines)
+    assert "90.0% [" in rows[0] and "n=100" in rows[0]
+    assert "40.0% [" in rows[0] and "n=200" in rows[0]  # 80 of 200 over the two held-out suites
+    assert rows[0].endswith("worse beyond the intervals: does not generalise |")
+    assert markdown._held_out_section({"recovering": {str(SEED): {"train_latency": _records(90)}}}, methods) == []
