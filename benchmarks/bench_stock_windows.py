@@ -20,7 +20,9 @@ load hits every design alike), for:
 - ``clocked``: ``configs/train_pnp_lstm.json`` (map-style, window 19, batch 8), the speed to match.
 
 The dataset is any keyframe dataset of the ``full`` task (the recovering config's own, e.g.). Prints seconds per
-step, the ratios to ``old`` and ``clocked``, and each design's run time (its steps times its seconds per step).
+step, the ratios to ``old`` and ``clocked``, and each design's run time (its steps times its seconds per step). ``--lerobot_train N`` then also runs the
+stock CLI itself for ``N`` steps per design (one after the other; ``--clocked_root``: a paper keyframe dataset
+for the clocked config) and reports the seconds per step LeRobot logs.
 """
 
 from __future__ import annotations
@@ -157,6 +159,67 @@ def _time_steps(loader, step, steps: int) -> tuple[float, float]:
     return (time.perf_counter() - t0) / steps, load / steps
 
 
+def _flags(changes: dict, prefix: str = "") -> list[str]:
+    """``{"policy": {"x": 1}, "steps": 2}`` -> ``["--policy.x=1", "--steps=2"]`` (draccus' command line)."""
+    out = []
+    for key, value in changes.items():
+        if isinstance(value, dict):
+            out += _flags(value, f"{prefix}{key}.")
+        else:
+            out.append(f"--{prefix}{key}={str(value).lower() if isinstance(value, bool) else value}")
+    return out
+
+
+def _cli_designs() -> dict[str, tuple[Path, list[str]]]:
+    """Each design as (config file, flags) of the stock CLI (run length and dataset root set by the caller)."""
+    old = {k: v for k, v in OLD_RECOVERING.items() if k != "steps"}
+    sized = {**old, "policy": {k: v for k, v in old["policy"].items() if k != "max_episode_length"}}
+    return {
+        "old": (FULL_CONFIG, _flags(old)),
+        "sized": (FULL_CONFIG, _flags(sized)),
+        "new": (FULL_CONFIG, []),
+        "clocked": (CLOCKED_CONFIG, ["--env_eval_freq=0"]),
+    }
+
+
+def _lerobot_train(name: str, root: str, steps: int, out: Path) -> dict:
+    """Stock ``lerobot-train`` for ``steps`` steps; s/step from its last log line (the second half of the run:
+    ``update_s`` + ``dataloading_s``, averaged by LeRobot over the ``log_freq`` steps before it)."""
+    import re
+    import shutil
+    import subprocess
+    import sys
+
+    config, flags = _cli_designs()[name]
+    shutil.rmtree(out, ignore_errors=True)
+    cmd = [str(Path(sys.executable).with_name("lerobot-train")), f"--config_path={config}", *flags]
+    cmd += [f"--dataset.root={root}", f"--steps={steps}", f"--log_freq={steps // 2}", f"--save_freq={steps}"]
+    cmd += [f"--output_dir={out}"]
+    t0 = time.perf_counter()
+    proc = subprocess.run(cmd, capture_output=True, text=True, env={**os.environ, "OMP_NUM_THREADS": "1"})
+    wall = time.perf_counter() - t0
+    lines = re.findall(r"updt_s:([0-9.]+) data_s:([0-9.]+)", proc.stdout + proc.stderr)
+    if proc.returncode != 0 or not lines:
+        raise SystemExit(f"lerobot-train {name} failed ({proc.returncode}): {(proc.stdout + proc.stderr)[-2000:]}")
+    update, data = (float(v) for v in lines[-1])
+    return {"s_per_step": round(update + data, 4), "s_loading_per_step": data, "wall_s": round(wall, 1)}
+
+
+def _report_cli(designs: dict[str, dict], rows: dict[str, dict]) -> dict:
+    for name, row in rows.items():
+        row["steps"] = designs[name]["steps"]
+        row["run_min"] = round(row["s_per_step"] * row["steps"] / 60, 2)
+        row["step_ratio_to_old"] = round(row["s_per_step"] / rows["old"]["s_per_step"], 3)
+        row["step_ratio_to_clocked"] = round(row["s_per_step"] / rows["clocked"]["s_per_step"], 3)
+        row["run_ratio_to_clocked"] = round(row["run_min"] / rows["clocked"]["run_min"], 3)
+        print(
+            f"lerobot-train {name:<8} {row['s_per_step']:6.3f} s/step ({row['s_loading_per_step']:.3f} loading)  "
+            f"x{row['step_ratio_to_old']:.3f} of old, x{row['step_ratio_to_clocked']:.2f} of clocked  "
+            f"{row['steps']} steps: {row['run_min']:5.1f} min (x{row['run_ratio_to_clocked']:.2f} of clocked)"
+        )
+    return rows
+
+
 def _report(designs: dict[str, dict], times: dict[str, list[tuple[float, float]]]) -> dict:
     result = {}
     for name, spec in designs.items():
@@ -190,6 +253,10 @@ def main(argv: list[str] | None = None) -> dict:
     p.add_argument("--repo_id", default="local/baxter_pnp_full_demos")
     p.add_argument("--steps", type=int, default=20, help="timed steps per design and round")
     p.add_argument("--rounds", type=int, default=2, help="interleaved rounds (A B C A B C)")
+    p.add_argument(
+        "--lerobot_train", type=int, default=0, help="also run stock lerobot-train this many steps per design"
+    )
+    p.add_argument("--clocked_root", default=None, help="a paper keyframe dataset for the clocked lerobot-train run")
     p.add_argument("--output", type=Path, default=None, help="write the results as JSON here")
     args = p.parse_args(argv)
 
@@ -206,6 +273,15 @@ def main(argv: list[str] | None = None) -> dict:
         for name, (loader, step) in trainers.items():
             times[name].append(_time_steps(loader, step, args.steps))
     result = _report(designs, times)
+    if args.lerobot_train:
+        if args.clocked_root is None:
+            raise SystemExit("--lerobot_train needs --clocked_root (a paper keyframe dataset for the clocked config)")
+        out = Path(args.output or "outputs/bench_stock_windows.json").with_suffix("")
+        rows = {}
+        for name in _cli_designs():
+            root = args.clocked_root if name == "clocked" else args.root
+            rows[name] = _lerobot_train(name, root, args.lerobot_train, out / name)
+        result["lerobot_train"] = _report_cli(designs, rows)
     load = (load_before, os.getloadavg()[0])
     print(f"load average (1 min) before / after: {load[0]:.2f} / {load[1]:.2f} (the machine may be shared)")
     result["load_average"] = load
