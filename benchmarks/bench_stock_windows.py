@@ -209,6 +209,7 @@ def _report_cli(designs: dict[str, dict], rows: dict[str, dict]) -> dict:
     for name, row in rows.items():
         row["steps"] = designs[name]["steps"]
         row["run_min"] = round(row["s_per_step"] * row["steps"] / 60, 2)
+    for name, row in rows.items():
         row["step_ratio_to_old"] = round(row["s_per_step"] / rows["old"]["s_per_step"], 3)
         row["step_ratio_to_clocked"] = round(row["s_per_step"] / rows["clocked"]["s_per_step"], 3)
         row["run_ratio_to_clocked"] = round(row["run_min"] / rows["clocked"]["run_min"], 3)
@@ -281,6 +282,7 @@ def main(argv: list[str] | None = None) -> dict:
         for name in _cli_designs():
             root = args.clocked_root if name == "clocked" else args.root
             rows[name] = _lerobot_train(name, root, args.lerobot_train, out / name)
+            print(f"lerobot-train {name}: {rows[name]}", flush=True)
         result["lerobot_train"] = _report_cli(designs, rows)
     load = (load_before, os.getloadavg()[0])
     print(f"load average (1 min) before / after: {load[0]:.2f} / {load[1]:.2f} (the machine may be shared)")
