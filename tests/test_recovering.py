@@ -20,7 +20,8 @@ LMAX = 24
 
 
 def _policy(**kw) -> PnpLstmPolicy:
-    cfg = PnpLstmConfig(mode="recovering", hidden_size=kw.pop("hidden_size", 16), max_episode_length=LMAX, **kw)
+    length = kw.pop("max_episode_length", LMAX)
+    cfg = PnpLstmConfig(mode="recovering", hidden_size=kw.pop("hidden_size", 16), max_episode_length=length, **kw)
     cfg.input_features = {
         OBS_STATE: PolicyFeature(FeatureType.STATE, (8,)),
         OBS_ENV_STATE: PolicyFeature(FeatureType.ENV, (ENV_DIM,)),
@@ -217,3 +218,55 @@ def test_latency_augmentation_delays_whole_episodes_by_one_step():
     policy.train()
     delayed, _ = policy.forward(batch)
     assert float(delayed.detach()) != float(plain.detach())
+
+
+@pytest.fixture(scope="module")
+def full_root(tmp_path_factory):
+    """A few `full` keyframe demonstrations (recoveries included, so the lengths differ)."""
+    from lerobot_pnp.dataset import GenerateConfig, generate
+    from lerobot_pnp.env_config import BaxterPnPEnvConfig
+
+    root = tmp_path_factory.mktemp("full") / "data"
+    env = BaxterPnPEnvConfig(preset="full", drop_prob=0.5)
+    generate(
+        GenerateConfig(
+            repo_id="local/t_full", root=str(root), num_episodes=6, seed=3, workers=1, env=env, progress=False
+        )
+    )
+    return root
+
+
+def test_shipped_config_streams_whole_episodes(full_root):
+    """configs/train_pnp_lstm_full.json trains from LeRobot's streaming dataset (as lerobot-train builds it:
+    the policy's delta timestamps, ``max_num_shards=num_workers``): one pass yields every frame once, and each
+    sample's window is its whole episode, so its loss equals the whole episode's (the fast path's batch)."""
+    import json
+    from pathlib import Path
+
+    from lerobot.datasets import resolve_delta_timestamps
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+    from lerobot.datasets.streaming_dataset import StreamingLeRobotDataset
+
+    from lerobot_pnp.train_fast import policy_config_from_dict
+
+    shipped = json.loads((Path(__file__).resolve().parents[1] / "configs" / "train_pnp_lstm_full.json").read_text())
+    assert shipped["dataset"]["streaming"] is True and shipped["num_workers"] >= 1
+    plain = LeRobotDataset("local/t_full", root=full_root)
+    lengths = [int(n) for n in plain.meta.episodes["length"]]
+    assert len(set(lengths)) > 1 and max(lengths) <= shipped["policy"]["max_episode_length"]
+    cfg = policy_config_from_dict({**shipped["policy"], "hidden_size": 8})
+    policy = _policy(hidden_size=8, max_episode_length=cfg.max_episode_length)
+    delta = resolve_delta_timestamps(cfg, plain.meta)
+    stream = StreamingLeRobotDataset(
+        "local/t_full", root=full_root, delta_timestamps=delta, max_num_shards=shipped["num_workers"]
+    )
+    starts = [int(i) for i in plain.meta.episodes["dataset_from_index"]]
+    seen = []
+    for item in stream:
+        ep = int(item["episode_index"])
+        seen.append(int(item["index"]))
+        whole = {k: torch.stack(list(plain.hf_dataset[k][starts[ep] : starts[ep] + lengths[ep]]))[None] for k in delta}
+        window = {k: v[None] for k, v in item.items() if k in delta or k.endswith("_is_pad")}
+        assert int((~window[f"{ACTION}_is_pad"]).sum()) == lengths[ep]
+        torch.testing.assert_close(policy.forward(window)[0], policy.forward(whole)[0])
+    assert sorted(seen) == list(range(sum(lengths)))
