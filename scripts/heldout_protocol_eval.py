@@ -3,8 +3,11 @@ protocol's suites (stock eval_policy in process, the study's evaluator); numbers
 
     lerobot-pnp generate --repo_id local/baxter_pnp_full19 --root outputs/ds_full --num_episodes 1000 \
         --env.preset full
-    python scripts/heldout_protocol_eval.py train 41       # max_episode_length, as configs/dagger.json
-    python scripts/heldout_protocol_eval.py eval 100 [suite,suite,...]   # -> outputs/item4/eval.json
+    python scripts/heldout_protocol_eval.py train RUN 300 [field=value ...]  # epochs; PnpLstmConfig overrides
+    python scripts/heldout_protocol_eval.py eval RUN 100 [suite,suite,...]   # -> outputs/RUN/eval.json
+
+RUN names the output folder outputs/RUN (the shipped recipe: no overrides); max_episode_length 41 as
+configs/dagger.json. Overrides are JSON values, e.g. latency_augment_stretch=true latency_augment_jitter=0.5.
 """
 
 import json
@@ -20,14 +23,15 @@ from lerobot_pnp.evaluation.stats import wilson_interval
 from lerobot_pnp.evaluation.suites import HELD_OUT_AXES, SUITES
 from lerobot_pnp.policy.configuration_pnp_lstm import PnpLstmConfig
 
-root, out = Path("outputs/ds_full"), Path("outputs/item4")
+root, out = Path("outputs/ds_full"), Path("outputs") / sys.argv[2]
 stage = sys.argv[1]
 if stage == "train":
     from lerobot_pnp.train_fast import TrainFastConfig, train_fast
 
+    overrides = {k: json.loads(v) for k, v in (a.split("=", 1) for a in sys.argv[4:])}
     policy = PnpLstmConfig(
-        **RECOVERING_RECIPE,
-        max_episode_length=int(sys.argv[2]),
+        **{**RECOVERING_RECIPE, **overrides},
+        max_episode_length=41,
         subtask_loss_weight=0.1,
         phase_loss_weight=0.1,
         device="cpu",
@@ -39,7 +43,7 @@ if stage == "train":
             dataset_repo_id="local/baxter_pnp_full19",
             dataset_root=str(root),
             policy=policy,
-            epochs=300,
+            epochs=int(sys.argv[3]),
             batch_size=32,
             seed=0,
             output_dir=str(out / "train"),
@@ -49,16 +53,18 @@ if stage == "train":
     )
     (out / "train_done.json").write_text(
         json.dumps(
-            {**res.summary(), "checkpoint": str(res.checkpoint_dir), "wall_s": time.time() - t}, indent=2, default=str
+            {**res.summary(), "overrides": overrides, "checkpoint": str(res.checkpoint_dir), "wall_s": time.time() - t},
+            indent=2,
+            default=str,
         )
     )
 else:
     ckpt = Path(json.loads((out / "train_done.json").read_text())["checkpoint"])
     base = BaxterPnPEnvConfig(task_source=str(root))
-    n = int(sys.argv[2])
+    n = int(sys.argv[3])
     names = ["nominal"] + list(dict.fromkeys(x for a in HELD_OUT_AXES for x in (*a.in_distribution, *a.held_out)))
-    if len(sys.argv) > 3:
-        names = sys.argv[3].split(",")
+    if len(sys.argv) > 4:
+        names = sys.argv[4].split(",")
     results = json.loads((out / "eval.json").read_text()) if (out / "eval.json").is_file() else {}
     for name in names:
         if name in results:

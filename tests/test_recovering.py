@@ -270,3 +270,31 @@ def test_shipped_config_streams_whole_episodes(full_root):
         assert int((~window[f"{ACTION}_is_pad"]).sum()) == lengths[ep]
         torch.testing.assert_close(policy.forward(window)[0], policy.forward(whole)[0])
     assert sorted(seen) == list(range(sum(lengths)))
+
+
+def test_late_observer_retimes_a_recovery_and_draws_lags_as_the_env_does():
+    from lerobot_pnp.policy.recovering import late_observer
+
+    x = torch.arange(8.0).view(1, 8, 1)
+    valid = torch.ones(1, 8, dtype=torch.bool)
+    phase = torch.tensor([[0, 1, 2, 3, 1, 2, 3, 4]])  # a recovery starts at frame 4 (the phase goes back)
+    seen, kept, src = late_observer(x, valid, 1.0, phase, stretch=True)
+    # the late robot commands one more step of its old plan (a copy of frame 4, out of the loss), then the
+    # expert's recovery from its first action: the frame trained on action 4 sees frame 4 (the event) at last
+    assert src.tolist() == [[0, 1, 2, 3, 4, 4, 5, 6, 7]]
+    assert seen.squeeze(-1).tolist() == [[0, 0, 1, 2, 3, 4, 4, 5, 6]]
+    assert kept.tolist() == [[True] * 4 + [False] + [True] * 3 + [False]]
+    # lags drawn in 1..max per late episode, redrawn in 0..max with the jitter: never beyond max, never early
+    torch.manual_seed(0)
+    x = torch.arange(40.0).view(1, 40, 1).expand(300, 40, 1)
+    seen, _, src = late_observer(x, torch.ones(300, 40, dtype=torch.bool), 1.0, None, 2, 0.5)
+    lag = torch.arange(40) - seen.squeeze(-1)
+    assert torch.equal(src, torch.arange(40).expand(300, 40))  # no phase labels: nothing retimed
+    assert set(lag[:, 2:].unique().tolist()) == {0, 1, 2}
+    assert set(lag[:, 1].unique().tolist()) <= {0, 1}  # frame 0 shows itself, as the env's first observation
+    with pytest.raises(ConfigError, match="latency_augment_max"):
+        PnpLstmConfig(mode="recovering", latency_augment_max=0)
+    policy = _policy(latency_augment_prob=1.0, latency_augment_stretch=True, latency_augment_jitter=0.5)
+    policy.train()
+    loss, _ = policy.forward(_episodes([12, 20])[0])
+    assert torch.isfinite(loss)

@@ -12,9 +12,9 @@ from lerobot_pnp.evaluation.suites import SUITES
 from lerobot_pnp.policy import PnpLstmConfig
 
 # Rollouts under observation latency are left out by default: their recorded observations are already late,
-# and training shows half of all episodes one step later still (policy.latency_augment_prob). With an earlier
-# recipe that had no late episodes, adding them also cost nominal success in round 1 (docs/results/planner.md
-# has the current recipe's measurements).
+# and training shows half of all episodes late still (policy.latency_augment_*: as the env draws latency, with
+# each recovery retimed as a late robot performs it; docs/results/heldout_protocol.md). With an earlier recipe
+# that had no late episodes, adding them also cost nominal success in round 1 (docs/results/planner.md).
 DEFAULT_ROLLOUT_SUITES = ["nominal", "quiet_grasp_miss", "quiet_drop", "quiet_nudge_0.03", "quiet_displace"]
 DEFAULT_EVAL_SUITES = [
     "quiet", "quiet_grasp_miss", "quiet_drop", "quiet_nudge_0.03", "quiet_displace", "quiet_noise_latency",
@@ -60,6 +60,8 @@ RECOVERING_RECIPE: dict[str, Any] = {
     "lr_scheduler": "cosine",
     "scheduler_warmup_steps": 200,
     "latency_augment_prob": 0.5,
+    "latency_augment_jitter": 0.5,
+    "latency_augment_stretch": True,
     "binary_gripper": True,
 }
 

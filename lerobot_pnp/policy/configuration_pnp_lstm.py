@@ -95,6 +95,15 @@ class PnpLstmConfig(PreTrainedConfig):
     percent under ``obs_latency=1``); with both kinds of episode it learns to tell them apart from the first two frames
     (a delayed episode shows the start pose twice) and to act on stale observations. Works for the fast path and
     for ``lerobot-train`` (it acts on the whole-episode windows)."""
+    latency_augment_max: int = 1
+    """Training only: a late episode's lag is drawn uniformly in ``1..latency_augment_max`` steps (1: exactly one
+    step late, as before)."""
+    latency_augment_jitter: float = 0.0
+    """Training only: within a late episode the lag is redrawn in ``0..latency_augment_max`` at each frame with this
+    probability (the env's ``obs_latency_jitter``)."""
+    latency_augment_stretch: bool = False
+    """Training only: a late episode's recovery is retimed as a late robot performs it (the first frame of the
+    recovery repeated ``lag`` times, out of the loss; ``recovering.late_observer``). Needs per-frame phase labels."""
     balance_window_loss: bool = True
     """Ignored; kept so that configs and checkpoints written before every training window became a whole episode
     still load. (It weighted the frames of windows that ended at a uniformly drawn frame.)"""
@@ -158,6 +167,11 @@ class PnpLstmConfig(PreTrainedConfig):
             (
                 0.0 <= self.latency_augment_prob <= 1.0,
                 f"latency_augment_prob must be in [0, 1], got {self.latency_augment_prob}",
+            ),
+            (
+                self.latency_augment_max >= 1 and 0.0 <= self.latency_augment_jitter <= 1.0,
+                f"latency_augment_max must be >= 1 and latency_augment_jitter in [0, 1], got "
+                f"{self.latency_augment_max} and {self.latency_augment_jitter}",
             ),
             (self.optimizer_lr > 0.0, f"optimizer_lr must be > 0, got {self.optimizer_lr}"),
             (

@@ -39,7 +39,7 @@ from lerobot_pnp.errors import ConfigError, DatasetError, PolicyError
 
 from .clocked import PnpLstm
 from .configuration_pnp_lstm import PnpLstmConfig
-from .recovering import RecoveringNet, recovering_loss
+from .recovering import RecoveringNet, late_observer, recovering_loss
 
 # Per-frame labels the recovering mode learns from when a batch carries them (fast path, DAgger).
 SUBTASK_KEY = "phase.subtask"
@@ -183,7 +183,13 @@ class PnpLstmPolicy(PreTrainedPolicy):
         labels = [v if _is_window(v, x) else None for v in labels]
         x, y, valid, labels = self._episodes_of(batch, x, y, labels)
         if self.training and self.config.latency_augment_prob > 0:
-            x, valid = delay_some_episodes(x, valid, self.config.latency_augment_prob, labels[1])  # phase.index
+            cfg = self.config
+            x, valid, src = late_observer(
+                x, valid, cfg.latency_augment_prob, labels[1], cfg.latency_augment_max,
+                cfg.latency_augment_jitter, cfg.latency_augment_stretch,
+            )  # fmt: skip
+            y = y.gather(1, src.unsqueeze(-1).expand(-1, -1, y.shape[-1]))
+            labels = [None if v is None else v.gather(1, src) for v in labels]
         if self.training and self.config.input_noise_std > 0:
             x = x + self.config.input_noise_std * torch.randn_like(x)
 
@@ -290,24 +296,10 @@ class PnpLstmPolicy(PreTrainedPolicy):
 
 
 def delay_some_episodes(x: Tensor, valid: Tensor, prob: float, phase: Tensor | None = None) -> tuple[Tensor, Tensor]:
-    """Episodes ``(B, T, D)`` from frame 0, each shown one step late with probability ``prob``: frame ``t``
-    gets frame ``t-1``'s observation and frame 0 keeps its own (what an env with ``obs_latency=1`` shows).
-
-    Returns the inputs and ``valid`` ``(B, T)`` with the frames a late observer cannot act on taken out of the
-    loss: a late episode's last frame (the hold after success, which the env never executes; its late
-    observation, the release, is also what a displaced object's episode shows before the re-pick) and, given
-    the per-frame ``phase`` labels, every frame where the expert's phase goes back (the first frame of a
-    recovery: the expert reacts to a drop or a displacement it saw one step before the late observer can).
-    """
-    late = torch.rand(x.shape[0], device=x.device) < prob
-    if not bool(late.any()) or x.shape[1] < 2:
-        return x, valid
-    shifted = torch.cat([x[:, :1], x[:, :-1]], dim=1)
-    blind = torch.zeros_like(valid)
-    blind[torch.arange(valid.shape[0], device=valid.device), valid.sum(dim=1).clamp(min=1) - 1] = True
-    if phase is not None:
-        blind[:, 1:] |= phase[:, 1:] < phase[:, :-1]
-    return torch.where(late.view(-1, 1, 1), shifted, x), valid & ~(blind & late.view(-1, 1))
+    """Episodes ``(B, T, D)`` from frame 0, each shown one step late with probability ``prob`` (frame ``t`` gets
+    frame ``t-1``'s observation, frame 0 its own): ``recovering.late_observer`` with a lag of exactly 1."""
+    x, valid, _ = late_observer(x, valid, prob, phase)
+    return x, valid
 
 
 _BATCH_CHANGED = (
