@@ -155,6 +155,19 @@ def test_split_is_80_20_disjoint_and_stats_verified(kf):
     assert not (root / ".pnp_work").exists()
 
 
+# The `paper` task's content, pinned: 100 episodes from seed 7 (every feature added to the env, the expert, the
+# writer or the dataset pipeline since must leave it byte-identical: a feature that is off draws no number).
+PAPER_100_SEED_7 = "3e071006ba7eb3dd670e7c53825e49a213f7feb8d7e2b00edfa6f1d7191f48b3"
+
+
+def test_paper_dataset_content_is_pinned(tmp_path):
+    root = tmp_path / "paper"
+    generate(
+        GenerateConfig(repo_id="local/paper_pin", root=str(root), num_episodes=100, seed=7, workers=1, progress=False)
+    )
+    assert data_hash(root) == PAPER_100_SEED_7
+
+
 def test_same_hash_whatever_the_tasks_and_workers(kf, tmp_path):
     root, _ = kf  # 3 tasks, in this process
     one = generate(_cfg(tmp_path / "t1", tasks=1))
