@@ -49,6 +49,9 @@ def console_to_file(log_path: Path):
         terminal.close()
 
 
+LOG_INTERVAL_S = 15.0
+
+
 class ProgressBar:
     """One tqdm bar over all ranks: polls ``progress/<rank>`` files ("<episodes> <failures>")."""
 
@@ -56,6 +59,10 @@ class ProgressBar:
         from tqdm import tqdm
 
         self.dir, self.initial = progress_dir, initial
+        # redrawn twice a second on a terminal; into a log (no terminal) only every LOG_INTERVAL_S, so a log
+        # gets a line of progress now and then instead of a flood of carriage-return updates
+        is_terminal = bool(getattr(stream, "isatty", lambda: False)())
+        self.interval = 0.5 if is_terminal else LOG_INTERVAL_S
         self.bar = tqdm(
             total=total, initial=initial, desc="episodes", unit="ep", file=stream, disable=not enabled, smoothing=0.05
         )
@@ -73,7 +80,7 @@ class ProgressBar:
         return eps, fails
 
     def _poll(self) -> None:
-        while not self._stop.wait(0.5):
+        while not self._stop.wait(self.interval):
             self.update()
 
     def update(self) -> None:
