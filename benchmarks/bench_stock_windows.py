@@ -205,14 +205,20 @@ def _lerobot_train(name: str, root: str, steps: int, out: Path) -> dict:
     return {"s_per_step": round(update + data, 4), "s_loading_per_step": data, "wall_s": round(wall, 1)}
 
 
+def _with_ratios(rows: dict[str, dict]) -> dict[str, dict]:
+    """Each design's step and run time as ratios to the old and the clocked design (added in place)."""
+    for row in rows.values():
+        row["step_ratio_to_old"] = round(row["s_per_step"] / rows["old"]["s_per_step"], 3)
+        row["step_ratio_to_clocked"] = round(row["s_per_step"] / rows["clocked"]["s_per_step"], 3)
+        row["run_ratio_to_clocked"] = round(row["run_min"] / rows["clocked"]["run_min"], 3)
+    return rows
+
+
 def _report_cli(designs: dict[str, dict], rows: dict[str, dict]) -> dict:
     for name, row in rows.items():
         row["steps"] = designs[name]["steps"]
         row["run_min"] = round(row["s_per_step"] * row["steps"] / 60, 2)
-    for name, row in rows.items():
-        row["step_ratio_to_old"] = round(row["s_per_step"] / rows["old"]["s_per_step"], 3)
-        row["step_ratio_to_clocked"] = round(row["s_per_step"] / rows["clocked"]["s_per_step"], 3)
-        row["run_ratio_to_clocked"] = round(row["run_min"] / rows["clocked"]["run_min"], 3)
+    for name, row in _with_ratios(rows).items():
         print(
             f"lerobot-train {name:<8} {row['s_per_step']:6.3f} s/step ({row['s_loading_per_step']:.3f} loading)  "
             f"x{row['step_ratio_to_old']:.3f} of old, x{row['step_ratio_to_clocked']:.2f} of clocked  "
@@ -235,10 +241,7 @@ def _report(designs: dict[str, dict], times: dict[str, list[tuple[float, float]]
             "ms_loading_per_sample": round(1e3 * s_load / spec["batch"], 2),
             "run_min": round(s_step * spec["steps"] / 60, 2),
         }
-    for name, row in result.items():
-        row["step_ratio_to_old"] = round(row["s_per_step"] / result["old"]["s_per_step"], 3)
-        row["step_ratio_to_clocked"] = round(row["s_per_step"] / result["clocked"]["s_per_step"], 3)
-        row["run_ratio_to_clocked"] = round(row["run_min"] / result["clocked"]["run_min"], 3)
+    for name, row in _with_ratios(result).items():
         print(
             f"{name:<8} {'stream' if row['streaming'] else 'map   '} window {row['window']:>3}  batch {row['batch']:>2}  {row['ms_loading_per_sample']:6.2f} ms "
             f"loading/sample  {row['s_per_step']:6.3f} s/step ({row['s_loading_per_step']:.3f} loading)  "

@@ -156,15 +156,12 @@ def _catalogue() -> dict[str, Suite]:
 
 # Every perturbation off: no events (nudge, missed grasp, drop, displacement), exact and current observations.
 _QUIET: dict[str, Any] = {
-    "nudge_max": 0.0,
-    "grasp_miss_prob": 0.0,
-    "drop_prob": 0.0,
-    "displace_prob": 0.0,
-    "obs_noise_object": 0.0,
-    "obs_noise_joints": 0.0,
-    "obs_bias_object": 0.0,
-    "obs_latency": 0,
-}
+    k: PAPER_TASK[k]
+    for k in (
+        "nudge_max", "grasp_miss_prob", "drop_prob", "displace_prob",
+        "obs_noise_object", "obs_noise_joints", "obs_bias_object", "obs_latency",
+    )
+}  # fmt: skip
 _OBS_NOISE = {"obs_noise_object": 0.003, "obs_noise_joints": 0.005}
 
 
