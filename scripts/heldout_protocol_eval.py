@@ -3,8 +3,9 @@ protocol's suites (stock eval_policy in process, the study's evaluator); numbers
 
     lerobot-pnp generate --repo_id local/baxter_pnp_full19 --root outputs/ds_full --num_episodes 1000 \
         --env.preset full
-    python scripts/heldout_protocol_eval.py train RUN 300 [field=value ...]  # epochs; PnpLstmConfig overrides
-    python scripts/heldout_protocol_eval.py eval RUN 100 [suite,suite,...]   # -> outputs/RUN/eval.json
+    python scripts/heldout_protocol_eval.py train RUN 300 [seed=N] [field=value ...]  # epochs; PnpLstmConfig overrides
+    python scripts/heldout_protocol_eval.py eval RUN 100 [suite,suite,...|all] [field=value ...]
+        # -> outputs/RUN/eval.json, or eval_<field=value...>.json with inference-time policy fields set
 
 RUN names the output folder outputs/RUN (the shipped recipe: no overrides); max_episode_length 41 as
 configs/dagger.json. Overrides are JSON values, e.g. latency_augment_stretch=true latency_augment_jitter=0.5.
@@ -29,6 +30,7 @@ if stage == "train":
     from lerobot_pnp.train_fast import TrainFastConfig, train_fast
 
     overrides = {k: json.loads(v) for k, v in (a.split("=", 1) for a in sys.argv[4:])}
+    seed = int(overrides.pop("seed", 0))  # the training seed
     policy = PnpLstmConfig(
         **{**RECOVERING_RECIPE, **overrides},
         max_episode_length=41,
@@ -45,7 +47,7 @@ if stage == "train":
             policy=policy,
             epochs=int(sys.argv[3]),
             batch_size=32,
-            seed=0,
+            seed=seed,
             output_dir=str(out / "train"),
             overwrite=True,
             progress=False,
@@ -53,7 +55,13 @@ if stage == "train":
     )
     (out / "train_done.json").write_text(
         json.dumps(
-            {**res.summary(), "overrides": overrides, "checkpoint": str(res.checkpoint_dir), "wall_s": time.time() - t},
+            {
+                **res.summary(),
+                "overrides": overrides,
+                "seed": seed,
+                "checkpoint": str(res.checkpoint_dir),
+                "wall_s": time.time() - t,
+            },
             indent=2,
             default=str,
         )
@@ -63,15 +71,23 @@ else:
     base = BaxterPnPEnvConfig(task_source=str(root))
     n = int(sys.argv[3])
     names = ["nominal"] + list(dict.fromkeys(x for a in HELD_OUT_AXES for x in (*a.in_distribution, *a.held_out)))
-    if len(sys.argv) > 4:
+    if len(sys.argv) > 4 and sys.argv[4] != "all":
         names = sys.argv[4].split(",")
-    results = json.loads((out / "eval.json").read_text()) if (out / "eval.json").is_file() else {}
+    # Inference-time policy fields (e.g. await_observation=true) set on the loaded checkpoint's config.
+    overrides = {k: json.loads(v) for k, v in (a.split("=", 1) for a in sys.argv[5:])}
+    result_file = out / (
+        "eval.json" if not overrides else "eval_" + "_".join(f"{k}={v}" for k, v in overrides.items()) + ".json"
+    )
+    results = json.loads(result_file.read_text()) if result_file.is_file() else {}
     for name in names:
         if name in results:
             continue
         cfg = SUITES[name].env_configs(base)[0]
         lp = load_policy(ckpt, env_cfg=cfg)
         policy, pre, post = lp.policy, lp.preprocessor, lp.postprocessor
+        for k, v in overrides.items():
+            setattr(policy.config, k, v)
+        policy.reset()
         t = time.time()
         recs = eval_lerobot_policy(policy, pre, post, cfg, n, 10_000_000, 10)
         k = sum(r.success for r in recs)
@@ -85,4 +101,4 @@ else:
             f"{name:<26} {k}/{n} = {100 * k / n:5.1f} % [{100 * lo:5.1f}, {100 * hi:5.1f}] {causes} {time.time() - t:.0f}s",
             flush=True,
         )
-        (out / "eval.json").write_text(json.dumps(results, indent=2))
+        result_file.write_text(json.dumps(results, indent=2))

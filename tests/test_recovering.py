@@ -298,3 +298,85 @@ def test_late_observer_retimes_a_recovery_and_draws_lags_as_the_env_does():
     policy.train()
     loss, _ = policy.forward(_episodes([12, 20])[0])
     assert torch.isfinite(loss)
+
+
+def _run_plant(policy: PnpLstmPolicy, latencies: list[int], steps: int) -> list:
+    """A synthetic plant for two envs: each step the robot reaches the pose the command leads to (a deterministic
+    function of the command that spreads nearby commands apart, so the plan never settles); observations are
+    ``latencies[t]`` steps old (per step: jitter). Returns the commands issued."""
+    env_obs = torch.zeros(2, ENV_DIM)
+    history = [torch.randn(2, 8, generator=torch.Generator().manual_seed(1))]  # the state after each step
+    commands, obs = [], history[0]
+    policy.reset()
+    for t in range(steps):
+        action = policy.select_action({OBS_STATE: obs, OBS_ENV_STATE: env_obs})
+        commands.append(action)
+        history.append(2.0 * torch.sin(50.0 * action))
+        obs = history[max(0, len(history) - 1 - latencies[t])]
+    return commands
+
+
+def _decisions(commands: list) -> list:
+    """The distinct commands in order (a held command repeats)."""
+    out = [commands[0]]
+    for c in commands[1:]:
+        if not torch.equal(c, out[-1]):
+            out.append(c)
+    return out
+
+
+def test_observation_gate_makes_the_plan_independent_of_latency():
+    """With ``await_observation`` the planner steps only on observations that show its last move, so the
+    sequence of commands it plans is the same at latency 0, 2 (beyond any training) and under jitter; at latency 2
+    each is held until its move is seen (three steps). Without the gate the plan changes with the latency."""
+    gated = _policy(await_observation=True, await_state_tol=0.05, await_action_tol=0.01)
+    at0 = _decisions(_run_plant(gated, [0] * 12, 12))
+    late = _run_plant(gated, [2] * 36, 36)
+    assert len(at0) == 12  # latency 0: a new command every step, as without the gate
+    assert all(torch.equal(late[3 * k], late[3 * k + 2]) for k in range(12))  # each held for its 3 steps
+    for a, b in zip(at0, _decisions(late), strict=True):
+        torch.testing.assert_close(a, b)
+    g = torch.Generator().manual_seed(3)
+    jitter = torch.randint(0, 3, (60,), generator=g).tolist()
+    for a, b in zip(at0, _decisions(_run_plant(gated, jitter, 60))[:12], strict=True):
+        torch.testing.assert_close(a, b)
+    plain = _policy()
+    assert not torch.allclose(_run_plant(plain, [0] * 6, 6)[5], _run_plant(plain, [2] * 6, 6)[5])
+
+
+def test_observation_gate_lets_the_planner_run_ahead_by_its_trained_latency():
+    """``await_in_flight=1`` (a planner trained on observations up to one step late, the default for it): at
+    latency 1 it never waits and acts exactly as without the gate; at latency 2 it waits one step per move, so
+    it sees the observations it would see at latency 1, and plans the same commands."""
+    plain = _policy(latency_augment_prob=0.5)
+    gated = _policy(latency_augment_prob=0.5, await_observation=True, await_state_tol=0.05, await_action_tol=0.01)
+    assert gated.config.in_flight_moves == 1 and _policy().config.in_flight_moves == 0
+    at1 = _run_plant(plain, [1] * 12, 12)
+    for a, b in zip(at1, _run_plant(gated, [1] * 12, 12), strict=True):
+        torch.testing.assert_close(a, b)
+    late = _decisions(_run_plant(gated, [2] * 24, 24))
+    for a, b in zip(at1, late[:12], strict=True):
+        torch.testing.assert_close(a, b)
+
+
+def test_observation_gate_gives_up_on_a_move_it_cannot_see():
+    """A command whose move never shows in the robot state (the plant ignores it; only the object observation
+    changes) is held ``await_max_steps`` steps, then the planner steps on what it sees."""
+    policy = _policy(await_observation=True, await_state_tol=0.05, await_action_tol=0.01, await_max_steps=3)
+    g = torch.Generator().manual_seed(0)
+    policy.reset()
+    actions = [
+        policy.select_action({OBS_STATE: torch.zeros(2, 8), OBS_ENV_STATE: 3 * torch.randn(2, ENV_DIM, generator=g)})
+        for _ in range(9)
+    ]
+    changes = [k for k in range(1, 9) if not torch.equal(actions[k], actions[k - 1])]
+    assert changes == [4, 8]  # decided at 0, held 3 steps, decided at 4, ...
+
+
+@pytest.mark.parametrize(
+    "field, value",
+    [("await_state_tol", 0.0), ("await_action_tol", -1.0), ("await_max_steps", 0), ("await_in_flight", -1)],
+)
+def test_observation_gate_settings_are_checked(field, value):
+    with pytest.raises(ConfigError, match=field):
+        PnpLstmConfig(mode="recovering", **{field: value})

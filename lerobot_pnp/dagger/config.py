@@ -63,6 +63,7 @@ RECOVERING_RECIPE: dict[str, Any] = {
     "latency_augment_jitter": 0.5,
     "latency_augment_stretch": True,
     "binary_gripper": True,
+    "await_observation": True,
 }
 
 

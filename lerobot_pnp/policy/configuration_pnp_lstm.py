@@ -155,6 +155,31 @@ class PnpLstmConfig(PreTrainedConfig):
     """Recovering mode: weight of the cross-entropy of the auxiliary phase classifier (``phase.index``) next to the
     action MSE. Used, like ``subtask_loss_weight``, only when the batch carries per-frame labels."""
 
+    await_observation: bool = False
+    """Recovering mode, inference only: after a command that moves the arm or the gripper, hold it (without
+    stepping the network) until the observed robot state shows the move, then plan the next keyframe on it
+    (``observation_gate``). The planner's inputs are then the same at any observation latency, including one it
+    was never trained on; without latency it changes nothing but a wait after a move too small to see."""
+    await_state_tol: float = 0.35
+    """With ``await_observation``: the normalised change of the observed robot state (Euclidean norm over its dims)
+    that counts as "the move arrived"; above the observation noise of the ``full`` task between two observations of
+    one pose, below nearly every keyframe move of its demonstrations."""
+    await_action_tol: float = 0.7
+    """With ``await_observation``: the normalised change of the command (Euclidean norm) above which it is a move to
+    wait for; smaller changes (a hold keyframe, a correction of a few mm) are not waited for. Twice
+    ``await_state_tol``, so that every move waited for changes the observation by more than ``await_state_tol``."""
+    await_max_steps: int = 4
+    """With ``await_observation``: the longest a command is held waiting for its move to be observed."""
+    await_in_flight: int | None = None
+    """With ``await_observation``: how many commanded moves may still be unobserved when the next keyframe is
+    planned. 0 plans every keyframe on an observation that shows all earlier moves (latency-free inputs, one move
+    per ``1 + latency`` steps); ``k`` lets the planner run ahead by ``k`` moves, as a planner trained on
+    observations up to ``k`` steps late does, and waits only when the observations are staler than that. ``None``:
+    what the planner was trained on (``latency_augment_max`` if ``latency_augment_prob > 0``, else 0)."""
+    await_past_states: int = 2
+    """With ``await_observation``: an observation that equals one of this many last observed robot states is not a
+    new move but the latency growing (the observation going back in time)."""
+
     def __post_init__(self) -> None:
         super().__post_init__()
         checks = [
@@ -196,6 +221,16 @@ class PnpLstmConfig(PreTrainedConfig):
                 f"pnp_lstm keeps its own history in the LSTM state; n_obs_steps must be 1, got {self.n_obs_steps}",
             ),
             (self.mode in MODES, f"mode must be one of {MODES}, got {self.mode!r}"),
+            (
+                self.await_state_tol > 0
+                and self.await_action_tol > 0
+                and self.await_max_steps >= 1
+                and (self.await_in_flight is None or self.await_in_flight >= 0)
+                and self.await_past_states >= 1,
+                "await_state_tol and await_action_tol must be > 0, await_max_steps and await_past_states >= 1 and "
+                f"await_in_flight >= 0, got {self.await_state_tol}, {self.await_action_tol}, {self.await_max_steps}, "
+                f"{self.await_past_states} and {self.await_in_flight}",
+            ),
             (self.max_episode_length >= 1, f"max_episode_length must be >= 1, got {self.max_episode_length}"),
             (
                 self.subtask_loss_weight >= 0.0 and self.phase_loss_weight >= 0.0,
@@ -225,6 +260,13 @@ class PnpLstmConfig(PreTrainedConfig):
     def window_length(self) -> int:
         """Frames of the longest episode a training window holds: 10 clocked, ``max_episode_length`` recovering."""
         return self.max_episode_length if self.recovering else self.episode_length
+
+    @property
+    def in_flight_moves(self) -> int:
+        """``await_in_flight`` resolved: the moves the planner may run ahead of its observations."""
+        if self.await_in_flight is not None:
+            return self.await_in_flight
+        return self.latency_augment_max if self.latency_augment_prob > 0 else 0
 
     def check_env_fps(self, env_fps: int | float | None) -> None:
         """Raise ``PolicyError`` when an env's control rate differs from the training dataset's.

@@ -32,13 +32,14 @@ from typing import Any
 import torch
 import torch.nn.functional as F  # noqa: N812
 from lerobot.policies.pretrained import PreTrainedPolicy
-from lerobot.utils.constants import ACTION
+from lerobot.utils.constants import ACTION, OBS_STATE
 from torch import Tensor, nn
 
 from lerobot_pnp.errors import ConfigError, DatasetError, PolicyError
 
 from .clocked import PnpLstm
 from .configuration_pnp_lstm import PnpLstmConfig
+from .observation_gate import ObservationGate
 from .recovering import RecoveringNet, late_observer, recovering_loss
 
 # Per-frame labels the recovering mode learns from when a batch carries them (fast path, DAgger).
@@ -169,6 +170,19 @@ class PnpLstmPolicy(PreTrainedPolicy):
         self._step = 0
         self._state: tuple[Tensor, Tensor] | None = None
         self._last_action: Tensor | None = None
+        cfg = self.config
+        self._gate = (
+            ObservationGate(
+                int(cfg.input_features[OBS_STATE].shape[0]),
+                cfg.await_state_tol,
+                cfg.await_action_tol,
+                cfg.await_max_steps,
+                cfg.in_flight_moves,
+                cfg.await_past_states,
+            )
+            if cfg.recovering and cfg.await_observation
+            else None
+        )
 
     def forward(self, batch: dict[str, Tensor], reduction: str = "mean") -> tuple[Tensor, dict]:
         """MSE between predicted and target normalised actions over each episode's frames.
@@ -249,11 +263,25 @@ class PnpLstmPolicy(PreTrainedPolicy):
         state = self._state
         if state is not None and state[0].shape[0] != x.shape[0]:
             raise PolicyError(_BATCH_CHANGED)
-        out, self._state = self.model.step(x, state)
+        out, new_state = self.model.step(x, state)
         self._step += 1
+        action = out["action"]
+        gate = self._gate
+        if gate is not None:  # hold the last command where its move has not been observed yet
+            decided = gate.decide(x)
+            old = self._last_action
+            if old is not None and not bool(decided.all()):
+                action = torch.where(decided[:, None], action, old)
+                if new_state is not None:
+                    new_state = tuple(
+                        torch.where(decided[:, None], n, o) for n, o in zip(new_state, state, strict=True)
+                    )
+            gate.update(decided, action, old)
+            self._last_action = action
+        self._state = new_state
         self.last_subtask_prob = out["subtask_logits"].softmax(dim=-1)[:, 1]  # P(place), for viewers / logs
         self.last_phase = out["phase_logits"].argmax(dim=-1)
-        return out["action"]
+        return action
 
     def predict_action_chunk(self, batch: dict[str, Tensor], **kwargs: Any) -> Tensor:
         """``select_action`` with a time dimension, ``(B, 1, action_dim)``. Advances the step counter."""

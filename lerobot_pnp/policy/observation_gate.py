@@ -1,0 +1,74 @@
+"""Act on settled observations: hold a commanded keyframe until the observed robot state shows it.
+
+The paper's run-time loop is "the net predicts the next keyframe, an interpolator moves there, repeat". With
+observation latency the robot has moved there, but the observation that shows it comes ``L`` steps later; a
+planner that steps its LSTM on every observation sees a history with a shape it was never shown (frames of
+the old pose repeated, a recovery that starts late), and that shape changes with ``L``. The gate makes the
+planner's input sequence the same at every latency: after a command that moves the arm or the gripper, it keeps
+returning that command, and does not step the network, until the observed robot state has changed from the
+one the command was planned on (the move arrived), or ``max_steps`` steps have passed (a move too small to
+see). A command that moves nothing (a hold keyframe) is not waited for.
+
+"Changed" ignores an observation that goes back to one of the states the last decisions were made on: when
+the latency grows within an episode the observation jumps back in time, to a pose the arm has already left.
+Thresholds are Euclidean norms in normalised units (the pre-processor's mean/std), which average the per-joint
+observation noise. A command counts as a move only when it changes by clearly more than an observation must
+change to count as its arrival (a normalised joint target and a normalised joint angle have about the same
+scale), so that every move counted is seen to arrive; a missed arrival would make the gate wait needlessly
+until ``max_steps``.
+
+Everything is per environment of the batch: each env waits for its own move.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+from torch import Tensor
+
+# How many of the last observed states count as "the past" for a latency that grows.
+_PAST_STATES = 2
+
+
+@dataclass
+class ObservationGate:
+    """Per-batch gate state; ``decide`` says which envs step the planner now."""
+
+    state_dim: int  # the leading input dims that are the robot state (joints + gripper)
+    state_tol: float
+    action_tol: float
+    max_steps: int
+    in_flight: int = 0  # moves that may be unobserved when the planner plans the next one
+    past: int = _PAST_STATES
+
+    def __post_init__(self) -> None:
+        self.reset()
+
+    def reset(self) -> None:
+        self._seen: Tensor | None = None  # (B, P, S) the last distinct observed robot states, newest first
+        self._unseen: Tensor | None = None  # (B,) commanded moves not observed yet
+        self._waited: Tensor | None = None  # (B,) steps held since the last decision
+
+    def decide(self, x: Tensor) -> Tensor:
+        """``(B, D)`` normalised inputs -> ``(B,)`` bool: True where the planner steps on this observation."""
+        state = x[:, : self.state_dim]
+        if self._seen is None:
+            self._seen = state.unsqueeze(1).repeat(1, self.past, 1)
+            self._unseen = torch.zeros(x.shape[0], dtype=torch.long, device=x.device)
+            self._waited = torch.zeros(x.shape[0], dtype=torch.long, device=x.device)
+            return torch.ones(x.shape[0], dtype=torch.bool, device=x.device)
+        new = ((state.unsqueeze(1) - self._seen).norm(dim=-1) > self.state_tol).all(dim=1)  # a move arrived
+        self._seen = torch.where(new[:, None, None], torch.cat([state.unsqueeze(1), self._seen[:, :-1]], 1), self._seen)
+        self._unseen = torch.where(new, (self._unseen - 1).clamp(min=0), self._unseen)
+        timeout = self._waited >= self.max_steps
+        self._unseen = torch.where(timeout, torch.zeros_like(self._unseen), self._unseen)
+        return (self._unseen <= self.in_flight) | timeout
+
+    def update(self, decided: Tensor, new_action: Tensor, old_action: Tensor | None) -> None:
+        """Count the decisions of this step whose commands move something (a hold keyframe moves nothing)."""
+        moves = (
+            torch.ones_like(decided) if old_action is None else (new_action - old_action).norm(dim=-1) > self.action_tol
+        )
+        self._unseen = self._unseen + (decided & moves).long()
+        self._waited = torch.where(decided, torch.zeros_like(self._waited), self._waited + 1)
