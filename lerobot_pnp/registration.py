@@ -18,18 +18,20 @@ def register_all() -> None:
 
     install_cli_excepthook()
     # LeRobot config registries (draccus choice registries) are filled by importing the modules.
-    from lerobot_pnp import env_config
+    from lerobot_pnp import env_config  # noqa: F401
     from lerobot_pnp.policy.modeling_pnp_lstm import TaskRecord
+    from lerobot_pnp.presets import GYM_ID
+    from lerobot_pnp.recorded_task import dataset_task, write_checkpoint_task
 
     # a pnp_lstm checkpoint records the task of its training dataset (the policy package knows no env)
-    TaskRecord.read, TaskRecord.write = env_config.dataset_task, env_config.write_checkpoint_task
+    TaskRecord.read, TaskRecord.write = dataset_task, write_checkpoint_task
     # ... and so does any other policy's checkpoint written by stock lerobot-train (in that process only)
     from lerobot_pnp.stock_checkpoints import install_stock_checkpoint_hook
 
     install_stock_checkpoint_hook()
 
-    if env_config.GYM_ID not in gym.registry:
+    if GYM_ID not in gym.registry:
         gym.register(
-            id=env_config.GYM_ID,
+            id=GYM_ID,
             entry_point="lerobot_pnp.env:BaxterPnPEnv",
         )  # no gymnasium TimeLimit: the env truncates at its config's episode_length

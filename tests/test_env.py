@@ -8,9 +8,10 @@ from gymnasium.utils.env_checker import check_env
 
 from lerobot_pnp import robot
 from lerobot_pnp.env import BaxterPnPEnv
-from lerobot_pnp.env_config import GYM_ID, PAPER_TASK, BaxterPnPEnvConfig, make_env
+from lerobot_pnp.env_config import BaxterPnPEnvConfig, make_env
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.ik import ArmIK, gripper_down_rotation
+from lerobot_pnp.presets import GYM_ID, PAPER_TASK
 
 # Reference poses of Rethink's left arm (docs/baxter.md): joints -> left_gripper position, z axis.
 REFERENCE_POSES = [
@@ -182,7 +183,7 @@ def test_bad_reset_options_raise(keyframe_env, options, message):
 
 
 def test_task_is_settable_from_the_env_config_and_recorded(tmp_path):
-    from lerobot_pnp.env_config import read_recorded, write_recorded
+    from lerobot_pnp.recorded_task import read_recorded, write_recorded
 
     cfg = BaxterPnPEnvConfig(
         object_low=(0.5, 0.2), object_high=(0.6, 0.3), place_low=(0.65, -0.1), place_high=(0.65, -0.1)

@@ -16,7 +16,8 @@ from pathlib import Path
 
 import pytest
 
-from lerobot_pnp.env_config import BaxterPnPEnvConfig, write_recorded
+from lerobot_pnp.env_config import BaxterPnPEnvConfig
+from lerobot_pnp.recorded_task import write_recorded
 
 REPO = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent
