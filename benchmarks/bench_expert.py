@@ -16,7 +16,6 @@ import json
 import math
 from pathlib import Path
 
-import lerobot_pnp  # noqa: F401  (registers the env)
 from lerobot_pnp.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.evaluation.stats import wilson_interval as wilson
 from lerobot_pnp.evaluation.suites import HELD_OUT_AXES, SUITES

@@ -1,34 +1,31 @@
 """The one description of the task: the LeRobot env config ``baxter_pnp``.
 
 Every env in this project is built from a ``BaxterPnPEnvConfig`` through ``make_env`` (``lerobot-eval`` and
-``lerobot-train`` build it through ``create_envs``, which calls the same ``gym.make`` with ``gym_kwargs``;
-``gym.make("lerobot_pnp/BaxterPnP-v0", **fields)`` is the same path).
-It holds the whole task: where the object and the gripper start, where the object goes, the perturbations,
-the control mode and the episode length. Every field is a flag (``--env.<field>``) and a key of the JSON
-files under ``configs/``.
+``lerobot-train`` through ``create_envs``: the same ``gym.make`` with ``gym_kwargs``, as is
+``gym.make("lerobot_pnp/BaxterPnP-v0", **fields)``). It holds the whole task: where the object and the gripper
+start, where the object goes, the perturbations, the control mode and the episode length. Every field is a flag
+(``--env.<field>``) and a key of the JSON files under ``configs/``.
 
 Task fields default to ``None``, which means "not set here". They are resolved once, in this order:
 
-1. the named preset (``--env.preset``; ``paper`` = the paper's task),
-2. unless a preset was named explicitly, the task recorded with the data the run uses
-   (``task_source``: a dataset folder or a checkpoint; on the command line of ``lerobot-train`` it is
-   ``--dataset.root`` and of ``lerobot-eval`` ``--policy.path``, so a policy trained on a dataset with a
+1. the named preset (``--env.preset``; ``paper`` = the paper's task; the values are in ``presets.py``),
+2. unless a preset was named explicitly, the task recorded with the data the run uses (``task_source``: a
+   dataset folder or a checkpoint; in stock ``lerobot-train`` it is ``--dataset.root`` and in ``lerobot-eval``
+   ``--policy.path``, read by ``stock_cli`` when the plugin loads, so a policy trained on a dataset with a
    non-default task is evaluated on that task with no extra flag),
 3. fields given explicitly.
 
 The observation setup (``cameras``, ``image_height``, ``image_width``) and the control mode follow the same
 rule, so ``lerobot-eval --policy.path=...`` of a policy trained on camera images renders the same cameras.
-
-A generated dataset stores the resolved config in ``meta/baxter_pnp_env.json`` (``recorded_task.write_recorded``).
-The values of the presets are plain data in ``presets.py``.
+A generated dataset records the resolved config (``recorded_task.write_recorded``).
 """
 
 from __future__ import annotations
 
-import json
+import logging
 import math
 from dataclasses import dataclass, field, fields
-from pathlib import Path
+from typing import ClassVar
 
 from lerobot.configs import FeatureType, PolicyFeature
 from lerobot.envs.configs import EnvConfig
@@ -74,6 +71,7 @@ class BaxterPnPEnvConfig(EnvConfig):
     preset: str | None = None
     # A dataset folder or checkpoint whose recorded task to use (default: from the command line, see above).
     task_source: str | None = None
+    command_line_source: ClassVar[str | None] = None  # that default, handed over by registration.register_all
     # keyframe (one step = move to a joint keyframe) | dense (one control period); None = the recorded one, else keyframe
     control_mode: str | None = None
     episode_length: int | None = None  # env steps before truncation; default keyframe_budget (dense: 3 s per keyframe)
@@ -173,7 +171,7 @@ class BaxterPnPEnvConfig(EnvConfig):
             raise ConfigError(f"env.preset must be one of {sorted(PRESETS)}, got {self.preset!r}")
         recorded: dict = {}
         if self.preset is None:
-            source = self.task_source or _source_from_command_line()
+            source = self.task_source or self.command_line_source
             if source:
                 recorded = read_recorded(source) or {}
         if recorded:
@@ -340,8 +338,6 @@ class BaxterPnPEnvConfig(EnvConfig):
         control gets a ``SyncVectorEnv`` with a warning; dense control keeps what was asked for.
         """
         if use_async_envs and n_envs > 1 and self.control_mode == "keyframe":
-            import logging
-
             logging.getLogger(__name__).warning(
                 "baxter_pnp: keyframe control runs its %d eval envs in this process (SyncVectorEnv) instead of "
                 "%d async worker processes, which would only add start-up time and memory",
@@ -401,21 +397,3 @@ def make_env(config: BaxterPnPEnvConfig | dict | None = None, render_mode: str |
     elif changes:
         config = config.with_changes(**changes)
     return gym.make(GYM_ID, disable_env_checker=True, render_mode=render_mode, **config.gym_kwargs)
-
-
-def _source_from_command_line() -> str | None:
-    """``--dataset.root`` (lerobot-train) or ``--policy.path`` (lerobot-eval) from this process's arguments, else
-    the same keys of the ``--config_path`` file (``lerobot-train --config_path configs/train_act_images.json``)."""
-    from lerobot.configs.parser import parse_arg
-
-    source = parse_arg("dataset.root") or parse_arg("policy.path")
-    config_path = parse_arg("config_path")
-    if source or not config_path or not Path(config_path).is_file():
-        return source
-    try:
-        config = json.loads(Path(config_path).read_text())
-    except (OSError, json.JSONDecodeError):
-        return None  # LeRobot's parser reports a bad config file itself
-    if not isinstance(config, dict):
-        return None
-    return (config.get("dataset") or {}).get("root") or (config.get("policy") or {}).get("path")

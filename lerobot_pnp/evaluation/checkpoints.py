@@ -142,7 +142,7 @@ def load_policy(path: str | Path, device: str = "cpu", env_cfg: Any = None) -> L
     from lerobot.configs import PreTrainedConfig
     from lerobot.policies.factory import get_policy_class, make_policy, make_pre_post_processors
 
-    import lerobot_pnp  # noqa: F401  (registers pnp_lstm)
+    import lerobot_pnp.policy  # noqa: F401  (registers pnp_lstm)
 
     ckpt = resolve_checkpoint(path)
     try:
