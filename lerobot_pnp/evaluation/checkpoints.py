@@ -174,11 +174,10 @@ def check_checkpoint_values(ckpt: Path, policy: Any, processors: tuple) -> None:
     feature is then amplified by 1/eps)."""
     import logging
 
-    import torch
+    from lerobot_pnp.weights import non_finite_weights
 
-    for name, tensor in policy.state_dict().items():
-        if tensor.is_floating_point() and not bool(torch.isfinite(tensor).all()):
-            raise PolicyLoadError(f"the checkpoint {ckpt} is corrupt: its weights {name!r} contain NaN/inf")
+    if bad := non_finite_weights(policy.state_dict()):
+        raise PolicyLoadError(f"the checkpoint {ckpt} is corrupt: its weights {bad[0]!r} contain NaN/inf")
     for proc in processors:
         for step in getattr(proc, "steps", []):
             used = getattr(step, "features", None) or {}  # the features it normalises (not task_index, ...)
