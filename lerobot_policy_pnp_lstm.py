@@ -1,3 +1,5 @@
 """Discovery shim: LeRobot imports plugins by distribution name; this registers everything in lerobot_pnp."""
 
-import lerobot_pnp  # noqa: F401  (registration happens on import)
+from lerobot_pnp.registration import register_all
+
+register_all()

@@ -45,7 +45,6 @@ import torch
 
 torch.set_num_threads(1)
 
-import lerobot_pnp  # noqa: E402,F401
 from lerobot_pnp.dagger import DaggerConfig, evaluate_checkpoint, run_dagger, write_table  # noqa: E402
 from lerobot_pnp.dagger.loop import base_env_config  # noqa: E402
 from lerobot_pnp.dagger.writer import LabelledEpisode, write_episodes  # noqa: E402

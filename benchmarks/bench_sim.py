@@ -19,7 +19,6 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import mujoco
 
-import lerobot_pnp  # noqa: F401
 from lerobot_pnp import robot
 from lerobot_pnp.env_config import make_env
 from lerobot_pnp.expert import run_expert_episode

@@ -1,11 +1,13 @@
 """lerobot_pnp: Baxter pick-and-place in MuJoCo, a scripted FSM expert and an LSTM task planner for LeRobot.
 
-Importing the package registers, in this one place: the gymnasium env ``lerobot_pnp/BaxterPnP-v0``, the
-LeRobot env config ``baxter_pnp`` and the LeRobot policy ``pnp_lstm``.
+Importing the package registers the gymnasium env ``lerobot_pnp/BaxterPnP-v0`` and nothing heavier (no torch,
+LeRobot or MuJoCo). LeRobot's env config ``baxter_pnp`` and policy ``pnp_lstm`` register with their modules;
+``registration.register_all`` registers everything (LeRobot's plugin discovery runs it, see
+``lerobot_policy_pnp_lstm``).
 """
 
-from lerobot_pnp.registration import register_all
+from lerobot_pnp.registration import register_gym
 
 __version__ = "0.1.0"
 
-register_all()
+register_gym()

@@ -113,7 +113,7 @@ def same_env_configs(stored: list[dict] | dict | None, current: list[dict] | dic
 
     A task field missing from a stored config was added later and had its paper value ("off") then, the
     rule of recorded tasks; other missing keys are ignored."""
-    from lerobot_pnp.env_config import PAPER_TASK
+    from lerobot_pnp.presets import PAPER_TASK
 
     if isinstance(current, dict):
         stored, current = [stored] if isinstance(stored, dict) else None, [current]

@@ -169,6 +169,7 @@ def main(argv: list[str] | None = None) -> int:
     import draccus
 
     from lerobot_pnp.errors import PnPError, one_line
+    from lerobot_pnp.registration import register_all
 
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or argv[0] in ("-h", "--help"):
@@ -180,6 +181,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     signal.signal(signal.SIGTERM, _sigterm_as_interrupt)
     config_ref, func_ref, summary = COMMANDS[name]
+    register_all()
     try:
         config_cls, func = _load(config_ref), _load(func_ref)
         if "-h" in args or "--help" in args:

@@ -7,7 +7,7 @@ convention) are not shown per field. This module reads the same dataclasses: a f
 the class that defines it, its ``Args:`` entry, else the comment draccus would show (above, inline or a
 docstring below the field). Nested dataclass fields are listed with their dotted flag
 (``--policy.hidden_size``). A field named ``preset`` lists the keys of its module's ``PRESETS`` (else the task
-presets, ``env_config.PRESETS``), unless its description names them all. Each entry is one description: a long
+presets, ``presets.PRESETS``), unless its description names them all. Each entry is one description: a long
 docstring is cut to its first sentence (the rest stays in the source), reST literal quotes dropped; defaults
 print as typed (enums by value, dataclasses as dicts). LeRobot's derived fields (``env.features``,
 ``policy.input_features`` ...: set from the env or the dataset, never typed) are left out, and the few LeRobot
@@ -148,9 +148,9 @@ def _describe(cls: type, field: dataclasses.Field) -> str:
     if field.name == "preset":
         presets = getattr(sys.modules.get(_owner(cls, field.name).__module__), "PRESETS", None)
         if presets is None:  # a task preset (e.g. DAgger's demonstrations)
-            from lerobot_pnp import env_config
+            from lerobot_pnp.presets import PRESETS
 
-            presets = env_config.PRESETS
+            presets = PRESETS
         if isinstance(presets, dict) and not all(re.search(rf"\b{re.escape(p)}\b", text) for p in presets):
             text += f" (one\N{NO-BREAK SPACE}of: {', '.join(sorted(presets))})"
     return text

@@ -2,7 +2,7 @@
 
 ``Disturbances`` is the part of ``task.PickPlaceTask`` that disturbs an episode. It reads the env config's
 perturbation fields (one family per kind: ``<kind>_prob``, ``<kind>_window``, ``<kind>_range``,
-``<kind>_max_events``, see ``env_config.PAPER_TASK``) and draws every number from the env's generator in a fixed
+``<kind>_max_events``, see ``presets.PAPER_TASK``) and draws every number from the env's generator in a fixed
 order, drawing none for a feature that is off.
 
 Timing. Each event gets a time ``at`` in [0, 1] within its window, drawn uniformly at reset:

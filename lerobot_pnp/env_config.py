@@ -1,35 +1,31 @@
 """The one description of the task: the LeRobot env config ``baxter_pnp``.
 
 Every env in this project is built from a ``BaxterPnPEnvConfig`` through ``make_env`` (``lerobot-eval`` and
-``lerobot-train`` build it through ``create_envs``, which calls the same ``gym.make`` with ``gym_kwargs``;
-``gym.make("lerobot_pnp/BaxterPnP-v0", **fields)`` is the same path).
-It holds the whole task: where the object and the gripper start, where the object goes, the perturbations,
-the control mode and the episode length. Every field is a flag (``--env.<field>``) and a key of the JSON
-files under ``configs/``.
+``lerobot-train`` through ``create_envs``: the same ``gym.make`` with ``gym_kwargs``, as is
+``gym.make("lerobot_pnp/BaxterPnP-v0", **fields)``). It holds the whole task: where the object and the gripper
+start, where the object goes, the perturbations, the control mode and the episode length. Every field is a flag
+(``--env.<field>``) and a key of the JSON files under ``configs/``.
 
 Task fields default to ``None``, which means "not set here". They are resolved once, in this order:
 
-1. the named preset (``--env.preset``; ``paper`` = the paper's task),
-2. unless a preset was named explicitly, the task recorded with the data the run uses
-   (``task_source``: a dataset folder or a checkpoint; on the command line of ``lerobot-train`` it is
-   ``--dataset.root`` and of ``lerobot-eval`` ``--policy.path``, so a policy trained on a dataset with a
+1. the named preset (``--env.preset``; ``paper`` = the paper's task; the values are in ``presets.py``),
+2. unless a preset was named explicitly, the task recorded with the data the run uses (``task_source``: a
+   dataset folder or a checkpoint; in stock ``lerobot-train`` it is ``--dataset.root`` and in ``lerobot-eval``
+   ``--policy.path``, read by ``stock_cli`` when the plugin loads, so a policy trained on a dataset with a
    non-default task is evaluated on that task with no extra flag),
 3. fields given explicitly.
 
 The observation setup (``cameras``, ``image_height``, ``image_width``) and the control mode follow the same
 rule, so ``lerobot-eval --policy.path=...`` of a policy trained on camera images renders the same cameras.
-
-A generated dataset stores the resolved config in ``meta/baxter_pnp_env.json`` (``write_recorded``).
+A generated dataset records the resolved config (``recorded_task.write_recorded``).
 """
 
 from __future__ import annotations
 
-import json
 import logging
 import math
 from dataclasses import dataclass, field, fields
-from pathlib import Path
-from typing import Any
+from typing import ClassVar
 
 from lerobot.configs import FeatureType, PolicyFeature
 from lerobot.envs.configs import EnvConfig
@@ -38,120 +34,23 @@ from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_IMAGES, OBS_STATE
 from lerobot_pnp import disturbances, robot
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.physics import CAMERAS
+from lerobot_pnp.presets import (
+    CONTROL_MODES,
+    ENV_TYPE,
+    GYM_ID,
+    GYM_NAMESPACE,
+    GYM_TASK,
+    OBSERVATION_DEFAULTS,
+    PAPER_TASK,
+    PRESETS,
+    TASK_FIELDS,
+)
+from lerobot_pnp.recorded_task import read_recorded
 
-ENV_TYPE = "baxter_pnp"
 MAX_EPISODE_LENGTH = 100_000  # env steps: every episode's arrays are held in memory (recorder, datasets)
-GYM_NAMESPACE = "lerobot_pnp"
-GYM_TASK = "BaxterPnP-v0"
-GYM_ID = f"{GYM_NAMESPACE}/{GYM_TASK}"
-CONTROL_MODES = ("keyframe", "dense")
 KEYFRAME_FPS = robot.KEYFRAME_FPS
 DENSE_FPS = 20
 DENSE_SECONDS_PER_KEYFRAME = 3  # dense episodes: 3 s of control per keyframe of the budget (30 s for the paper's 10)
-RECORDED_FILE = "meta/baxter_pnp_env.json"
-
-# The task fields and their values in each preset (fields not listed keep the "paper" value). What each field
-# means is the comment on its BaxterPnPEnvConfig field (the one description, shown by every --help).
-PAPER_TASK: dict[str, Any] = {
-    "object_low": (0.45, 0.10),
-    "object_high": (0.75, 0.50),
-    "object_exclude_low": (0.0, 0.0),
-    "object_exclude_high": (0.0, 0.0),
-    "yaw_range": (0.0, 0.0),
-    "place_low": (0.60, -0.05),
-    "place_high": (0.60, -0.05),
-    "start_low": (0.45, 0.0, 0.05),
-    "start_high": (0.75, 0.45, 0.25),
-    "hover_height": 0.15,
-    "success_xy_tol": 0.02,
-    "size_range": (0.05, 0.05),
-    "mass_range": (0.5, 0.5),
-    "friction_range": (1.0, 1.0),
-    "observe_yaw": False,
-    "observe_goal": False,
-    "observe_phase": False,
-    "keyframe_budget": 10,
-    # Perturbations (each named, seeded, usable alone; see task.PickPlaceTask.after_step).
-    "nudge_max": 0.0,
-    "nudge_at_step": 1,
-    "grasp_miss_prob": 0.0,
-    "drop_prob": 0.0,
-    "displace_prob": 0.0,
-    "obs_noise_object": 0.0,
-    "obs_noise_joints": 0.0,
-    "obs_bias_object": 0.0,
-    "obs_latency": 0,
-    # Perturbations as distributions (disturbances.py); these values are the original single triggers, so a
-    # task recorded before they existed keeps its meaning. Times are fractions of a kind's window; 0 = the
-    # original trigger at the end of a step, > 0 = in the middle of a move (see disturbances.py).
-    "nudge_last_step": 0,
-    "grasp_miss_window": (0.0, 0.0),
-    "grasp_miss_range": (0.055, 0.07),
-    "grasp_miss_max_events": 1,
-    "drop_window": (0.0, 0.0),
-    "drop_range": (0.08, 0.12),
-    "drop_spread": 0.0,
-    "drop_max_events": 1,
-    "displace_window": (0.0, 0.0),
-    "displace_range": (0.04, 0.08),
-    "displace_spread": 1.0471975511965976,
-    "displace_max_events": 1,
-    "landing_low": (0.0, 0.0),
-    "landing_high": (0.0, 0.0),
-    "obs_latency_max": 0,
-    "obs_latency_jitter": 0.0,
-    "carry_min_time": 0.0,
-}
-# The reachable table region (IK gripper-down at hover and grasp height, any grasp yaw, clear of the table edge):
-# where a disturbed object may land in `full` so that a recovery may begin anywhere the arm can re-pick it.
-REACHABLE_LOW, REACHABLE_HIGH = (0.45, -0.15), (0.75, 0.60)
-# The perturbations as distributions before issue 19: each one trigger at one moment with one size (the paper
-# defaults of the distribution fields). `{**FULL_TASK, **NARROW_FULL_DISTURBANCES}` is the `full` of before.
-NARROW_FULL_DISTURBANCES: dict[str, Any] = {
-    k: PAPER_TASK[k]
-    for k in PAPER_TASK
-    if k.startswith(("grasp_miss_", "drop_", "displace_", "landing_", "obs_latency_", "carry_"))
-    and not k.endswith("_prob")
-}
-# `full`: everything on (a benchmark that a lookup table cannot pass; the expert recovers from all of it). Its
-# perturbations are the training condition of the held-out-disturbance protocol (evaluation/suites.py): each at any
-# moment of the first half of its window, landing anywhere reachable; held-out suites go beyond it.
-FULL_TASK: dict[str, Any] = {
-    **PAPER_TASK,
-    "yaw_range": (-3.141592653589793, 3.141592653589793),
-    "place_low": (0.50, -0.20),
-    "place_high": (0.70, -0.05),
-    "size_range": (0.045, 0.055),
-    "mass_range": (0.3, 0.8),
-    "friction_range": (0.7, 1.2),
-    "observe_yaw": True,
-    "observe_goal": True,
-    "keyframe_budget": 40,
-    "nudge_max": 0.03,
-    "grasp_miss_prob": 0.25,
-    "drop_prob": 0.25,
-    "displace_prob": 0.25,
-    "obs_noise_object": 0.003,
-    "obs_noise_joints": 0.005,
-    "obs_bias_object": 0.003,
-    "obs_latency": 0,
-    "grasp_miss_window": (0.0, 0.5),
-    "grasp_miss_range": (0.055, 0.08),
-    "drop_window": (0.0, 0.5),
-    "drop_range": (0.08, 0.15),
-    "drop_spread": math.pi,
-    "displace_window": (0.0, 0.5),
-    "displace_range": (0.04, 0.10),
-    "displace_spread": math.pi,
-    "landing_low": REACHABLE_LOW,
-    "landing_high": REACHABLE_HIGH,
-    "carry_min_time": 0.5,
-}
-PRESETS: dict[str, dict[str, Any]] = {"paper": PAPER_TASK, "full": FULL_TASK}
-TASK_FIELDS = tuple(PAPER_TASK)
-# The observation setup (not part of any preset): rendered cameras and their image size. Like the control mode it
-# is read back from the recorded task, so a policy trained on camera images is evaluated with the same cameras.
-OBSERVATION_DEFAULTS: dict[str, Any] = {"cameras": [], "image_height": 240, "image_width": 320}
 _PAIRS = (
     ("object_low", "object_high"),
     ("object_exclude_low", "object_exclude_high"),
@@ -172,6 +71,7 @@ class BaxterPnPEnvConfig(EnvConfig):
     preset: str | None = None
     # A dataset folder or checkpoint whose recorded task to use (default: from the command line, see above).
     task_source: str | None = None
+    command_line_source: ClassVar[str | None] = None  # that default, handed over by registration.register_all
     # keyframe (one step = move to a joint keyframe) | dense (one control period); None = the recorded one, else keyframe
     control_mode: str | None = None
     episode_length: int | None = None  # env steps before truncation; default keyframe_budget (dense: 3 s per keyframe)
@@ -271,7 +171,7 @@ class BaxterPnPEnvConfig(EnvConfig):
             raise ConfigError(f"env.preset must be one of {sorted(PRESETS)}, got {self.preset!r}")
         recorded: dict = {}
         if self.preset is None:
-            source = self.task_source or _source_from_command_line()
+            source = self.task_source or self.command_line_source
             if source:
                 recorded = read_recorded(source) or {}
         if recorded:
@@ -308,6 +208,14 @@ class BaxterPnPEnvConfig(EnvConfig):
             raise ConfigError(f"env.fps={self.fps} contradicts the recorded fps {rec_fps} of the dataset/checkpoint")
 
     def _validate(self) -> None:
+        self._validate_control()
+        self._validate_boxes()
+        self._validate_scalars()
+        self._validate_physical()
+        disturbances.validate(self)
+
+    def _validate_control(self) -> None:
+        """Control mode, rate, episode length, cameras and image size, speed."""
         if self.control_mode not in CONTROL_MODES:
             raise ConfigError(f"env.control_mode must be one of {CONTROL_MODES}, got {self.control_mode!r}")
         self.cameras = list(self.cameras or [])
@@ -333,6 +241,9 @@ class BaxterPnPEnvConfig(EnvConfig):
             raise ConfigError(
                 f"env.speed (fraction of Baxter's joint velocity limits) must be in (0, 1], got {self.speed}"
             )
+
+    def _validate_boxes(self) -> None:
+        """The xy/xyz boxes and the ranges: their sizes, finite, low <= high; the exclusion leaves room."""
         sizes = {
             name: 3 if name.startswith("start_") else 2 for name in (*(n for pair in _PAIRS for n in pair), *_RANGES)
         }
@@ -362,6 +273,9 @@ class BaxterPnPEnvConfig(EnvConfig):
                 f"env.object_exclude_low/high {list(self.object_exclude_low)}..{list(self.object_exclude_high)} "
                 f"covers the whole object box {list(self.object_low)}..{list(self.object_high)}: no position is left"
             )
+
+    def _validate_scalars(self) -> None:
+        """Heights, tolerances, noise, probabilities, step counts and the observe flags."""
         for name in ("hover_height", "success_xy_tol"):
             if not (isinstance(getattr(self, name), int | float) and 0 < getattr(self, name) < 1):
                 raise ConfigError(f"env.{name} must be in (0, 1) m, got {getattr(self, name)!r}")
@@ -380,6 +294,9 @@ class BaxterPnPEnvConfig(EnvConfig):
         for name in ("observe_yaw", "observe_goal", "observe_phase"):
             if not isinstance(getattr(self, name), bool):
                 raise ConfigError(f"env.{name} must be true or false, got {getattr(self, name)!r}")
+
+    def _validate_physical(self) -> None:
+        """What the gripper and the table allow: cube size, mass, friction, the start height."""
         if not (self.size_range[0] >= 0.045 and self.size_range[1] <= 0.06):
             raise ConfigError(
                 f"env.size_range must lie in [0.045, 0.06] m (the jaw closes to 36 mm), got {list(self.size_range)}"
@@ -395,7 +312,6 @@ class BaxterPnPEnvConfig(EnvConfig):
                 f"env.start_low z={self.start_low[2]} puts the gripper within 5 cm of the table "
                 f"(table top at z={robot.TABLE_TOP_Z})"
             )
-        disturbances.validate(self)
 
     @property
     def environment_state_names(self) -> list[str]:
@@ -422,8 +338,6 @@ class BaxterPnPEnvConfig(EnvConfig):
         control gets a ``SyncVectorEnv`` with a warning; dense control keeps what was asked for.
         """
         if use_async_envs and n_envs > 1 and self.control_mode == "keyframe":
-            import logging
-
             logging.getLogger(__name__).warning(
                 "baxter_pnp: keyframe control runs its %d eval envs in this process (SyncVectorEnv) instead of "
                 "%d async worker processes, which would only add start-up time and memory",
@@ -483,113 +397,3 @@ def make_env(config: BaxterPnPEnvConfig | dict | None = None, render_mode: str |
     elif changes:
         config = config.with_changes(**changes)
     return gym.make(GYM_ID, disable_env_checker=True, render_mode=render_mode, **config.gym_kwargs)
-
-
-# ---------------------------------------------------------------------------------------------- recorded task
-def write_recorded(config: BaxterPnPEnvConfig, root: str | Path) -> Path:
-    """Record ``config`` in a dataset folder (``meta/baxter_pnp_env.json``)."""
-    path = Path(root) / RECORDED_FILE
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(".json.tmp")
-    tmp.write_text(json.dumps({"type": ENV_TYPE, **config.to_dict()}, indent=2))
-    tmp.replace(path)
-    return path
-
-
-CHECKPOINT_RECORDED_FILE = "baxter_pnp_env.json"  # the task a checkpoint was trained in, in pretrained_model/
-
-
-def check_recorded(data: Any, path: str | Path) -> dict:
-    """A recorded task, validated: a JSON object of this env's type, every number finite, the whole a valid
-    config (a contradictory or corrupt record is one ConfigError naming the file)."""
-    if not isinstance(data, dict) or data.get("type", ENV_TYPE) != ENV_TYPE:
-        raise ConfigError(f"the recorded env config {path} is not a {ENV_TYPE} env config")
-    bad = sorted(k for k, v in data.items() if _not_finite(v))
-    if bad:
-        raise ConfigError(f"the recorded env config {path} has non-finite values in {bad}")
-    try:
-        known = {f.name for f in fields(BaxterPnPEnvConfig)}  # a field removed since is not a contradiction
-        BaxterPnPEnvConfig.from_dict(
-            {k: v for k, v in data.items() if k in known} | {"preset": data.get("preset") or "paper"}
-        )
-    except (ConfigError, TypeError) as err:
-        raise ConfigError(f"the recorded env config {path} is invalid: {err}") from None
-    return data
-
-
-def _not_finite(value: Any) -> bool:
-    if isinstance(value, float):
-        return not math.isfinite(value)
-    return isinstance(value, list | tuple) and any(_not_finite(v) for v in value)
-
-
-def dataset_task(dataset_root: str | Path) -> dict | None:
-    """The task recorded with a dataset folder, validated; None when it records none."""
-    source = Path(dataset_root) / RECORDED_FILE
-    return check_recorded(_read_json(source), source) if source.is_file() else None
-
-
-def write_checkpoint_task(task: dict, directory: str | Path) -> Path:
-    """Record ``task`` in a checkpoint's ``pretrained_model`` folder (``baxter_pnp_env.json``)."""
-    path = Path(directory) / CHECKPOINT_RECORDED_FILE
-    path.write_text(json.dumps(check_recorded(task, path), indent=2))
-    return path
-
-
-def copy_recorded(dataset_root: str | Path, directory: str | Path) -> Path:
-    """Copy a dataset's recorded task into a checkpoint folder, validated first (a bad one is not copied)."""
-    source = Path(dataset_root) / RECORDED_FILE
-    return write_checkpoint_task(check_recorded(_read_json(source), source), directory)
-
-
-def read_recorded(source: str | Path) -> dict | None:
-    """The env config recorded with a dataset folder, or with the dataset a checkpoint was trained on.
-
-    ``source`` is a dataset root, a checkpoint's ``pretrained_model`` folder, or a training output folder.
-    Returns None when nothing is recorded there.
-    """
-    source = Path(source).expanduser()
-    candidates = [source / RECORDED_FILE, source / CHECKPOINT_RECORDED_FILE]
-    for path in candidates:
-        if path.is_file():
-            return check_recorded(_read_json(path), path)
-    for train_cfg in (source / "train_config.json", source / "checkpoints/last/pretrained_model/train_config.json"):
-        if train_cfg.is_file():
-            # the env the training resolved when it started comes first: the dataset root may hold another
-            # task by now (regenerated since)
-            env = _read_json(train_cfg).get("env") or {}
-            if env.get("type") == ENV_TYPE:
-                return check_recorded(env, train_cfg)
-            dataset = _read_json(train_cfg).get("dataset") or {}
-            if dataset.get("root") and (Path(dataset["root"]) / RECORDED_FILE).is_file():
-                path = Path(dataset["root"]) / RECORDED_FILE
-                logging.getLogger(__name__).warning(
-                    "%s records no task: using the task its dataset %s holds now", train_cfg.parent, path.parent.parent
-                )
-                return check_recorded(_read_json(path), path)
-    return None
-
-
-def _read_json(path: Path) -> dict:
-    try:
-        return json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError) as err:
-        raise ConfigError(f"cannot read the recorded env config {path}: {err}") from None
-
-
-def _source_from_command_line() -> str | None:
-    """``--dataset.root`` (lerobot-train) or ``--policy.path`` (lerobot-eval) from this process's arguments, else
-    the same keys of the ``--config_path`` file (``lerobot-train --config_path configs/train_act_images.json``)."""
-    from lerobot.configs.parser import parse_arg
-
-    source = parse_arg("dataset.root") or parse_arg("policy.path")
-    config_path = parse_arg("config_path")
-    if source or not config_path or not Path(config_path).is_file():
-        return source
-    try:
-        config = json.loads(Path(config_path).read_text())
-    except (OSError, json.JSONDecodeError):
-        return None  # LeRobot's parser reports a bad config file itself
-    if not isinstance(config, dict):
-        return None
-    return (config.get("dataset") or {}).get("root") or (config.get("policy") or {}).get("path")

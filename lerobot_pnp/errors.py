@@ -86,12 +86,12 @@ def one_line_message(err: BaseException) -> str | None:
 
 def _offline_line(message: str) -> str:
     import re
-    import sys
+
+    from lerobot_pnp.stock_cli import dataset_roots_from_argv
 
     found = re.search(r"/api/(datasets|models)/([^/\s]+/[^/\s]+)", message)
     kind, repo = (found.group(1)[:-1], found.group(2)) if found else ("file", "the requested repo")
-    roots = [a.split("=", 1)[1] for a in sys.argv if a.startswith("--dataset.root=")]
-    roots += [b for a, b in zip(sys.argv, sys.argv[1:], strict=False) if a == "--dataset.root"]
+    roots = dataset_roots_from_argv()
     if kind == "dataset" and roots:
         fix = f"--dataset.root {roots[-1]!r} holds no dataset: point it at a folder written by `lerobot-pnp generate`"
     elif kind == "dataset":
@@ -123,10 +123,11 @@ def install_cli_excepthook() -> None:
     """
     import os
     import sys
-    from pathlib import Path
 
-    prog = Path(sys.argv[0]).name if sys.argv and sys.argv[0] else ""
-    if not prog.startswith(("lerobot-", "lerobot_")) or prog == "lerobot-pnp" or os.environ.get(DEBUG_ENV):
+    from lerobot_pnp.stock_cli import stock_script
+
+    prog = stock_script()
+    if prog is None or os.environ.get(DEBUG_ENV):
         return
     previous = sys.excepthook
 

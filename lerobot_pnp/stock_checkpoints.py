@@ -40,7 +40,8 @@ def record_task(checkpoint_dir: Path, cfg) -> Path | None:
     """Write the task of training run ``cfg`` into ``checkpoint_dir/pretrained_model`` (None: not our task)."""
     from lerobot.utils.constants import HF_LEROBOT_HOME, PRETRAINED_MODEL_DIR
 
-    from lerobot_pnp.env_config import CHECKPOINT_RECORDED_FILE, ENV_TYPE, dataset_task, write_checkpoint_task
+    from lerobot_pnp.presets import ENV_TYPE
+    from lerobot_pnp.recorded_task import CHECKPOINT_RECORDED_FILE, dataset_task, write_checkpoint_task
 
     directory = checkpoint_dir / PRETRAINED_MODEL_DIR
     if not directory.is_dir() or (directory / CHECKPOINT_RECORDED_FILE).is_file():

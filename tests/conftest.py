@@ -7,7 +7,9 @@ os.environ.setdefault("HF_HUB_OFFLINE", "1")
 
 import pytest
 
-import lerobot_pnp  # noqa: F401  (registers the env and policy)
+from lerobot_pnp.registration import register_all
+
+register_all()  # the env, the policy and the task record, as LeRobot's plugin discovery does
 
 
 @pytest.fixture

@@ -270,8 +270,8 @@ def test_7_a_checkpoint_saved_by_lerobot_carries_its_task_and_a_bad_record_is_re
     from lerobot.datasets.lerobot_dataset import LeRobotDatasetMetadata
     from lerobot.policies.factory import make_policy
 
-    from lerobot_pnp.env_config import copy_recorded, read_recorded
     from lerobot_pnp.policy import PnpLstmConfig
+    from lerobot_pnp.recorded_task import copy_recorded, read_recorded
 
     root = _copy(dagger_run / "demos", tmp_path / "demos")
     task = read_recorded(root)
@@ -395,7 +395,7 @@ def test_stage_records_name_the_changed_parts(tmp_path):
 
 @pytest.mark.slow
 def test_7_stock_lerobot_train_checkpoints_carry_their_task(dagger_run, tmp_path):
-    from lerobot_pnp.env_config import read_recorded
+    from lerobot_pnp.recorded_task import read_recorded
 
     root = _copy(dagger_run / "demos", tmp_path / "demos")
     task = read_recorded(root)

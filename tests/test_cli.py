@@ -108,7 +108,7 @@ def test_help_keeps_a_default_on_one_line():
 
 
 def test_help_names_every_preset(capsys):
-    from lerobot_pnp.env_config import PRESETS
+    from lerobot_pnp.presets import PRESETS
 
     assert cli.main(["generate", "--help"]) == 0
     line = next(row for row in capsys.readouterr().out.split("\n  --") if row.startswith("env.preset "))

@@ -98,7 +98,7 @@ def test_lerobot_eval_rejects_bad_env_flags_before_loading_the_policy(tmp_path):
 # ------------------------------------------------------------------------ errors through stock lerobot-* CLIs
 _FAKE_CLI = """
 import sys
-import lerobot_pnp
+import lerobot_policy_pnp_lstm  # what LeRobot's plugin discovery imports
 from lerobot_pnp.errors import ConfigError
 try:
     raise ConfigError("env.speed must be in (0, 1], got 7")

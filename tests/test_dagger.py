@@ -63,7 +63,7 @@ def test_a_stuck_policy_is_labelled_with_the_way_forward(full_cfg):
 def test_written_datasets_load_and_aggregate(full_cfg, tmp_path):
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
-    from lerobot_pnp.env_config import read_recorded
+    from lerobot_pnp.recorded_task import read_recorded
 
     env = suite_env(full_cfg, "quiet_grasp_miss")
     eps = [labelled_rollout(env, _Follower(env), seed=s) for s in (1, 2)]

@@ -432,7 +432,8 @@ def test_full_preset_dataset_has_goal_yaw_and_recoveries(tmp_path):
     """The `full` task: 7-d environment state (object, yaw features, goal), recovery episodes kept, preset recorded."""
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
-    from lerobot_pnp.env_config import BaxterPnPEnvConfig, read_recorded
+    from lerobot_pnp.env_config import BaxterPnPEnvConfig
+    from lerobot_pnp.recorded_task import read_recorded
 
     root = tmp_path / "full"
     generate(_cfg(root, num_episodes=8, env=BaxterPnPEnvConfig(preset="full")))

@@ -8,9 +8,10 @@ from gymnasium.utils.env_checker import check_env
 
 from lerobot_pnp import robot
 from lerobot_pnp.env import BaxterPnPEnv
-from lerobot_pnp.env_config import GYM_ID, PAPER_TASK, BaxterPnPEnvConfig, make_env
+from lerobot_pnp.env_config import BaxterPnPEnvConfig, make_env
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.ik import ArmIK, gripper_down_rotation
+from lerobot_pnp.presets import GYM_ID, PAPER_TASK
 
 # Reference poses of Rethink's left arm (docs/baxter.md): joints -> left_gripper position, z axis.
 REFERENCE_POSES = [
@@ -182,7 +183,7 @@ def test_bad_reset_options_raise(keyframe_env, options, message):
 
 
 def test_task_is_settable_from_the_env_config_and_recorded(tmp_path):
-    from lerobot_pnp.env_config import read_recorded, write_recorded
+    from lerobot_pnp.recorded_task import read_recorded, write_recorded
 
     cfg = BaxterPnPEnvConfig(
         object_low=(0.5, 0.2), object_high=(0.6, 0.3), place_low=(0.65, -0.1), place_high=(0.65, -0.1)
@@ -204,6 +205,31 @@ def test_task_is_settable_from_the_env_config_and_recorded(tmp_path):
     write_recorded(BaxterPnPEnvConfig(control_mode="dense"), tmp_path)
     dense = BaxterPnPEnvConfig(task_source=str(tmp_path))
     assert dense.control_mode == "dense" and dense.fps == 20
+
+
+def test_a_config_never_reads_the_command_line_only_the_stock_script_boundary_does(tmp_path, monkeypatch):
+    import sys
+
+    from lerobot_pnp.recorded_task import write_recorded
+    from lerobot_pnp.registration import hand_over_command_line
+
+    write_recorded(BaxterPnPEnvConfig(preset="full"), tmp_path / "full")
+    monkeypatch.setattr(BaxterPnPEnvConfig, "command_line_source", None)  # restored after the test
+    # a bogus root on the command line of this (not a lerobot-*) process: constructing a config does not read it
+    monkeypatch.setattr(sys, "argv", ["pytest", "--dataset.root=/nonexistent/bogus"])
+    assert BaxterPnPEnvConfig().to_dict() == BaxterPnPEnvConfig(preset="paper").to_dict()
+    # neither does a real one, outside a stock script
+    monkeypatch.setattr(sys, "argv", ["pytest", f"--dataset.root={tmp_path / 'full'}"])
+    hand_over_command_line()
+    assert BaxterPnPEnvConfig().preset == "paper" and BaxterPnPEnvConfig.command_line_source is None
+    # inside a stock lerobot-* script the boundary hands it over once; then the config uses it as a value
+    monkeypatch.setattr(sys, "argv", ["lerobot-train", f"--dataset.root={tmp_path / 'full'}"])
+    assert BaxterPnPEnvConfig().preset == "paper"  # construction alone still reads nothing
+    hand_over_command_line()
+    monkeypatch.setattr(sys, "argv", ["lerobot-train", "--dataset.root=/nonexistent/bogus"])
+    cfg = BaxterPnPEnvConfig()
+    assert cfg.preset == "full" and cfg.to_dict() == BaxterPnPEnvConfig(preset="full").to_dict()
+    assert BaxterPnPEnvConfig(preset="paper").preset == "paper"  # a preset named explicitly still wins
 
 
 def test_camera_observations_render_lazily():

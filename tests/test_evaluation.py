@@ -191,3 +191,29 @@ def test_dagger_evaluate_equals_its_former_loop():
         assert got == former(suite) and got["n"] == 3
     assert evaluate(loaded, base, "quiet", [3])["successes"] == 1
     assert evaluate(loaded, base, "quiet_drop", [3])["failures"] == {"dropped": 1}
+
+
+# ---------------------------------------------------------------------------------------------- checkpoints
+def test_both_loaders_name_the_same_non_finite_weights():
+    """``weights.non_finite_weights`` is the one check of pnp_lstm's from_pretrained and the strict loader."""
+    import torch
+
+    from lerobot_pnp.evaluation.checkpoints import PolicyLoadError, check_checkpoint_values
+    from lerobot_pnp.weights import non_finite_weights
+
+    state = {
+        "a": torch.zeros(2),
+        "b": torch.tensor([1.0, float("inf")]),
+        "steps": torch.tensor([3]),
+        "c": torch.ones(1),
+    }
+    state["c"][0] = float("nan")
+    assert non_finite_weights(state) == ["b", "c"]  # in order; integer buffers are not weights
+    assert non_finite_weights({"a": torch.zeros(2)}) == []
+
+    class Policy:
+        def state_dict(self):
+            return state
+
+    with pytest.raises(PolicyLoadError, match=r"the checkpoint ckpt is corrupt: its weights 'b' contain NaN/inf"):
+        check_checkpoint_values("ckpt", Policy(), ())

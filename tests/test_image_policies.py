@@ -16,7 +16,9 @@ from pathlib import Path
 
 import pytest
 
-from lerobot_pnp.env_config import BaxterPnPEnvConfig, write_recorded
+from lerobot_pnp.env_config import BaxterPnPEnvConfig
+from lerobot_pnp.recorded_task import write_recorded
+from lerobot_pnp.registration import hand_over_command_line
 
 REPO = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent
@@ -47,10 +49,13 @@ def test_recorded_cameras_found_through_a_config_file(tmp_path, monkeypatch):
     write_recorded(BaxterPnPEnvConfig(cameras=["front"], image_height=64, image_width=64), tmp_path / "ds")
     config = tmp_path / "train.json"
     config.write_text(json.dumps({"dataset": {"repo_id": "local/ds", "root": str(tmp_path / "ds")}}))
+    monkeypatch.setattr(BaxterPnPEnvConfig, "command_line_source", None)  # restored after the test
     monkeypatch.setattr(sys, "argv", ["lerobot-train", f"--config_path={config}", "--steps=3"])
+    hand_over_command_line()  # what the plugin does when lerobot-train loads it
     cfg = BaxterPnPEnvConfig()
     assert cfg.cameras == ["front"] and cfg.image_height == 64
     monkeypatch.setattr(sys, "argv", ["lerobot-train", "--steps=3"])
+    hand_over_command_line()
     assert BaxterPnPEnvConfig().cameras == []
 
 

@@ -96,6 +96,20 @@ def test_lerobot_discovers_the_plugin_by_distribution_name():
     assert out.stdout.split()[-3:] == ["True", "True", "True"], out.stderr[-2000:]
 
 
+def test_the_constants_import_no_torch_lerobot_or_mujoco_and_the_gym_id_still_registers():
+    # A fresh interpreter: importing the package (the constants module, the presets) is light, and still
+    # registers the gymnasium id (gym.make builds the env through its entry point, which loads the rest).
+    code = (
+        "import sys\n"
+        "import lerobot_pnp.robot, lerobot_pnp.presets\n"
+        "heavy = sorted(m for m in ('torch', 'lerobot', 'mujoco') if m in sys.modules)\n"
+        "import gymnasium as gym\n"
+        "print(heavy, lerobot_pnp.presets.GYM_ID in gym.registry)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd="/")
+    assert out.stdout.strip().splitlines()[-1] == "[] True", out.stdout + out.stderr[-2000:]
+
+
 def test_keyframe_eval_envs_are_sync_with_a_warning(caplog):
     import gymnasium as gym
 

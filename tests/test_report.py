@@ -10,9 +10,10 @@ import numpy as np
 import pytest
 import torch
 
-from lerobot_pnp.env_config import PAPER_TASK, BaxterPnPEnvConfig
+from lerobot_pnp.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.errors import ConfigError, PolicyError
 from lerobot_pnp.evaluation.suites import SUITES, get_suites
+from lerobot_pnp.presets import PAPER_TASK
 from lerobot_pnp.report.adapters import Episodes
 from lerobot_pnp.report.baselines import LookupTablePolicy
 

@@ -4,7 +4,7 @@ import json
 
 import pytest
 
-from lerobot_pnp.env_config import read_recorded
+from lerobot_pnp.recorded_task import read_recorded
 from lerobot_pnp.report import methods
 from lerobot_pnp.report.run import StudyConfig, SuiteSpec, run_study
 

@@ -19,8 +19,9 @@ import numpy as np
 import pytest
 
 from lerobot_pnp import robot
-from lerobot_pnp.env_config import RECORDED_FILE, BaxterPnPEnvConfig, make_env, write_recorded
+from lerobot_pnp.env_config import BaxterPnPEnvConfig, make_env
 from lerobot_pnp.errors import ConfigError, DatasetError, PnPError, PolicyError
+from lerobot_pnp.recorded_task import RECORDED_FILE, write_recorded
 
 REPO_ID = "test/viz_keyframe"
 SEEDS = (0, 1)

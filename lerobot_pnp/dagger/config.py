@@ -6,10 +6,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from lerobot_pnp.env_config import TASK_FIELDS
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.evaluation.suites import SUITES
 from lerobot_pnp.policy import PnpLstmConfig
+from lerobot_pnp.presets import TASK_FIELDS
 
 # Rollouts under observation latency are left out by default: their recorded observations are already late,
 # and training shows half of all episodes late still (policy.latency_augment_*: as the env draws latency, with

@@ -1,7 +1,7 @@
 """Where a dataset folder keeps what describes it, and the one reader of its JSON files.
 
 The paths are LeRobot's (``meta/info.json``, LeRobot's ``INFO_PATH``) and ours (``meta/baxter_pnp_env.json``,
-``env_config.RECORDED_FILE``); every module asks here instead of joining the path itself.
+``recorded_task.RECORDED_FILE``); every module asks here instead of joining the path itself.
 """
 
 from __future__ import annotations
@@ -40,6 +40,6 @@ def is_dataset(root: str | Path) -> bool:
 
 def recorded_task_path(root: str | Path) -> Path:
     """The task a dataset was recorded in (``meta/baxter_pnp_env.json``, written by ``write_recorded``)."""
-    from lerobot_pnp.env_config import RECORDED_FILE
+    from lerobot_pnp.recorded_task import RECORDED_FILE
 
     return Path(root) / RECORDED_FILE

@@ -32,7 +32,8 @@ def merge_and_commit(root: Path) -> dict:
     from lerobot.datasets.io_utils import load_info, write_info
 
     from lerobot_pnp import __version__
-    from lerobot_pnp.env_config import BaxterPnPEnvConfig, write_recorded
+    from lerobot_pnp.env_config import BaxterPnPEnvConfig
+    from lerobot_pnp.recorded_task import write_recorded
 
     work = root / WORK_DIR
     run = read_json(work / "run.json", "generation settings")

@@ -142,7 +142,7 @@ def load_policy(path: str | Path, device: str = "cpu", env_cfg: Any = None) -> L
     from lerobot.configs import PreTrainedConfig
     from lerobot.policies.factory import get_policy_class, make_policy, make_pre_post_processors
 
-    import lerobot_pnp  # noqa: F401  (registers pnp_lstm)
+    import lerobot_pnp.policy  # noqa: F401  (registers pnp_lstm)
 
     ckpt = resolve_checkpoint(path)
     try:
@@ -174,11 +174,10 @@ def check_checkpoint_values(ckpt: Path, policy: Any, processors: tuple) -> None:
     feature is then amplified by 1/eps)."""
     import logging
 
-    import torch
+    from lerobot_pnp.weights import non_finite_weights
 
-    for name, tensor in policy.state_dict().items():
-        if tensor.is_floating_point() and not bool(torch.isfinite(tensor).all()):
-            raise PolicyLoadError(f"the checkpoint {ckpt} is corrupt: its weights {name!r} contain NaN/inf")
+    if bad := non_finite_weights(policy.state_dict()):
+        raise PolicyLoadError(f"the checkpoint {ckpt} is corrupt: its weights {bad[0]!r} contain NaN/inf")
     for proc in processors:
         for step in getattr(proc, "steps", []):
             used = getattr(step, "features", None) or {}  # the features it normalises (not task_index, ...)

@@ -24,8 +24,9 @@ from dataclasses import dataclass
 from typing import Any
 
 from lerobot_pnp.disturbances import KINDS
-from lerobot_pnp.env_config import FULL_TASK, PAPER_TASK, BaxterPnPEnvConfig
+from lerobot_pnp.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.errors import ConfigError
+from lerobot_pnp.presets import FULL_TASK, PAPER_TASK
 
 RECOVERY_BUDGET = 20  # keyframe steps: two full pick-and-place attempts
 EDGE_WIDTH = 0.03  # m: width of the inside strip and of the outside ring

@@ -135,7 +135,9 @@ class PnpLstmPolicy(PreTrainedPolicy):
             policy = super().from_pretrained(pretrained_name_or_path, config=config, **kwargs)
         except (ConfigError, OSError) as err:
             raise PolicyError(f"cannot load the pnp_lstm checkpoint {path}: {err}") from None
-        bad = [n for n, t in policy.state_dict().items() if t.is_floating_point() and not bool(t.isfinite().all())]
+        from lerobot_pnp.weights import non_finite_weights
+
+        bad = non_finite_weights(policy.state_dict())
         if bad:  # the checkpoint's fault, named here rather than as a NaN action steps later
             raise PolicyError(f"the pnp_lstm checkpoint {path} is corrupt: its weights {bad[:3]} contain NaN/inf")
         return policy

@@ -23,10 +23,11 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from lerobot_pnp.cache import MANIFEST_FILE, STAGE_FILE, Manifest, Stage, code_versions, lock_output, remove
-from lerobot_pnp.env_config import BaxterPnPEnvConfig, read_recorded
+from lerobot_pnp.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.evaluation.records import records_from_json, records_to_json
 from lerobot_pnp.evaluation.suites import get_suites
+from lerobot_pnp.recorded_task import read_recorded
 from lerobot_pnp.report import adapters
 from lerobot_pnp.report.adapters import check_same_demonstrations
 from lerobot_pnp.report.config import StudyConfig, SuiteSpec

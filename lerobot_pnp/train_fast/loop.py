@@ -22,6 +22,7 @@ import torch
 from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_STATE
 
 from lerobot_pnp.policy import PnpLstmPolicy
+from lerobot_pnp.registration import register_task_record
 
 from .config import TrainFastConfig
 from .data import load_keyframe_data
@@ -210,6 +211,7 @@ def train_fast(cfg: TrainFastConfig) -> TrainFastResult:
     """Train ``pnp_lstm`` on whole keyframe episodes; see the package docstring for what is written."""
     from lerobot.policies.factory import make_policy, make_pre_post_processors
 
+    register_task_record()  # its checkpoints record the dataset's task, as under stock lerobot-train
     if cfg.num_threads is not None:
         torch.set_num_threads(cfg.num_threads)
     out_dir = Path(cfg.output_dir)

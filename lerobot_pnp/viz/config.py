@@ -8,8 +8,8 @@ from typing import Any
 
 import numpy as np
 
-from lerobot_pnp.env_config import CONTROL_MODES, OBSERVATION_DEFAULTS, TASK_FIELDS
 from lerobot_pnp.errors import ConfigError
+from lerobot_pnp.presets import CONTROL_MODES, OBSERVATION_DEFAULTS, TASK_FIELDS
 
 ENV_CHANGE_FIELDS = (*TASK_FIELDS, *OBSERVATION_DEFAULTS)
 # The study's first evaluation seed (report.run.StudyConfig.eval_seed): disjoint from the seeds a dataset's

@@ -16,8 +16,9 @@ import logging
 import numpy as np
 
 from lerobot_pnp import robot
-from lerobot_pnp.env_config import BaxterPnPEnvConfig, make_env, read_recorded
+from lerobot_pnp.env_config import BaxterPnPEnvConfig, make_env
 from lerobot_pnp.errors import PnPError
+from lerobot_pnp.recorded_task import read_recorded
 from lerobot_pnp.viz.sampling import Frames, Run, Sampler, run_events
 from lerobot_pnp.viz.scene import SceneModel
 
