@@ -199,7 +199,7 @@ def test_both_loaders_name_the_same_non_finite_weights():
     import torch
 
     from lerobot_pnp.evaluation.checkpoints import PolicyLoadError, check_checkpoint_values
-    from lerobot_pnp.weights import non_finite_weights
+    from lerobot_pnp.policy.weights import non_finite_weights
 
     state = {
         "a": torch.zeros(2),

@@ -174,7 +174,7 @@ def check_checkpoint_values(ckpt: Path, policy: Any, processors: tuple) -> None:
     feature is then amplified by 1/eps)."""
     import logging
 
-    from lerobot_pnp.weights import non_finite_weights
+    from lerobot_pnp.policy.weights import non_finite_weights
 
     if bad := non_finite_weights(policy.state_dict()):
         raise PolicyLoadError(f"the checkpoint {ckpt} is corrupt: its weights {bad[0]!r} contain NaN/inf")

@@ -135,7 +135,7 @@ class PnpLstmPolicy(PreTrainedPolicy):
             policy = super().from_pretrained(pretrained_name_or_path, config=config, **kwargs)
         except (ConfigError, OSError) as err:
             raise PolicyError(f"cannot load the pnp_lstm checkpoint {path}: {err}") from None
-        from lerobot_pnp.weights import non_finite_weights
+        from .weights import non_finite_weights
 
         bad = non_finite_weights(policy.state_dict())
         if bad:  # the checkpoint's fault, named here rather than as a NaN action steps later

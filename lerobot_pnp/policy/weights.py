@@ -1,6 +1,6 @@
 """The check a loaded model's weights get from every loader: pnp_lstm's own ``from_pretrained`` (also under stock
-``lerobot-eval``) and the strict loader of any policy (``evaluation.checkpoints.load_policy``). Imports nothing,
-so the policy package may use it."""
+``lerobot-eval``) and the strict loader of any policy (``evaluation.checkpoints.load_policy``). Imports nothing;
+it lives in the policy package, which imports nothing of the simulator."""
 
 from __future__ import annotations
 
