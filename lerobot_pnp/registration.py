@@ -27,6 +27,10 @@ def register_all() -> None:
     from lerobot_pnp.stock_checkpoints import install_stock_checkpoint_hook
 
     install_stock_checkpoint_hook()
+    # ... and refuses, in one line, a stream LeRobot would leave empty (--dataset.streaming with 0 workers)
+    from lerobot_pnp.stock_streaming import install_stream_check
+
+    install_stream_check()
 
     if env_config.GYM_ID not in gym.registry:
         gym.register(
