@@ -27,10 +27,11 @@ def register_all() -> None:
     from lerobot_pnp.stock_checkpoints import install_stock_checkpoint_hook
 
     install_stock_checkpoint_hook()
-    # ... and refuses, in one line, a stream LeRobot would leave empty (--dataset.streaming with 0 workers)
-    from lerobot_pnp.stock_streaming import install_stream_check
+    # ... windows the phase labels for the recovering policy, and refuses in one line a stream LeRobot would
+    # leave empty (--dataset.streaming with 0 workers)
+    from lerobot_pnp.stock_train import install_stock_train_hooks
 
-    install_stream_check()
+    install_stock_train_hooks()
 
     if env_config.GYM_ID not in gym.registry:
         gym.register(
