@@ -19,8 +19,15 @@ def register_all() -> None:
     install_cli_excepthook()
     # LeRobot config registries (draccus choice registries) are filled by importing the modules.
     from lerobot_pnp import env_config
+
+    # LeRobot's own --help of our configs (lerobot-train --env.type=baxter_pnp --help) as `lerobot-pnp --help`:
+    # no derived fields (env.features, policy.input_features ...), LeRobot's undocumented fields described
+    from lerobot_pnp.cli_help import annotate_stock_help
+    from lerobot_pnp.policy import PnpLstmConfig
     from lerobot_pnp.policy.modeling_pnp_lstm import TaskRecord
 
+    for config_class in (env_config.BaxterPnPEnvConfig, PnpLstmConfig):
+        annotate_stock_help(config_class)
     # a pnp_lstm checkpoint records the task of its training dataset (the policy package knows no env)
     TaskRecord.read, TaskRecord.write = env_config.dataset_task, env_config.write_checkpoint_task
     # ... and so does any other policy's checkpoint written by stock lerobot-train (in that process only)
