@@ -36,15 +36,13 @@ FACTORY_MODULE = "lerobot.datasets.factory"
 
 
 def install_stock_train_hooks() -> bool:
-    """Wrap ``lerobot-train``'s dataset construction when this process runs it; True when the hooks are in place.
-
-    Each wrapper calls LeRobot's function first; installing twice wraps once.
-    """
+    """Wrap how ``lerobot-train`` builds its datasets and pre-processor, when this process runs it; True when the
+    hooks are in place. Each wrapper calls LeRobot's function first; installing twice wraps once."""
     if sys.modules.get(TRAIN_MODULE) is None:
         return False
-    _wrap_once(TRAIN_MODULE, "make_train_eval_datasets", lambda original: _prepared(original))
-    _wrap_once(FACTORY_MODULE, "resolve_delta_timestamps", lambda original: _with_phase_windows(original))
-    _wrap_once(TRAIN_MODULE, "make_pre_post_processors", lambda original: _with_labels_kept(original))
+    _wrap_once(TRAIN_MODULE, "make_train_eval_datasets", _prepared)
+    _wrap_once(FACTORY_MODULE, "resolve_delta_timestamps", _with_phase_windows)
+    _wrap_once(TRAIN_MODULE, "make_pre_post_processors", _with_labels_kept)
     return True
 
 
