@@ -8,7 +8,7 @@ Every sample of the recovering config is a window of ``observation_delta_indices
 per window frame: the old config spent almost all its step there), while its ``StreamingLeRobotDataset``
 (``--dataset.streaming=true``) reads the files in order once and cuts the windows out of an in-memory buffer.
 This times one training step as ``lerobot-train`` runs it (the loader built as it builds it: the config's
-delta timestamps, ``EpisodeAwareSampler`` with the policy's ``drop_n_last_frames`` for a map-style dataset, a
+delta timestamps (the recovering designs' phase labels windowed too, as the plugin's ``stock_train`` does), ``EpisodeAwareSampler`` with the policy's ``drop_n_last_frames`` for a map-style dataset, a
 stream with ``max_num_shards=num_workers`` otherwise, the config's ``num_workers``; then the pre-processor,
 forward, backward, gradient clipping, Adam and the scheduler), interleaved (A B C A B C, so a shared machine's
 load hits every design alike), for:
@@ -84,14 +84,18 @@ def _loader(repo_id: str, root: str, spec: dict):
     from lerobot.datasets.lerobot_dataset import LeRobotDataset, LeRobotDatasetMetadata
     from lerobot.datasets.streaming_dataset import StreamingLeRobotDataset
 
+    from lerobot_pnp.stock_train import phase_windows, stream_labels_as_arrays
+
     meta = LeRobotDatasetMetadata(repo_id, root=root)
     keys = [k for k in meta.features if k.startswith("observation.") or k == "action"]
     delta_timestamps = {k: [d / meta.fps for d in spec["deltas"]] for k in keys}
+    delta_timestamps = phase_windows(spec["policy"], meta, delta_timestamps)  # as the plugin does in lerobot-train
     batch, workers = spec["batch"], spec["num_workers"]
     if spec["streaming"]:
         ds = StreamingLeRobotDataset(
             repo_id, root=root, delta_timestamps=delta_timestamps, max_num_shards=workers, return_uint8=True
         )
+        stream_labels_as_arrays(ds)
         return torch.utils.data.DataLoader(ds, batch_size=batch, num_workers=workers, drop_last=True), meta
     ds = LeRobotDataset(repo_id, root=root, delta_timestamps=delta_timestamps)
     sampler = EpisodeAwareSampler(
@@ -111,6 +115,7 @@ def _trainer(repo_id: str, root: str, spec: dict):
     from lerobot.utils.feature_utils import dataset_to_policy_features
 
     from lerobot_pnp.policy import PnpLstmPolicy
+    from lerobot_pnp.stock_train import labels_kept
 
     loader, meta = _loader(repo_id, root, spec)
     cfg = spec["policy"]
@@ -120,6 +125,8 @@ def _trainer(repo_id: str, root: str, spec: dict):
     policy = PnpLstmPolicy(cfg)  # no dataset_meta: the clocked design reads a dataset of other lengths
     policy.train()
     preprocessor, _ = make_pre_post_processors(cfg, dataset_stats=meta.stats)
+    if cfg.recovering:  # the phase labels reach the policy, as in lerobot-train with the plugin
+        preprocessor.to_transition = labels_kept(preprocessor.to_transition)
     optimizer = cfg.get_optimizer_preset().build(policy.get_optim_params())
     sched_cfg = cfg.get_scheduler_preset()
     scheduler = sched_cfg.build(optimizer, spec["steps"]) if sched_cfg is not None else None

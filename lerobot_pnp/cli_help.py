@@ -93,6 +93,36 @@ def is_derived(cls: type, name: str) -> bool:
     return any(k.__module__.startswith("lerobot.") and (k.__name__, name) in DERIVED_FIELDS for k in cls.__mro__)
 
 
+def annotate_stock_help(cls: type) -> None:
+    """LeRobot's own ``--help`` (draccus: ``lerobot-train --env.type=baxter_pnp --help``) of our config ``cls`` as
+    ours: the derived fields (``DERIVED_FIELDS``) hidden, the LeRobot fields of ``LEROBOT_FIELD_DOCS`` described.
+
+    Draccus passes a field's ``metadata["custom_args"]`` to argparse's ``add_argument``; ``help=SUPPRESS`` leaves
+    the flag out of the usage and the option list (it still parses). The class gets its own copy of an inherited
+    field, so LeRobot's classes, and the other envs and policies built on them, keep theirs. Called once per
+    config class at registration; calling it again changes nothing.
+    """
+    import argparse
+    import copy
+    import types
+
+    own = cls.__dict__["__dataclass_fields__"]
+    for field in dataclasses.fields(cls):
+        owner = _owner(cls, field.name)
+        lerobot_doc = LEROBOT_FIELD_DOCS.get((owner.__name__, field.name)) if _is_lerobot(owner) else None
+        text = argparse.SUPPRESS if is_derived(cls, field.name) else lerobot_doc
+        custom = dict(field.metadata.get("custom_args", {}))
+        if not field.init or text is None or custom.get("help") == text:
+            continue
+        copied = copy.copy(field)
+        copied.metadata = types.MappingProxyType({**field.metadata, "custom_args": {**custom, "help": text}})
+        own[field.name] = copied
+
+
+def _is_lerobot(cls: type) -> bool:
+    return cls.__module__.startswith("lerobot.")
+
+
 def _comment_help(cls: type, name: str) -> str:
     """The help text draccus itself would find in the source (comments or a docstring below the field)."""
     from draccus.wrappers import docstring

@@ -1,4 +1,9 @@
-"""Progress bars of stock LeRobot code run in process, sized for a log rather than a terminal.
+"""Progress bars sized for a log as well as a terminal: ours, and stock LeRobot code run in process.
+
+Ours (generation's episode bar, the fast trainer's epoch bar) redraw at ``redraw_interval_s(stream)``: twice a
+second on a terminal, every ``LOG_INTERVAL_S`` into a log or a pipe, where each redraw is one more line of
+carriage-return updates. ``log_friendly_tqdm`` is a tqdm bar with that interval.
+
 
 LeRobot's ``eval_policy`` opens one tqdm bar per rollout batch (``Running rollout with at most N steps``) on top
 of its ``Stepping through eval batches`` bar; the study and DAgger call it hundreds of times, so a terminal or
@@ -12,6 +17,28 @@ import contextlib
 from collections.abc import Iterator
 
 MININTERVAL_S = 5.0
+TERMINAL_INTERVAL_S = 0.5
+LOG_INTERVAL_S = 15.0
+
+
+def redraw_interval_s(stream) -> float:
+    """Seconds between redraws of a bar written to ``stream``: a terminal is redrawn in place, a log appends."""
+    return TERMINAL_INTERVAL_S if bool(getattr(stream, "isatty", lambda: False)()) else LOG_INTERVAL_S
+
+
+def log_friendly_tqdm(stream=None, **kwargs):
+    """``tqdm(**kwargs)`` on ``stream`` (default stderr) redrawn at most every ``redraw_interval_s(stream)``.
+
+    Updates in between only count; pass ``refresh=False`` to ``set_postfix`` (its default forces a redraw).
+    ``maxinterval`` is raised with it so that tqdm's monitor thread does not redraw sooner.
+    """
+    import sys
+
+    from tqdm import tqdm
+
+    stream = sys.stderr if stream is None else stream
+    interval = redraw_interval_s(stream)
+    return tqdm(file=stream, mininterval=interval, maxinterval=max(interval, 10.0), **kwargs)
 
 
 @contextlib.contextmanager

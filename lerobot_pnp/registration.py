@@ -62,4 +62,17 @@ def register_all() -> None:
     register_task_record()
     # ... and any other policy's checkpoint written by stock lerobot-train (in that process only)
     install_stock_checkpoint_hook()
+    # ... windows the phase labels for the recovering policy, and refuses in one line a stream LeRobot would
+    # leave empty (--dataset.streaming with 0 workers)
+    from lerobot_pnp.stock_train import install_stock_train_hooks
+
+    install_stock_train_hooks()
+    # LeRobot's own --help of our configs (lerobot-train --env.type=baxter_pnp --help) as `lerobot-pnp --help`:
+    # no derived fields (env.features, policy.input_features ...), LeRobot's undocumented fields described
+    from lerobot_pnp.cli_help import annotate_stock_help
+    from lerobot_pnp.env_config import BaxterPnPEnvConfig
+    from lerobot_pnp.policy import PnpLstmConfig
+
+    for config_class in (BaxterPnPEnvConfig, PnpLstmConfig):
+        annotate_stock_help(config_class)
     hand_over_command_line()

@@ -360,6 +360,29 @@ def test_stock_lerobot_train_help_documents_the_policy_fields(tmp_path):
     assert "LSTM hidden units." in out and "Recovering mode: the longest episode" in out
     assert "--env.drop_prob [float] per chance: the object is knocked out of the gripper in transport" in out
     assert "--env.carry_min_time [float] keyframe moves carrying the object" in out
+    # LeRobot's derived fields are not offered as flags (cli_help.annotate_stock_help), its undocumented ones are
+    derived = ("--env.features", "--policy.input_features", "--policy.output_features")
+    assert not [flag for flag in derived if flag in out]
+    assert "--env.max_parallel_tasks int lerobot-eval: tasks of a multi-task env evaluated at once" in out
+
+
+def test_lerobots_own_help_of_our_configs_hides_derived_fields(capsys):
+    """draccus (LeRobot's parser) builds LeRobot's --help from the config's fields: ours hide the derived ones and
+    describe LeRobot's undocumented ones, and still parse; LeRobot's own classes are left as they are."""
+    import dataclasses
+
+    import draccus
+    from lerobot.envs.configs import EnvConfig
+
+    from lerobot_pnp.env_config import BaxterPnPEnvConfig
+
+    with pytest.raises(SystemExit):
+        draccus.parse(BaxterPnPEnvConfig, args=["--help"])
+    out = " ".join(capsys.readouterr().out.split())
+    assert "--features " not in out and "--features_map" not in out and "--drop_prob [float]" in out
+    assert "--disable_env_checker bool skip gymnasium's env checker in gym.make" in out
+    assert draccus.parse(BaxterPnPEnvConfig, args=["--drop_prob", "0.5"]).drop_prob == 0.5
+    assert "custom_args" not in {f.name: f for f in dataclasses.fields(EnvConfig)}["features"].metadata
 
 
 def test_train_with_a_malformed_config_file_is_one_line(tmp_path, capsys):

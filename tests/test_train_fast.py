@@ -98,6 +98,26 @@ def test_train_fast_reduces_loss_and_writes_outputs(trained):
     assert (out / "train_fast_config.json").is_file()
 
 
+def test_progress_into_a_log_is_a_few_lines(dataset_root, tmp_path, capsys):
+    """Into a pipe or a log (no terminal) the epoch bar is redrawn every 15 s at most (progress.py), not once per
+    epoch: a short run writes its first and last state only. On a terminal it is redrawn twice a second."""
+    import io
+
+    from lerobot_pnp.progress import LOG_INTERVAL_S, redraw_interval_s
+
+    class Terminal(io.StringIO):
+        def isatty(self) -> bool:
+            return True
+
+    assert redraw_interval_s(Terminal()) == 0.5 and redraw_interval_s(io.StringIO()) == LOG_INTERVAL_S
+    cfg = _cfg(dataset_root, tmp_path / "o", policy=PnpLstmConfig(device="cpu", hidden_size=8), epochs=40)
+    cfg.progress = True
+    train_fast(cfg)
+    err = capsys.readouterr().err
+    draws = err.count("pnp_lstm (fast)")
+    assert "40/40" in err and 1 <= draws <= 3, err
+
+
 def test_save_load_roundtrip_identical_actions(trained, dataset_root):
     result, _ = trained
     path = result.checkpoint_dir

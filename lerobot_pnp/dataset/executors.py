@@ -49,9 +49,6 @@ def console_to_file(log_path: Path):
         terminal.close()
 
 
-LOG_INTERVAL_S = 15.0
-
-
 class ProgressBar:
     """One tqdm bar over all ranks: polls ``progress/<rank>`` files ("<episodes> <failures>")."""
 
@@ -59,10 +56,11 @@ class ProgressBar:
         from tqdm import tqdm
 
         self.dir, self.initial = progress_dir, initial
-        # redrawn twice a second on a terminal; into a log (no terminal) only every LOG_INTERVAL_S, so a log
+        from lerobot_pnp.progress import redraw_interval_s
+
+        # redrawn twice a second on a terminal; into a log (no terminal) only every 15 s, so a log
         # gets a line of progress now and then instead of a flood of carriage-return updates
-        is_terminal = bool(getattr(stream, "isatty", lambda: False)())
-        self.interval = 0.5 if is_terminal else LOG_INTERVAL_S
+        self.interval = redraw_interval_s(stream)
         self.bar = tqdm(
             total=total, initial=initial, desc="episodes", unit="ep", file=stream, disable=not enabled, smoothing=0.05
         )

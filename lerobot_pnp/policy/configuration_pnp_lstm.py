@@ -156,29 +156,22 @@ class PnpLstmConfig(PreTrainedConfig):
     action MSE. Used, like ``subtask_loss_weight``, only when the batch carries per-frame labels."""
 
     await_observation: bool = False
-    """Recovering mode, inference only: after a command that moves the arm or the gripper, hold it (without
-    stepping the network) until the observed robot state shows the move, then plan the next keyframe on it
-    (``observation_gate``). The planner's inputs are then the same at any observation latency, including one it
-    was never trained on; without latency it changes nothing but a wait after a move too small to see."""
+    """Recovering mode, inference only: hold a command that moves the arm or gripper, without stepping the network,
+    until the observation shows the move (``observation_gate``), so that latency beyond the trained one is waited out."""
     await_state_tol: float = 0.35
-    """With ``await_observation``: the normalised change of the observed robot state (Euclidean norm over its dims)
-    that counts as "the move arrived"; above the observation noise of the ``full`` task between two observations of
-    one pose, below nearly every keyframe move of its demonstrations."""
+    """With ``await_observation``: the normalised change of the observed robot state (Euclidean norm) that counts as
+    "the move arrived": above the ``full`` task's observation noise, below nearly every keyframe move."""
     await_action_tol: float = 0.7
-    """With ``await_observation``: the normalised change of the command (Euclidean norm) above which it is a move to
-    wait for; smaller changes (a hold keyframe, a correction of a few mm) are not waited for. Twice
-    ``await_state_tol``, so that every move waited for changes the observation by more than ``await_state_tol``."""
+    """With ``await_observation``: a command that changes by more than this (normalised, Euclidean) is a move to wait
+    for; twice ``await_state_tol``, so every move waited for is seen to arrive."""
     await_max_steps: int = 4
     """With ``await_observation``: the longest a command is held waiting for its move to be observed."""
     await_in_flight: int | None = None
-    """With ``await_observation``: how many commanded moves may still be unobserved when the next keyframe is
-    planned. 0 plans every keyframe on an observation that shows all earlier moves (latency-free inputs, one move
-    per ``1 + latency`` steps); ``k`` lets the planner run ahead by ``k`` moves, as a planner trained on
-    observations up to ``k`` steps late does, and waits only when the observations are staler than that. ``None``:
-    what the planner was trained on (``latency_augment_max`` if ``latency_augment_prob > 0``, else 0)."""
+    """With ``await_observation``: the moves that may be unobserved when the next one is planned (0: wait for each;
+    None: the trained latency, ``latency_augment_max`` if ``latency_augment_prob > 0`` else 0)."""
     await_past_states: int = 2
-    """With ``await_observation``: an observation that equals one of this many last observed robot states is not a
-    new move but the latency growing (the observation going back in time)."""
+    """With ``await_observation``: an observation equal to one of this many last observed states is the latency
+    growing (the observation going back in time), not a new move."""
 
     def __post_init__(self) -> None:
         super().__post_init__()

@@ -2,12 +2,15 @@
 
 The paper's run-time loop is "the net predicts the next keyframe, an interpolator moves there, repeat". With
 observation latency the robot has moved there, but the observation that shows it comes ``L`` steps later; a
-planner that steps its LSTM on every observation sees a history with a shape it was never shown (frames of
-the old pose repeated, a recovery that starts late), and that shape changes with ``L``. The gate makes the
-planner's input sequence the same at every latency: after a command that moves the arm or the gripper, it keeps
-returning that command, and does not step the network, until the observed robot state has changed from the
-one the command was planned on (the move arrived), or ``max_steps`` steps have passed (a move too small to
-see). A command that moves nothing (a hold keyframe) is not waited for.
+planner that steps its LSTM on every observation sees a history whose shape depends on ``L``, and fails at a
+latency it was never trained on. The gate holds a command that moves the arm or the gripper (returning it again,
+without stepping the network) while more than ``in_flight`` commanded moves are still unobserved, and counts a
+move as observed when the observed robot state changes. With ``in_flight = 0`` every keyframe is planned on an
+observation that shows all earlier moves: the inputs of latency 0 at any latency, one move per ``1 + L`` steps.
+With ``in_flight = k`` (a planner trained on observations up to ``k`` steps late) it never waits at latency
+``<= k`` and acts exactly as without the gate; at a larger latency it waits just long enough that what it sees
+is ``k`` moves behind, as in training. A move that never shows (too small to see) is given up on after
+``max_steps`` steps; a command that moves nothing (a hold keyframe) is not counted.
 
 "Changed" ignores an observation that goes back to one of the states the last decisions were made on: when
 the latency grows within an episode the observation jumps back in time, to a pose the arm has already left.

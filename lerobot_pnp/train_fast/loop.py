@@ -22,6 +22,7 @@ import torch
 from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_STATE
 
 from lerobot_pnp.policy import PnpLstmPolicy
+from lerobot_pnp.progress import log_friendly_tqdm
 from lerobot_pnp.registration import register_task_record
 
 from .config import TrainFastConfig
@@ -262,10 +263,8 @@ def train_fast(cfg: TrainFastConfig) -> TrainFastResult:
     step = 0
     t0 = time.perf_counter()
     pbar = None
-    if cfg.progress:
-        from tqdm.auto import tqdm
-
-        pbar = tqdm(total=n_epochs, desc="pnp_lstm (fast)", unit="epoch")
+    if cfg.progress:  # redrawn twice a second on a terminal, every 15 s into a log (progress.py)
+        pbar = log_friendly_tqdm(total=n_epochs, desc="pnp_lstm (fast)", unit="epoch")
     policy.train()
     for epoch in range(1, n_epochs + 1):
         perm = torch.randperm(n_train, generator=gen).to(device)
@@ -274,7 +273,9 @@ def train_fast(cfg: TrainFastConfig) -> TrainFastResult:
         if last or epoch % cfg.eval_every_epochs == 0:
             history.append(point(epoch, step, float(np.mean(losses)), time.perf_counter() - t0))
             if pbar is not None:
-                pbar.set_postfix(train=f"{history[-1]['train_mse']:.4g}", test=f"{history[-1]['test_mse']:.4g}")
+                pbar.set_postfix(
+                    train=f"{history[-1]['train_mse']:.4g}", test=f"{history[-1]['test_mse']:.4g}", refresh=False
+                )
         if pbar is not None:
             pbar.update(1)
         if cfg.save_every_epochs > 0 and epoch % cfg.save_every_epochs == 0 and not last:
