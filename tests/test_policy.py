@@ -176,9 +176,9 @@ def test_reset_clears_the_episode_state():
     fresh = _fresh_policy()
     eps = _norm_episodes(3)
     _rollout(policy, eps, steps=3)
-    assert policy._step == 3
+    assert policy._state.step == 3
     policy.reset()
-    assert policy._step == 0 and policy._state is None and policy._last_action is None
+    assert policy._state is None
     first = _rollout(policy, eps, steps=1)
     torch.testing.assert_close(first, _rollout(fresh, eps, steps=1))
     # Without reset, the same observation gives a different action (memory + step counter).
@@ -222,7 +222,7 @@ def test_holds_last_action_after_the_last_keyframe():
 def test_a_long_episode_warns_about_the_control_mode(caplog):
     """A keyframe policy stepped far past its episode (a dense env) says so once, instead of failing silently."""
     policy = _fresh_policy()
-    with caplog.at_level(logging.WARNING, logger="lerobot_pnp.policy.modeling_pnp_lstm"):
+    with caplog.at_level(logging.WARNING, logger="lerobot_pnp.policy.clocked"):
         _rollout(policy, _norm_episodes(1), steps=T)
         assert not caplog.records
         _rollout(policy, _norm_episodes(1), steps=6 * T)
