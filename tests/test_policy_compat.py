@@ -1,8 +1,9 @@
-"""Golden tensors of the ``pnp_lstm`` policy: the loss (training mode: latency augmentation, input noise,
-dropout), its gradients and ``select_action`` of both planners, frozen from the code before the planners
-became two classes (issue 21), so that a refactor that claims "behaviour unchanged" is held to the bit.
+"""What the ``pnp_lstm`` policy keeps from before: its numbers and the checkpoints written by older code.
 
-``tests/golden/pnp_lstm.pt`` was written by ``python tests/test_policy_golden.py --write`` (do it again only
+Golden tensors: the loss (training mode: latency augmentation, input noise, dropout), its gradients and
+``select_action`` of both planners (a gated run included), frozen from the code before the planners became two
+classes (issue 21), so that a refactor that claims "behaviour unchanged" is held to the bit.
+``tests/golden/pnp_lstm.pt`` was written by ``python tests/test_policy_compat.py --write`` (do it again only
 for a change that is *meant* to change the numbers, and say so). On the machine kind that wrote it (same torch,
 same CPU capability) the comparison is ``torch.equal``; elsewhere float kernels may round differently, so it is
 a tight ``assert_close`` there.
@@ -10,6 +11,7 @@ a tight ``assert_close`` there.
 
 from __future__ import annotations
 
+import json
 import sys
 from pathlib import Path
 
@@ -18,10 +20,10 @@ import torch
 
 torch.set_num_threads(1)
 
-from lerobot.configs import FeatureType, PolicyFeature  # noqa: E402
+from lerobot.configs import FeatureType, PolicyFeature, PreTrainedConfig  # noqa: E402
 from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_STATE  # noqa: E402
 
-from lerobot_pnp.policy import PnpLstmConfig, PnpLstmPolicy  # noqa: E402
+from lerobot_pnp.policy import PnpLstmConfig, PnpLstmPolicy, make_pnp_lstm_pre_post_processors  # noqa: E402
 
 GOLDEN = Path(__file__).resolve().parent / "golden" / "pnp_lstm.pt"
 ENV_DIM = 7
@@ -130,6 +132,36 @@ def test_policy_matches_its_golden_tensors():
             assert torch.equal(value, frozen[key]), key
         else:  # other float kernels: the same numbers up to rounding
             torch.testing.assert_close(value, frozen[key], rtol=1e-5, atol=1e-6, msg=key)
+
+
+def test_checkpoints_with_the_retired_balance_window_loss_key_still_load(tmp_path):
+    """``balance_window_loss`` did nothing; it is no constructor argument or option any more, but the config.json of
+    older checkpoints carries it: every loader reads them (lerobot-eval's base-class path included)."""
+    import draccus
+
+    from lerobot_pnp.evaluation.checkpoints import load_policy
+
+    policy = _policy(CASES["recovering_gated"])
+    policy.save_pretrained(tmp_path)
+    stats = {k: {"mean": torch.zeros(d), "std": torch.ones(d)} for k, d in ((OBS_STATE, 8), (OBS_ENV_STATE, 7))}
+    for processor in make_pnp_lstm_pre_post_processors(policy.config, {**stats, ACTION: stats[OBS_STATE]}):
+        processor.save_pretrained(tmp_path)
+    config = json.loads((tmp_path / "config.json").read_text())
+    config["balance_window_loss"] = False  # the key, with a value that did nothing either
+    (tmp_path / "config.json").write_text(json.dumps(config))
+    for cfg in (PreTrainedConfig.from_pretrained(tmp_path), PnpLstmConfig.from_pretrained(tmp_path)):
+        assert isinstance(cfg, PnpLstmConfig) and cfg.await_observation and cfg.hidden_size == 16
+    policy.eval()
+    expected = _plant(policy, 6, 2)
+    for loaded in (PnpLstmPolicy.from_pretrained(tmp_path), load_policy(tmp_path).policy):
+        loaded.eval()
+        assert torch.equal(_plant(loaded, 6, 2), expected)
+        loaded.config.await_observation = False  # an inference-time override (heldout_protocol_eval.py) ...
+        assert not torch.equal(_plant(loaded, 6, 2), expected)  # ... reaches the planner at the next reset
+    with pytest.raises(TypeError, match="balance_window_loss"):
+        PnpLstmConfig(balance_window_loss=False)
+    with pytest.raises(SystemExit):  # argparse: unrecognized arguments
+        draccus.parse(PnpLstmConfig, args=["--balance_window_loss=false"])
 
 
 if __name__ == "__main__":
