@@ -91,8 +91,8 @@ class PnpLstmConfig(PreTrainedConfig):
     latency_augment_prob: float = 0.0
     """Training only: the probability that a training episode's observations are shown one step late (frame ``t``
     gets the observation of frame ``t-1``, frame 0 its own), with the actions unchanged. A policy trained on
-    current observations only loses sync with its own history when they arrive a step late (the recovering LSTM: 1
-    percent under ``obs_latency=1``); with both kinds of episode it learns to tell them apart from the first two frames
+    current observations only loses sync with its own history when they arrive a step late (the recovering LSTM then
+    fails nearly every episode under ``obs_latency=1``; docs/results/planner.md); with both kinds of episode it learns to tell them apart from the first two frames
     (a delayed episode shows the start pose twice) and to act on stale observations. Works for the fast path and
     for ``lerobot-train`` (it acts on the whole-episode windows)."""
     latency_augment_max: int = 1
