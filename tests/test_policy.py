@@ -13,6 +13,7 @@ from pathlib import Path
 
 import pytest
 import torch
+from torch import nn
 
 torch.set_num_threads(1)
 
@@ -24,6 +25,7 @@ from safetensors.torch import load_file, save_file  # noqa: E402
 from lerobot_pnp.errors import ConfigError, DatasetError, PolicyError  # noqa: E402
 from lerobot_pnp.policy import PnpLstmConfig, PnpLstmPolicy, make_pnp_lstm_pre_post_processors  # noqa: E402
 from lerobot_pnp.policy.clocked import PnpLstm, SubtaskLSTM  # noqa: E402
+from lerobot_pnp.policy.planner import Planner  # noqa: E402
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 
@@ -95,6 +97,8 @@ def test_policy_wraps_a_plain_network():
     """LeRobot's ACTPolicy / ACT split: the network is a plain nn.Module with all the weights."""
     policy = _fresh_policy()
     assert isinstance(policy.model, PnpLstm) and not hasattr(PnpLstm, "select_action")
+    for planner in (policy.model, _fresh_policy(mode="recovering").model):  # the one interface of both planners
+        assert isinstance(planner, Planner) and isinstance(planner, nn.Module)
     assert {n for n, _ in policy.named_parameters()} == {"model." + n for n, _ in policy.model.named_parameters()}
     x = torch.randn(3, T, 11)
     with torch.no_grad():

@@ -11,7 +11,7 @@ never asks which one it has.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 from torch import Tensor
 
@@ -45,6 +45,7 @@ class PlannerState:
         return int(self.action.shape[0])
 
 
+@runtime_checkable
 class Planner(Protocol):
     """What ``PnpLstmPolicy`` asks of its planner (both are ``nn.Module``s; ``__call__`` is the raw network)."""
 
