@@ -13,6 +13,7 @@ from pathlib import Path
 
 import pytest
 import torch
+from torch import nn
 
 torch.set_num_threads(1)
 
@@ -24,6 +25,7 @@ from safetensors.torch import load_file, save_file  # noqa: E402
 from lerobot_pnp.errors import ConfigError, DatasetError, PolicyError  # noqa: E402
 from lerobot_pnp.policy import PnpLstmConfig, PnpLstmPolicy, make_pnp_lstm_pre_post_processors  # noqa: E402
 from lerobot_pnp.policy.clocked import PnpLstm, SubtaskLSTM  # noqa: E402
+from lerobot_pnp.policy.planner import Planner  # noqa: E402
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 
@@ -95,6 +97,8 @@ def test_policy_wraps_a_plain_network():
     """LeRobot's ACTPolicy / ACT split: the network is a plain nn.Module with all the weights."""
     policy = _fresh_policy()
     assert isinstance(policy.model, PnpLstm) and not hasattr(PnpLstm, "select_action")
+    for planner in (policy.model, _fresh_policy(mode="recovering").model):  # the one interface of both planners
+        assert isinstance(planner, Planner) and isinstance(planner, nn.Module)
     assert {n for n, _ in policy.named_parameters()} == {"model." + n for n, _ in policy.model.named_parameters()}
     x = torch.randn(3, T, 11)
     with torch.no_grad():
@@ -176,9 +180,9 @@ def test_reset_clears_the_episode_state():
     fresh = _fresh_policy()
     eps = _norm_episodes(3)
     _rollout(policy, eps, steps=3)
-    assert policy._step == 3
+    assert policy._state.step == 3
     policy.reset()
-    assert policy._step == 0 and policy._state is None and policy._last_action is None
+    assert policy._state is None
     first = _rollout(policy, eps, steps=1)
     torch.testing.assert_close(first, _rollout(fresh, eps, steps=1))
     # Without reset, the same observation gives a different action (memory + step counter).
@@ -222,7 +226,7 @@ def test_holds_last_action_after_the_last_keyframe():
 def test_a_long_episode_warns_about_the_control_mode(caplog):
     """A keyframe policy stepped far past its episode (a dense env) says so once, instead of failing silently."""
     policy = _fresh_policy()
-    with caplog.at_level(logging.WARNING, logger="lerobot_pnp.policy.modeling_pnp_lstm"):
+    with caplog.at_level(logging.WARNING, logger="lerobot_pnp.policy.clocked"):
         _rollout(policy, _norm_episodes(1), steps=T)
         assert not caplog.records
         _rollout(policy, _norm_episodes(1), steps=6 * T)

@@ -273,7 +273,7 @@ def test_shipped_config_streams_whole_episodes(full_root):
 
 
 def test_late_observer_retimes_a_recovery_and_draws_lags_as_the_env_does():
-    from lerobot_pnp.policy.recovering import late_observer
+    from lerobot_pnp.policy.latency import late_observer
 
     x = torch.arange(8.0).view(1, 8, 1)
     valid = torch.ones(1, 8, dtype=torch.bool)

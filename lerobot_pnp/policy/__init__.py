@@ -5,15 +5,28 @@ decorated with ``PreTrainedConfig.register_subclass``). LeRobot then finds ``Pnp
 ``make_pnp_lstm_pre_post_processors`` by file-name convention from the config's module
 (``configuration_pnp_lstm`` -> ``modeling_pnp_lstm`` / ``processor_pnp_lstm``).
 
-The network ``PnpLstm`` is a plain ``nn.Module`` that ``PnpLstmPolicy`` wraps (LeRobot's ``ACT`` /
-``ACTPolicy`` split); the pre-processor's check step is the one place that checks observations.
+The planner (``ClockedPlanner``, the paper's, or ``RecoveringPlanner``; ``planner.Planner`` is their one
+interface) is a plain ``nn.Module`` that ``PnpLstmPolicy`` wraps (LeRobot's ``ACT`` / ``ACTPolicy`` split);
+the pre-processor's check step is the one place that checks observations.
 
 This package knows tensors and LeRobot features only: it never imports the simulator or the expert (only
 the package's error classes from ``lerobot_pnp.errors``).
 """
 
+from .clocked import ClockedPlanner, PnpLstm
 from .configuration_pnp_lstm import PnpLstmConfig
-from .modeling_pnp_lstm import PnpLstm, PnpLstmPolicy
+from .modeling_pnp_lstm import PnpLstmPolicy
+from .planner import Planner, PlannerState
 from .processor_pnp_lstm import make_pnp_lstm_pre_post_processors
+from .recovering import RecoveringPlanner
 
-__all__ = ["PnpLstm", "PnpLstmConfig", "PnpLstmPolicy", "make_pnp_lstm_pre_post_processors"]
+__all__ = [
+    "ClockedPlanner",
+    "Planner",
+    "PlannerState",
+    "PnpLstm",
+    "PnpLstmConfig",
+    "PnpLstmPolicy",
+    "RecoveringPlanner",
+    "make_pnp_lstm_pre_post_processors",
+]

@@ -50,8 +50,8 @@ class PnpLstmConfig(PreTrainedConfig):
     n_obs_steps: int = 1
     """LeRobot's observation history length; must be 1 (the LSTM state is the history)."""
     device: str | None = "cpu"
-    """Torch device of the policy. ``"cpu"``: a ~150k-parameter LSTM is as fast on one CPU thread as on a GPU
-    (LeRobot's default ``None`` auto-selects and logs a warning)."""
+    """Torch device of the policy. ``"cpu"``: a network this small (its parameter count is in the study's report)
+    runs as fast on one CPU thread as on a GPU (LeRobot's default ``None`` auto-selects and logs a warning)."""
     push_to_hub: bool = False
     """LeRobot's default is True, which makes ``lerobot-train`` demand a ``--policy.repo_id``; here it is opt-in."""
 
@@ -91,8 +91,8 @@ class PnpLstmConfig(PreTrainedConfig):
     latency_augment_prob: float = 0.0
     """Training only: the probability that a training episode's observations are shown one step late (frame ``t``
     gets the observation of frame ``t-1``, frame 0 its own), with the actions unchanged. A policy trained on
-    current observations only loses sync with its own history when they arrive a step late (the recovering LSTM: 1
-    percent under ``obs_latency=1``); with both kinds of episode it learns to tell them apart from the first two frames
+    current observations only loses sync with its own history when they arrive a step late (the recovering LSTM then
+    fails nearly every episode under ``obs_latency=1``; docs/results/planner.md); with both kinds of episode it learns to tell them apart from the first two frames
     (a delayed episode shows the start pose twice) and to act on stale observations. Works for the fast path and
     for ``lerobot-train`` (it acts on the whole-episode windows)."""
     latency_augment_max: int = 1
@@ -103,13 +103,11 @@ class PnpLstmConfig(PreTrainedConfig):
     probability (the env's ``obs_latency_jitter``)."""
     latency_augment_stretch: bool = False
     """Training only: a late episode's recovery is retimed as a late robot performs it (the first frame of the
-    recovery repeated ``lag`` times, out of the loss; ``recovering.late_observer``). Needs per-frame phase labels."""
-    balance_window_loss: bool = True
-    """Ignored; kept so that configs and checkpoints written before every training window became a whole episode
-    still load. (It weighted the frames of windows that ended at a uniformly drawn frame.)"""
+    recovery repeated ``lag`` times, out of the loss; ``latency.late_observer``). Needs per-frame phase labels."""
     torch_num_threads: int | None = 1
     """If set and the policy runs on CPU, ``torch.set_num_threads`` is called with it when the policy is built. This
-    tiny model is ~100x slower with several intra-op threads on a small CPU; ``None`` leaves torch alone."""
+    tiny model runs many times slower with several intra-op threads on a small CPU (the threads' overhead dwarfs
+    its matrix products); ``None`` leaves torch alone."""
 
     # Recorded from the training dataset.
     dataset_fps: int | None = None
@@ -132,17 +130,16 @@ class PnpLstmConfig(PreTrainedConfig):
 
     # Recovering mode (see recovering.py).
     mode: str = "clocked"
-    """The network: ``"clocked"`` (the paper's two subtask nets on a fixed 10-frame clock) or ``"recovering"``
-    (one trunk over the whole episode, no clock). ``"clocked"`` (default; the paper: steps 0-4 PICK net, 5-9 PLACE net, fixed 10-frame episodes) or
-    ``"recovering"`` (``recovering.RecoveringNet``: one trunk over the whole variable-length episode, no clock,
-    state carried across the switch, PICK/PLACE heads mixed by a learned subtask classifier; runs until the env
-    ends the episode). In recovering mode ``recurrent=False`` is the memoryless control with an MLP trunk of about
-    the LSTM trunk's parameter count; ``shared_network``, ``carry_hidden_across_subtasks``, ``num_layers`` and the
-    subtask structure fields are not used."""
+    """The planner: ``"clocked"`` (default; ``clocked.ClockedPlanner``, the paper: steps 0-4 PICK net, 5-9 PLACE
+    net, fixed 10-frame episodes) or ``"recovering"`` (``recovering.RecoveringPlanner``: one trunk over the whole
+    variable-length episode, no clock, state carried across the switch, PICK/PLACE heads mixed by a learned subtask
+    classifier; runs until the env ends the episode). In recovering mode ``recurrent=False`` is the memoryless
+    control with an MLP trunk of about the LSTM trunk's parameter count; ``shared_network``,
+    ``carry_hidden_across_subtasks``, ``num_layers`` and the subtask structure fields are not used."""
     max_episode_length: int = 41
-    """Recovering mode: the longest episode a training window holds (the env's keyframe budget + the final observed
-    state: 41 in the ``full`` task). Windows are ``-(L-1) .. L-1`` around any frame, so each holds its whole
-    episode; every frame is sampled (no ``drop_n_last_frames``), which weights episodes by length."""
+    """Recovering mode: the longest episode, in frames, a training window holds (the env's ``keyframe_budget`` + 1,
+    the final observed state). Windows are ``-(L-1) .. L-1`` around any frame, so each holds its whole episode;
+    every frame is sampled (no ``drop_n_last_frames``), which weights episodes by length."""
     binary_gripper: bool = False
     """The post-processor snaps the gripper command to fully open or closed (threshold half way), as every
     demonstration commands it (``processor_pnp_lstm.BinaryGripperStep``). Off by default: the paper's planner
@@ -172,6 +169,13 @@ class PnpLstmConfig(PreTrainedConfig):
     await_past_states: int = 2
     """With ``await_observation``: an observation equal to one of this many last observed states is the latency
     growing (the observation going back in time), not a new move."""
+
+    balance_window_loss: bool = field(default=True, init=False, repr=False)
+    """Retired, does nothing: neither a constructor argument nor a command-line option any more, only tolerated
+    (and ignored) in the ``config.json`` / ``train_config.json`` of checkpoints written before every training window
+    became a whole episode. It cannot be dropped from the dataclass: LeRobot decodes a checkpoint's config with
+    draccus on the base class (``PreTrainedConfig.from_pretrained``, as ``lerobot-eval --policy.path`` does), which
+    rejects an unknown key, and a draccus decoding hook would make the class unusable as a ``--policy.type`` choice."""
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -241,8 +245,9 @@ class PnpLstmConfig(PreTrainedConfig):
     # ---- task structure -------------------------------------------------------------------------
 
     @property
-    def episode_length(self) -> int:
-        """Frames per keyframe episode (10 in the paper)."""
+    def clock_frames(self) -> int:
+        """Frames of the clocked planner's episode, one per FSM state (10 in the paper): ``n_subtasks *
+        steps_per_subtask``. (The env's ``episode_length`` is its step budget, another quantity.)"""
         return self.n_subtasks * self.steps_per_subtask
 
     @property
@@ -252,7 +257,7 @@ class PnpLstmConfig(PreTrainedConfig):
     @property
     def window_length(self) -> int:
         """Frames of the longest episode a training window holds: 10 clocked, ``max_episode_length`` recovering."""
-        return self.max_episode_length if self.recovering else self.episode_length
+        return self.max_episode_length if self.recovering else self.clock_frames
 
     @property
     def in_flight_moves(self) -> int:
@@ -295,7 +300,7 @@ class PnpLstmConfig(PreTrainedConfig):
     def drop_n_last_frames(self) -> int:
         """Read by ``lerobot-train`` for its ``EpisodeAwareSampler``: clocked, sample each episode's first frame
         only; recovering (variable lengths), every frame (its window holds the whole episode too)."""
-        return 0 if self.recovering else self.episode_length - 1
+        return 0 if self.recovering else self.clock_frames - 1
 
     def get_optimizer_preset(self) -> AdamConfig:
         return AdamConfig(

@@ -1,4 +1,4 @@
-"""The recovering planner network (``--policy.mode=recovering``): no clock, a learned PICK/PLACE switch.
+"""The recovering planner (``--policy.mode=recovering``): no clock, a learned PICK/PLACE switch.
 
 The paper's clocked planner runs the PICK net on steps 0-4 and the PLACE net on steps 5-9 whatever happens,
 so a missed grasp or a dropped object can never be retried. This network instead infers where it is in the
@@ -6,14 +6,16 @@ task from what it observes and remembers:
 
 * one trunk over the whole (variable-length) episode: an LSTM whose state is carried across the pick -> place
   switch (``recurrent=True``), or, for the memoryless control, an MLP with about as many parameters as the
-  LSTM trunk (a zero-state LSTM would leave its recurrent weights, ~90 % of them, unused);
+  LSTM trunk (a zero-state LSTM would leave its recurrent weights, most of them, unused);
 * two action heads (PICK and PLACE behaviour) mixed by a subtask classifier: ``a = (1 - p) a_pick + p a_place``
   with ``p = P(place | history)``; the classifier is trained with cross-entropy on ``phase.subtask`` when the
   batch carries per-frame labels (the fast path, DAgger), and through the action loss alone otherwise;
 * an auxiliary phase classifier (``phase.index``, 10 classes) that shapes the trunk's state to track the FSM
   phase; its prediction is exposed for diagnostics, never used to act.
 
-The episode ends when the env says so (success or its step budget), not after 10 steps.
+The episode ends when the env says so (success or its step budget), not after 10 steps. With
+``await_observation`` an observation gate (``observation_gate``) holds a commanded move until the observations
+show it. ``planner.Planner`` is the interface it shares with the clocked planner.
 """
 
 from __future__ import annotations
@@ -23,7 +25,14 @@ from typing import Any
 
 import torch
 import torch.nn.functional as F  # noqa: N812
+from lerobot.utils.constants import OBS_STATE
 from torch import Tensor, nn
+
+from lerobot_pnp.errors import DatasetError
+
+from .configuration_pnp_lstm import PnpLstmConfig
+from .observation_gate import ObservationGate
+from .planner import PlannerState
 
 N_PHASES = 10
 N_SUBTASKS = 2
@@ -42,11 +51,17 @@ def matched_mlp_width(input_dim: int, hidden: int) -> int:
     return max(1, round((-b + math.sqrt(b * b + 4 * target)) / 2))
 
 
-class RecoveringNet(nn.Module):
-    """Trunk (LSTM or matched MLP) + PICK/PLACE action heads + subtask and phase classifiers."""
+class RecoveringPlanner(nn.Module):
+    """Trunk (LSTM or matched MLP) + PICK/PLACE action heads + subtask and phase classifiers (``planner.Planner``).
 
-    def __init__(self, input_dim: int, hidden: int, action_dim: int, recurrent: bool = True, dropout: float = 0.0):
+    Its weights are ``lstm.*`` (or ``mlp.*``), ``action_heads.*``, ``subtask_head.*`` and ``phase_head.*``
+    (``model.`` in a checkpoint); ``num_layers``, ``shared_network``, ``carry_hidden_across_subtasks`` and the
+    subtask structure fields are not used."""
+
+    def __init__(self, config: PnpLstmConfig, input_dim: int, action_dim: int):
         super().__init__()
+        self.config = config
+        hidden, recurrent, dropout = config.hidden_size, config.recurrent, config.dropout
         self.recurrent = recurrent
         if recurrent:
             self.lstm = nn.LSTM(input_dim, hidden, num_layers=1, batch_first=True)
@@ -77,6 +92,70 @@ class RecoveringNet(nn.Module):
         the LSTM is causal, so padded frames never influence the real ones."""
         h = self.lstm(x)[0] if self.recurrent else self.mlp(x)
         return self._heads(h)
+
+    # ---- planner.Planner ------------------------------------------------------------------------
+
+    def loss(
+        self, x: Tensor, y: Tensor, valid: Tensor, subtask: Tensor | None, phase: Tensor | None
+    ) -> tuple[Tensor, Tensor, dict[str, float]]:
+        cfg = self.config
+        return recovering_loss(self(x), y, valid, subtask, phase, cfg.subtask_loss_weight, cfg.phase_loss_weight)
+
+    def sequence(self, x: Tensor) -> Tensor:
+        return self(x)["action"]
+
+    def act(self, x: Tensor, state: PlannerState | None) -> tuple[Tensor, PlannerState]:
+        """One trunk step with the state carried since the reset, until the env ends the episode; with the gate,
+        an env whose last move is not observed yet keeps its command and its network state."""
+        memory = None if state is None else state.memory
+        out, new_memory = self.step(x, memory)
+        action = out["action"]
+        gate = self._new_gate() if state is None else state.gate
+        if gate is not None:  # hold the last command where its move has not been observed yet
+            decided = gate.decide(x)
+            old = None if state is None else state.action
+            if old is not None and not bool(decided.all()):
+                action = torch.where(decided[:, None], action, old)
+                if new_memory is not None:
+                    new_memory = tuple(
+                        torch.where(decided[:, None], n, o) for n, o in zip(new_memory, memory, strict=True)
+                    )
+            gate.update(decided, action, old)
+        return action, PlannerState(
+            step=1 if state is None else state.step + 1,
+            action=action,
+            memory=new_memory,
+            gate=gate,
+            subtask_prob=out["subtask_logits"].softmax(dim=-1)[:, 1],
+            phase=out["phase_logits"].argmax(dim=-1),
+        )
+
+    def check_episode_lengths(self, lengths: list[int]) -> None:
+        """Every episode fits a training window: at most ``max_episode_length`` frames."""
+        max_length = self.config.max_episode_length
+        longer = sorted({int(n) for n in lengths if int(n) > int(max_length)})
+        if longer:
+            raise DatasetError(
+                f"episodes of {longer[:5]} frames do not fit policy.max_episode_length={max_length}: "
+                f"raise it to at least {longer[-1]}"
+            )
+
+    def _new_gate(self) -> ObservationGate | None:
+        """A fresh observation gate for an episode (``await_observation``), else None; read from the config at
+        each episode's first step, so that inference-time settings take effect at the next reset."""
+        cfg = self.config
+        if not cfg.await_observation:
+            return None
+        return ObservationGate(
+            int(cfg.input_features[OBS_STATE].shape[0]),
+            cfg.await_state_tol,
+            cfg.await_action_tol,
+            cfg.await_max_steps,
+            cfg.in_flight_moves,
+            cfg.await_past_states,
+        )
+
+    # ---- the network ----------------------------------------------------------------------------
 
     def step(self, x: Tensor, state: Any) -> tuple[dict[str, Tensor], Any]:
         """One inference step ``(B, D)``; the LSTM state is carried for the whole episode."""
@@ -119,63 +198,3 @@ def recovering_loss(
         info[f"acc_{name}"] = float(acc)
     weights = n_valid / n_valid.sum()
     return (per_sample * weights).sum(), per_sample, info
-
-
-def late_observer(
-    x: Tensor,
-    valid: Tensor,
-    prob: float,
-    phase: Tensor | None = None,
-    max_lag: int = 1,
-    jitter: float = 0.0,
-    stretch: bool = False,
-) -> tuple[Tensor, Tensor, Tensor]:
-    """Whole episodes ``(B, T, D)`` as an observer ``lag`` steps late sees them (the env's latency model: frame
-    ``t`` shows the state of frame ``max(0, t - lag)``), each episode late with probability ``prob``.
-
-    A late episode's lag is drawn uniformly in ``1..max_lag``, then redrawn in ``0..max_lag`` at each frame with
-    probability ``jitter`` (the env's ``obs_latency_jitter``). Returns ``(x, valid, src)``: the inputs, the
-    frames left in the loss, and ``src`` ``(B, T')``, the original frame whose action (and labels) each new frame
-    is trained on. Out of the loss: the last real frame of a late episode (the hold after success, never
-    executed) and, given the per-frame ``phase`` labels, every frame whose observation predates the start of a
-    recovery (the phase goes back: the expert reacts to an event the late observer cannot see yet).
-
-    ``stretch``: the demonstration is made consistent with what a late robot does. The expert reacts to a
-    drop or a displacement at once; a robot that sees it ``lag`` steps late has by then commanded ``lag`` more
-    steps of its old plan, and only then starts the recovery. So the first frame of each recovery is repeated
-    ``lag`` times (its copies out of the loss), and the recovery's labels follow the late robot's timeline
-    instead of the expert's, which is one step ahead: without it, a late observer is taught to skip the first
-    recovery step (re-approaching the object) it has not yet commanded.
-    """
-    bsz, length = x.shape[:2]
-    frames = torch.arange(length, device=x.device).expand(bsz, length)
-    late = torch.rand(bsz, device=x.device) < prob
-    if not bool(late.any()) or length < 2:
-        return x, valid, frames
-    lag_ep = torch.ones(bsz, dtype=torch.long, device=x.device)
-    if max_lag > 1:
-        lag_ep = torch.randint(1, max_lag + 1, (bsz,), device=x.device)
-    lag_ep = lag_ep * late
-    event = torch.zeros_like(valid)
-    if phase is not None:
-        event[:, 1:] = (phase[:, 1:] < phase[:, :-1]) & valid[:, 1:]
-    pos = frames + (lag_ep.unsqueeze(1) * event.long().cumsum(dim=1) if stretch else 0)  # where frame i goes
-    n_real = valid.sum(dim=1).clamp(min=1)
-    new_len = pos.gather(1, (n_real - 1).unsqueeze(1)).squeeze(1) + 1
-    j = torch.arange(int(new_len.max()), device=x.device).expand(bsz, -1)
-    src = torch.searchsorted(pos.contiguous(), j.contiguous()).clamp(max=length - 1)  # new frame -> original
-    copy = pos.gather(1, src) != j  # a repeated first frame of a recovery
-    lag = lag_ep.unsqueeze(1).expand_as(j)
-    if jitter > 0:
-        redraw = (torch.rand(j.shape, device=x.device) < jitter) & late.unsqueeze(1)
-        values = torch.randint(0, max_lag + 1, j.shape, device=x.device)
-        last = torch.where(redraw, j, torch.full_like(j, -1)).cummax(dim=1).values
-        lag = torch.where(last >= 0, values.gather(1, last.clamp(min=0)), lag)
-    seen = (j - lag).clamp(min=0)  # the new frame whose state is observed
-    x_new = x.gather(1, src.gather(1, seen).unsqueeze(-1).expand(-1, -1, x.shape[-1]))
-    starts = event.gather(1, src) & ~copy
-    starts_at = torch.where(starts, j - (lag_ep.unsqueeze(1) if stretch else 0), torch.full_like(j, -1))
-    blind = seen < starts_at.cummax(dim=1).values
-    blind |= (j == (new_len - 1).unsqueeze(1)) & (lag > 0)
-    valid_new = valid.gather(1, src) & (j < new_len.unsqueeze(1)) & ~copy & ~blind
-    return x_new, valid_new, src

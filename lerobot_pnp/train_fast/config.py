@@ -94,8 +94,8 @@ class TrainFastConfig:
                 f"seed must be an integer in [0, 2**63), got {self.seed!r}",
             ),
             (
-                self.policy.episode_length == robot.N_KEYFRAMES,
-                f"policy.n_subtasks x policy.steps_per_subtask = {self.policy.episode_length}, but a keyframe "
+                self.policy.clock_frames == robot.N_KEYFRAMES,
+                f"policy.n_subtasks x policy.steps_per_subtask = {self.policy.clock_frames}, but a keyframe "
                 f"episode has {robot.N_KEYFRAMES} frames",
             ),
         ]
