@@ -111,7 +111,8 @@ class StudyConfig:
     """``lerobot-pnp demo`` / ``lerobot-pnp report``: the study (see the module doc for the presets)."""
 
     output_dir: str = "outputs/demo"  # everything the study writes (datasets, checkpoints, report.md); resumable
-    preset: str = "demo"  # the study's size: demo (the README's main run), quick (CI-sized) or full (the whole study)
+    # the study: demo (the README's main run), quick (CI-sized), full (the whole study) or heldout (the held-out protocol)
+    preset: str = "demo"
     quick: bool = False  # shorthand for preset=quick
     full: bool = False  # shorthand for preset=full
     num_episodes: int | None = None  # demonstrations generated (80 % train / 20 % held out)

@@ -40,7 +40,8 @@ def _header(layout, cfg, methods, summary) -> list[str]:
     return [
         "# lerobot_pnp: reproduction report",
         "",
-        f"Produced by `{summary['command']}` (preset `{cfg.preset}`; full config in `{layout.config.name}`).",
+        f"Produced by `{summary['command']}` (preset `{cfg.preset}`; full config in `{layout.config.name}`). "
+        f"Task: `{cfg.task_preset}` (the demonstrations' task, recorded with them; every suite changes it).",
         f"Machine: {mach['cpu']}, {mach['cores_available']} cores available; Python {mach['python']}, "
         f"LeRobot {mach['lerobot']}, torch {mach['torch']}, MuJoCo {mach['mujoco']}, gymnasium {mach['gymnasium']}.",
         f"Stage wall time (s): dataset {t.get('dataset', 0):.0f}"
