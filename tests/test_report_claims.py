@@ -228,6 +228,9 @@ def test_held_out_axes_pool_each_side_and_need_every_suite():
     assert "`heldout_latency_2` 30.0% [" in row and "`heldout_latency_jitter` 50.0% [" in row
     assert row.endswith("| does not generalise: a held-out suite below 90 % |")
     assert "**Verdict rule**" in "\n".join(lines)
+    from lerobot_pnp.report.results import VERDICTS
+
+    assert set(markdown.VERDICT_TEXT) == set(VERDICTS)  # every verdict code has its text
     partial = {k: v for k, v in rates.items() if k[1] != "heldout_latency_jitter"}  # one held-out suite missing
     assert markdown._held_out_section(*_table(partial)) == []
 

@@ -12,7 +12,7 @@ from lerobot_pnp.dataset.splits import train_count
 from lerobot_pnp.evaluation.records import summarize
 from lerobot_pnp.evaluation.suites import SUITES
 from lerobot_pnp.report.claims import render_claims
-from lerobot_pnp.report.results import ALPHA, TARGET, VERDICTS, Pooled, held_out_axes, main_records
+from lerobot_pnp.report.results import ALPHA, TARGET, Pooled, held_out_axes, main_records
 
 
 def render(layout, cfg, methods, results, suite_names, table, comparisons, figures, summary) -> str:
@@ -126,6 +126,14 @@ def _failure_table(methods, results, suite_names) -> list[str]:
     return [*lines, ""]
 
 
+VERDICT_TEXT = {  # results.VERDICTS
+    "generalises": "generalises",
+    "degrades": f"every held-out suite >= {100 * TARGET:.0f} %, but significantly below in distribution",
+    "fails": f"does not generalise: a held-out suite below {100 * TARGET:.0f} %",
+    "no_recovery": f"below {100 * TARGET:.0f} % in distribution already: nothing to generalise",
+}
+
+
 def _held_out_section(table, methods) -> list[str]:
     """A table per disturbance axis (``HELD_OUT_AXES``): each method's success in distribution vs held out,
     for the methods evaluated on every suite of the axis; the rule of the verdict column stated above them."""
@@ -159,7 +167,7 @@ def _held_out_section(table, methods) -> list[str]:
             each = "<br>".join(f"`{s}` {v} n={v.n}" for s, v in r.held_out.items())
             lines.append(
                 f"| {labels[r.method]} | {r.inside} n={r.inside.n} | {r.outside} n={r.outside.n} | {each} | "
-                f"{r.p_below:.2g} | {VERDICTS[r.verdict]} |"
+                f"{r.p_below:.2g} | {VERDICT_TEXT[r.verdict]} |"
             )
         lines.append("")
     return lines

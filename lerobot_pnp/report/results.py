@@ -4,7 +4,8 @@
 (nothing trained) or ``"n<demos>"`` (a data-efficiency run, left out of the pooled rates). Success of a
 learned method pools its training seeds (each seed evaluated on the same eval seeds); comparisons with the
 lookup table are paired (exact McNemar per training seed; the largest p-value over seeds is reported, so
-"beats" means "beats with every training seed").
+"beats" means "beats with every training seed"). Per axis of the held-out protocol (``HELD_OUT_AXES``): each
+side pooled over its suites, a one-sided exact test between them, and a verdict code (``axis_result``).
 """
 
 from __future__ import annotations
@@ -110,12 +111,7 @@ def build_comparisons(results, methods, suite_names) -> dict[str, dict[str, Comp
 # (one-sided exact test, p >= ALPHA).
 TARGET = 0.9
 ALPHA = 0.05
-VERDICTS = {
-    "generalises": "generalises",
-    "degrades": f"every held-out suite >= {100 * TARGET:.0f} %, but significantly below in distribution",
-    "fails": f"does not generalise: a held-out suite below {100 * TARGET:.0f} %",
-    "no_recovery": f"below {100 * TARGET:.0f} % in distribution already: nothing to generalise",
-}
+VERDICTS = ("generalises", "degrades", "fails", "no_recovery")  # their text: markdown.VERDICT_TEXT
 
 
 @dataclass(frozen=True)
@@ -129,7 +125,7 @@ class AxisResult:
     outside: Rate
     held_out: dict[str, Rate]  # per held-out suite
     p_below: float
-    verdict: str  # a key of VERDICTS
+    verdict: str  # one of VERDICTS
 
     @property
     def below_target(self) -> list[str]:
