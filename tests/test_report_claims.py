@@ -161,6 +161,7 @@ TESTED = {
     "memory tracks the phase",
     "planner corrects itself",
     "what the teacher adds",
+    *(f"generalises along {a}" for a in ("timing", "magnitude", "count", "latency", "combination")),
 }
 
 
@@ -196,24 +197,89 @@ def test_the_quick_preset_renders_its_three_claims_in_order():
 
 
 # ---------------------------------------------------------------------------------- held-out axes (issue 19)
-def test_held_out_axes_pool_each_side_and_need_both():
+def _table(rates: dict[tuple[str, str], tuple[int, int]]):
+    """The pooled table from ``{(method, suite): (successes, n)}``."""
+    results: dict = {}
+    for (method, suite), (k, n) in rates.items():
+        (m,) = get_methods([method])
+        results.setdefault(method, {}).setdefault(str(SEED) if m.learned else "-", {})[suite] = _records(k, n)
+    methods = get_methods(list(results))
+    return build_table(results, methods, evaluated_suites(results)), methods
+
+
+LATENCY = {("recovering", "train_latency"): (99, 100)}
+
+
+def test_held_out_axes_pool_each_side_and_need_every_suite():
     from lerobot_pnp.report import markdown
 
-    results = {
-        "recovering": {
-            str(SEED): {
-                "train_latency": _records(90),
-                "heldout_latency_2": _records(30),
-                "heldout_latency_jitter": _records(50),
-                "train_mixture": _records(80),  # combination axis: its held-out suite was not run
-            }
-        }
+    rates = {
+        ("recovering", "train_latency"): (90, 100),
+        ("recovering", "heldout_latency_2"): (30, 100),
+        ("recovering", "heldout_latency_jitter"): (50, 100),
+        ("recovering", "train_mixture"): (80, 100),  # combination axis: its held-out suite was not run
     }
-    methods = get_methods(["recovering"])
-    lines = markdown._held_out_section(results, methods)
-    rows = [line for line in lines if line.startswith("| latency")]
-    assert len(rows) == 1 and not any(line.startswith("| combination") for line in lines)
-    assert "90.0% [" in rows[0] and "n=100" in rows[0]
-    assert "40.0% [" in rows[0] and "n=200" in rows[0]  # 80 of 200 over the two held-out suites
-    assert rows[0].endswith("worse beyond the intervals: does not generalise |")
-    assert markdown._held_out_section({"recovering": {str(SEED): {"train_latency": _records(90)}}}, methods) == []
+    table, methods = _table(rates)
+    lines = markdown._held_out_section(table, methods)
+    assert "### latency: how old the observations are" in lines and not any("### combination" in x for x in lines)
+    (row,) = [line for line in lines if line.startswith("| recovering LSTM")]
+    assert "| 90.0% [" in row and "n=100" in row
+    assert "40.0% [" in row and "n=200" in row  # 80 of 200 over the two held-out suites
+    assert "`heldout_latency_2` 30.0% [" in row and "`heldout_latency_jitter` 50.0% [" in row
+    assert row.endswith("| does not generalise: a held-out suite below 90 % |")
+    assert "**Verdict rule**" in "\n".join(lines)
+    from lerobot_pnp.report.results import VERDICTS
+
+    assert set(markdown.VERDICT_TEXT) == set(VERDICTS)  # every verdict code has its text
+    partial = {k: v for k, v in rates.items() if k[1] != "heldout_latency_jitter"}  # one held-out suite missing
+    assert markdown._held_out_section(*_table(partial)) == []
+
+
+@pytest.mark.parametrize(
+    ("held", "verdict", "text"),
+    [
+        ((97, 98), "generalises", "-> holds (every held-out suite >= 90 %, not below in distribution: p"),
+        ((91, 92), "degrades", "-> only partly: every held-out suite >= 90 %, but below in distribution (p"),
+        ((97, 85), "fails", "-> does not hold: `heldout_latency_jitter` 85.0% ["),
+    ],
+)
+def test_generalises_along_an_axis(held, verdict, text):
+    from lerobot_pnp.evaluation.suites import HELD_OUT_AXES
+    from lerobot_pnp.report.results import axis_result
+
+    rates = {**LATENCY, ("recovering", "heldout_latency_2"): (held[0], 100)}
+    rates[("recovering", "heldout_latency_jitter")] = (held[1], 100)
+    table, _ = _table(rates)
+    (axis,) = [a for a in HELD_OUT_AXES if a.name == "latency"]
+    assert axis_result(axis, "recovering", table).verdict == verdict
+    (line,) = _render("generalises along latency", {k: v[0] for k, v in rates.items()})
+    assert line.startswith("- *Recovery generalises along latency*") and text in line, line
+
+
+def test_generalises_along_an_axis_names_the_other_methods_and_needs_the_recovering_planner():
+    rates = {
+        ("recovering", "train_mixture"): 99,
+        ("recovering", "heldout_all_at_once"): 98,
+        ("memoryless_mlp", "train_mixture"): 95,
+        ("memoryless_mlp", "heldout_all_at_once"): 40,
+        ("lookup_table", "train_mixture"): 30,
+        ("lookup_table", "heldout_all_at_once"): 10,
+        ("expert", "train_mixture"): 100,  # its held-out suite was not run: no verdict for it
+    }
+    first, others = _render("generalises along combination", rates)
+    assert "recovering LSTM 98.0% [" in first and "-> holds" in first
+    assert others.startswith("  Others on this axis: memoryless MLP (matched) 40.0% [")
+    assert "does not hold: `heldout_all_at_once` 40.0%" in others
+    assert "lookup table 10.0% [" in others and "no verdict: below 90 % in distribution already" in others
+    assert "expert" not in others
+    no_recovering = {k: v for k, v in rates.items() if k[0] != "recovering"}
+    assert _render("generalises along combination", no_recovering) == []
+
+
+def test_the_held_out_test_is_one_sided_and_exact():
+    from lerobot_pnp.evaluation.stats import Rate, below_p
+
+    assert below_p(Rate(99, 100), Rate(98, 100)) == pytest.approx(0.5)  # Fisher: tables [[99, 1], [98, 2]]
+    assert below_p(Rate(600, 600), Rate(558, 600)) < 1e-9
+    assert below_p(Rate(50, 100), Rate(100, 100)) == 1.0  # above, not below
+    assert below_p(Rate(0, 3), Rate(0, 3)) == 1.0

@@ -55,6 +55,16 @@ class Rate:
         return cls(int(sum(bool(o) for o in outcomes)), len(outcomes))
 
 
+def below_p(a: Rate, b: Rate) -> float:
+    """One-sided exact (Fisher) p-value that ``b`` is below ``a`` by chance: for two independent samples (two
+    suites, or two conditions), the probability under "same rate" that ``b`` gets ``b.successes`` or fewer of
+    all the successes (the hypergeometric lower tail)."""
+    total, k = a.n + b.n, a.successes + b.successes
+    low, high = max(0, k - a.n), min(k, b.n)
+    tail = sum(math.comb(k, i) * math.comb(total - k, b.n - i) for i in range(low, min(b.successes, high) + 1))
+    return min(1.0, tail / math.comb(total, b.n))
+
+
 def sign_test_p(wins: int, losses: int) -> float:
     """Two-sided exact binomial test of ``wins`` vs ``losses`` under p = 1/2 (ties already removed)."""
     n = wins + losses

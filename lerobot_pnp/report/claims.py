@@ -15,9 +15,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from lerobot_pnp.errors import ConfigError
-from lerobot_pnp.evaluation.suites import RECOVERY_BUDGET, SUITES
+from lerobot_pnp.evaluation.suites import HELD_OUT_AXES, RECOVERY_BUDGET, SUITES, Axis
 from lerobot_pnp.report.methods import METHODS
-from lerobot_pnp.report.results import Pooled
+from lerobot_pnp.report.results import TARGET, AxisResult, Pooled, axis_result
 
 BASELINE = "lookup_table"
 FEEDBACK_SUITES = ("nudge_0.03", "nudge_0.05", "obs_noise_0.005")
@@ -206,6 +206,54 @@ def _teacher_adds(table, comparisons) -> list[str]:
     ]
 
 
+# The methods besides the recovering planner whose verdict an axis claim also states, when evaluated
+AXIS_OTHERS = ("memoryless_mlp", "phase_told_mlp", "act", BASELINE, "expert")
+
+
+def _axis_verdict(r: AxisResult) -> str:
+    if r.verdict == "generalises":
+        return f"holds (every held-out suite >= {100 * TARGET:.0f} %, not below in distribution: p {r.p_below:.2g})"
+    if r.verdict == "degrades":
+        return (
+            f"only partly: every held-out suite >= {100 * TARGET:.0f} %, but below in distribution (p {r.p_below:.2g})"
+        )
+    if r.verdict == "fails":
+        return "does not hold: " + ", ".join(f"`{s}` {r.held_out[s]}" for s in r.below_target)
+    return f"no verdict: below {100 * TARGET:.0f} % in distribution already"
+
+
+def _generalises_along(axis: Axis) -> Callable[[dict, dict], list[str]]:
+    """The verdict line of one held-out axis: the recovering planner's, then the other methods' evaluated."""
+
+    def render(table, comparisons) -> list[str]:
+        rec = axis_result(axis, "recovering", table)
+        if rec is None:
+            return []
+        held = ", ".join(f"`{s}`" for s in axis.held_out)
+        lines = [
+            f"- *Recovery generalises along {axis.name}* ({axis.description}; held out: {held}): recovering LSTM "
+            f"{rec.outside} held out vs {rec.inside} in distribution -> {_axis_verdict(rec)}."
+        ]
+        others = [r for r in (axis_result(axis, m, table) for m in AXIS_OTHERS) if r is not None]
+        if others:
+            each = (f"{METHODS[o.method].label} {o.outside} held out -> {_axis_verdict(o)}" for o in others)
+            lines.append("  Others on this axis: " + "; ".join(each) + ".")
+        return lines
+
+    return render
+
+
+AXIS_CLAIMS = tuple(
+    Claim(
+        f"generalises along {a.name}",
+        ("recovering",),
+        a.in_distribution + a.held_out,
+        _generalises_along(a),
+        optional=AXIS_OTHERS,
+    )
+    for a in HELD_OUT_AXES
+)
+
 CLAIMS: tuple[Claim, ...] = (
     Claim("generalisation", ("clocked_lstm",), ("nominal",), _generalises),
     Claim("learned planner needed", ("clocked_lstm", BASELINE), ("nominal",), _planner_needed),
@@ -222,6 +270,7 @@ CLAIMS: tuple[Claim, ...] = (
     ),
     Claim("planner corrects itself", tuple(n for n, _ in CORRECTING), RECOVERY_SUITES, _corrects_itself),
     Claim("what the teacher adds", ("recovering", "recovering_dagger"), (), _teacher_adds),
+    *AXIS_CLAIMS,
 )
 
 

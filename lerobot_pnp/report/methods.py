@@ -23,6 +23,9 @@ is evaluated. New methods (the recovering planner, DAgger rounds, ACT) plug in b
   demonstrations recorded with that observation. What memory must infer, handed to a network without it.
 * ``act``: LeRobot's ACT, state-only, trained on the dense recording of the same demonstrations and run in
   dense control mode (``act_baseline.py``; its budget is in its description).
+
+A method may train on some task presets only (``Method.tasks``): the clocked planners need exactly 10-frame
+demonstrations (the paper's task), so a study on the ``full`` task refuses them up front (``StudyConfig``).
 """
 
 from __future__ import annotations
@@ -56,6 +59,7 @@ class TrainContext:
     dense_root: Path | None = None  # the dense recording of the same demonstrations (methods with data="dense")
     act_steps: int | None = None  # ACT's training steps (None = act_baseline.ActBudget's default)
     data_keys: dict[str, str] = field(default_factory=dict)  # recording -> its dataset's stage key
+    task_budget: int | None = None  # keyframe budget of the task recorded with the data (None: not known)
 
 
 @dataclass(frozen=True)
@@ -77,6 +81,9 @@ class Method:
     suites: tuple[str, ...] | None = None  # evaluated only on these suites (cost); None = every suite
     # a method whose run of the same training seed this one starts from (the study runs that job first)
     continues: str | None = None
+    # the task presets (presets.PRESETS) whose demonstrations it can train on, and why only those; None = any
+    tasks: tuple[str, ...] | None = None
+    tasks_why: str = ""
 
     def env_config(self, env_cfg: BaxterPnPEnvConfig, ctx: TrainContext) -> BaxterPnPEnvConfig:
         return env_cfg if self.adapt_env is None else self.adapt_env(env_cfg, ctx)
@@ -105,13 +112,23 @@ def _lookup_eval(artifact, ctx, env_cfg, n, start_seed, batch_size):
     return eval_lerobot_policy(LookupTablePolicy(episodes), pre, post, env_cfg, n, start_seed, batch_size)
 
 
+def fit_window(overrides: dict, ctx: TrainContext) -> dict:
+    """A method's policy settings for its training data: a recovering-mode window must hold the longest
+    episode the recorded task allows (its keyframe budget + the final state: 41 frames on the ``full`` task,
+    more than the study's recovery budget). The paper's task (10 keyframes) leaves them, and so the training
+    keys of a paper study, unchanged."""
+    if overrides.get("mode") != "recovering" or ctx.task_budget is None:
+        return overrides
+    return {**overrides, "max_episode_length": max(overrides["max_episode_length"], ctx.task_budget + 1)}
+
+
 def _pnp_lstm_trainer(overrides: dict) -> Callable[[TrainContext], Path]:
     def train(ctx: TrainContext) -> Path:
         ckpt = adapters.checkpoint_of(ctx.train_dir)
         if (ckpt / "model.safetensors").is_file() and (ctx.train_dir / "test_keyframe_error.json").is_file():
             return ckpt  # finished earlier: reused
         return adapters.train_pnp_lstm(
-            ctx.dataset_root, ctx.train_dir, ctx.seed, ctx.epochs, overrides, n_demos=ctx.n_demos
+            ctx.dataset_root, ctx.train_dir, ctx.seed, ctx.epochs, fit_window(overrides, ctx), n_demos=ctx.n_demos
         )
 
     return train
@@ -122,8 +139,16 @@ def _checkpoint_eval(artifact, ctx, env_cfg, n, start_seed, batch_size):
     return eval_lerobot_policy(lp.policy, lp.preprocessor, lp.postprocessor, env_cfg, n, start_seed, batch_size)
 
 
+CLOCKED_WHY = (
+    "the clocked planner trains on exactly 10-frame episodes (the paper's task); this task's demonstrations "
+    "have recoveries (longer episodes of varying length)"
+)
+
+
 def pnp_lstm_method(name: str, label: str, description: str, **overrides) -> Method:
-    return Method(name, label, description, True, _pnp_lstm_trainer(overrides), _checkpoint_eval, overrides)
+    clocked = overrides.get("mode", "clocked") == "clocked"
+    return Method(name, label, description, True, _pnp_lstm_trainer(overrides), _checkpoint_eval, overrides,
+                  tasks=("paper",) if clocked else None, tasks_why=CLOCKED_WHY if clocked else "")  # fmt: skip
 
 
 # The recovering planner's recipe; its training windows hold the longest episode of the study (a recovery
@@ -254,6 +279,9 @@ METHODS: dict[str, Method] = {
             _checkpoint_eval,
             RECOVERING,
             continues="recovering",
+            tasks=("paper",),
+            tasks_why="the study's DAgger round is set up for the paper task (its rollouts run at a "
+            f"{RECOVERY_BUDGET}-keyframe budget, below the full task's); DAgger on full: `lerobot-pnp dagger`",
         ),
         Method(
             "act",
@@ -280,7 +308,7 @@ def train_stage(method: Method, ctx: TrainContext) -> Stage:
     parts = {
         "stage": "train",
         "method": method.name,
-        "overrides": method.policy_overrides,
+        "overrides": fit_window(method.policy_overrides, ctx),
         "data": ctx.data_keys.get(method.data),
         "seed": ctx.seed,
         "epochs": ctx.epochs,

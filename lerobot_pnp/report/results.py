@@ -4,14 +4,15 @@
 (nothing trained) or ``"n<demos>"`` (a data-efficiency run, left out of the pooled rates). Success of a
 learned method pools its training seeds (each seed evaluated on the same eval seeds); comparisons with the
 lookup table are paired (exact McNemar per training seed; the largest p-value over seeds is reported, so
-"beats" means "beats with every training seed").
+"beats" means "beats with every training seed"). Per axis of the held-out protocol (``HELD_OUT_AXES``): each
+side pooled over its suites, a one-sided exact test between them, and a verdict code (``axis_result``).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-from lerobot_pnp.evaluation.stats import Rate, paired_comparison
+from lerobot_pnp.evaluation.stats import Rate, below_p, paired_comparison
 from lerobot_pnp.evaluation.suites import HELD_OUT_AXES, SUITES, Axis
 
 BASELINE = "lookup_table"
@@ -104,19 +105,70 @@ def build_comparisons(results, methods, suite_names) -> dict[str, dict[str, Comp
     return comparisons
 
 
-def _pool(results, method: str, suites: tuple[str, ...]) -> Rate | None:
-    """One rate over every record of ``method`` on the evaluated ones of ``suites`` (all training seeds)."""
-    recs = [r for s in suites for r in main_records(results, method, s)]
-    return Rate(sum(r.success for r in recs), len(recs)) if recs else None
+# The held-out protocol's verdict rule (stated in report.md): recovery generalises along an axis when the method
+# recovers in distribution (pooled >= TARGET), reaches TARGET on every held-out suite (point estimates, the
+# issue's target) and its pooled held-out rate is not below the in-distribution one beyond chance
+# (one-sided exact test, p >= ALPHA).
+TARGET = 0.9
+ALPHA = 0.05
+VERDICTS = ("generalises", "degrades", "fails", "no_recovery")  # their text: markdown.VERDICT_TEXT
 
 
-def held_out_rates(results, methods) -> list[tuple[Axis, str, Rate, Rate]]:
-    """Per disturbance axis of ``HELD_OUT_AXES`` and method: (axis, method, in distribution, held out), each
-    pooled over the axis' suites that were evaluated; only where both sides were."""
-    rows = []
-    for axis in HELD_OUT_AXES:
-        for m in methods:
-            inside, outside = _pool(results, m.name, axis.in_distribution), _pool(results, m.name, axis.held_out)
-            if inside and outside:
-                rows.append((axis, m.name, inside, outside))
-    return rows
+@dataclass(frozen=True)
+class AxisResult:
+    """A method on one disturbance axis of ``HELD_OUT_AXES``: each side pooled over its suites (and training
+    seeds), each held-out suite's own rate, the one-sided test of held out < in distribution, the verdict."""
+
+    axis: Axis
+    method: str
+    inside: Rate
+    outside: Rate
+    held_out: dict[str, Rate]  # per held-out suite
+    p_below: float
+    verdict: str  # one of VERDICTS
+
+    @property
+    def below_target(self) -> list[str]:
+        return [s for s, r in self.held_out.items() if r.rate < TARGET]
+
+    def to_json(self) -> dict:
+        """``summary.json``'s ``held_out_axes`` entry."""
+
+        def cell(r: Rate) -> dict:
+            return {"rate": r.rate, "interval": r.interval, "successes": r.successes, "n": r.n}
+
+        return {"axis": self.axis.name, "method": self.method, "in_distribution": cell(self.inside),
+                "held_out": cell(self.outside), "held_out_suites": {s: cell(r) for s, r in self.held_out.items()},
+                "p_below": self.p_below, "verdict": self.verdict}  # fmt: skip
+
+
+def _sum(rates: list[Rate]) -> Rate:
+    return Rate(sum(r.successes for r in rates), sum(r.n for r in rates))
+
+
+def axis_result(axis: Axis, method: str, table: dict[str, dict[str, Pooled]]) -> AxisResult | None:
+    """``method`` on ``axis`` from the pooled table; None unless every suite of the axis was evaluated for it
+    (a verdict on part of an axis would claim more than was measured)."""
+    cells = {s: table.get(s, {}).get(method) for s in axis.in_distribution + axis.held_out}
+    if not all(cells.values()):
+        return None
+    inside = _sum([cells[s].rate for s in axis.in_distribution])
+    held = {s: cells[s].rate for s in axis.held_out}
+    outside = _sum(list(held.values()))
+    p = below_p(inside, outside)
+    verdict = (
+        "no_recovery"
+        if inside.rate < TARGET
+        else "fails"
+        if any(r.rate < TARGET for r in held.values())
+        else "degrades"
+        if p < ALPHA
+        else "generalises"
+    )
+    return AxisResult(axis, method, inside, outside, held, p, verdict)
+
+
+def held_out_axes(table: dict[str, dict[str, Pooled]], methods) -> list[AxisResult]:
+    """Per axis of ``HELD_OUT_AXES`` (in order), each method (in order) that has every suite of the axis."""
+    found = (axis_result(axis, m.name, table) for axis in HELD_OUT_AXES for m in methods)
+    return [r for r in found if r is not None]

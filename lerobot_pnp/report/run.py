@@ -193,8 +193,9 @@ def _run_jobs(jobs: list[Job], context: tuple, processes: int, fn=None):
 def _context(job: Job, method, cfg: StudyConfig, layout: StudyLayout, roots: dict[str, Path], keys: dict[str, str]):
     seed = int(cfg.train_seeds[0] if not job.tag.isdigit() else job.tag)
     data_root = roots["keyframe"] if method.data == "dense" else roots[method.data]  # ACT reads ctx.dense_root
+    budget = (read_recorded(roots["keyframe"]) or {}).get("keyframe_budget")  # the recorded task's
     return TrainContext(data_root, layout.train(method.name, job.tag), seed, cfg.epochs, job.n_demos,
-                        roots.get("dense"), cfg.act_steps, dict(keys))  # fmt: skip
+                        roots.get("dense"), cfg.act_steps, dict(keys), budget)  # fmt: skip
 
 
 def run_job(job: Job, cfg: StudyConfig, layout: StudyLayout, roots: dict[str, Path], base_env, keys: dict[str, str]):

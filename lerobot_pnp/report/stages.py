@@ -31,31 +31,38 @@ def written_by_the_study(name: str) -> bool:
     return name in STUDY_ENTRIES or name.removesuffix(".tmp") in STUDY_ENTRIES or name.startswith("dataset_")
 
 
+def dataset_parts(cfg, changes: dict | None = None) -> dict:
+    """What determines a recording: episodes, seed, env changes, code versions, and the task preset when it
+    is not the paper's (so the key of a paper study's dataset, and of all it keys, is what it was before)."""
+    parts = {
+        "stage": "dataset",
+        "num_episodes": cfg.num_episodes,
+        "seed": cfg.dataset_seed,
+        "changes": changes or {},
+        "versions": code_versions(),
+    }
+    if cfg.task_preset != "paper":
+        parts["task_preset"] = cfg.task_preset
+    return parts
+
+
 def dataset_stage(out: Path, name: str, cfg, changes: dict | None = None) -> tuple[dict, str]:
     """Generate (or finish, or reuse) the recording ``name``, keyed by what determines it; (summary, key).
 
     A dataset of other settings (or one without a record) is verified by the generator against its own
     record of how it was made, and replaced when that differs."""
     root = out / name
-    stage = Stage(
-        root / STAGE_FILE,
-        {
-            "stage": "dataset",
-            "num_episodes": cfg.num_episodes,
-            "seed": cfg.dataset_seed,
-            "changes": changes or {},
-            "versions": code_versions(),
-        },
-    )
+    stage = Stage(root / STAGE_FILE, dataset_parts(cfg, changes))
     if stage.done(f"dataset {name}"):
         return {"root": str(root), "status": "reused"}, stage.key
     stage.invalidate()
+    args = (root, cfg.num_episodes, cfg.dataset_seed, cfg.workers, cfg.task_preset)
     try:
-        summary = adapters.generate_dataset(root, cfg.num_episodes, cfg.dataset_seed, cfg.workers, env_changes=changes)
+        summary = adapters.generate_dataset(*args, env_changes=changes)
     except ConfigError as err:  # made with other settings: not this study's dataset any more
         print(f"  dataset {name}: regenerated ({err})", flush=True)
         remove_generation(root)
-        summary = adapters.generate_dataset(root, cfg.num_episodes, cfg.dataset_seed, cfg.workers, env_changes=changes)
+        summary = adapters.generate_dataset(*args, env_changes=changes)
     stage.commit()
     return summary, stage.key
 

@@ -11,7 +11,7 @@ from dataclasses import asdict, dataclass
 
 from lerobot_pnp.report import figures, markdown
 from lerobot_pnp.report.layout import StudyLayout
-from lerobot_pnp.report.results import build_comparisons, build_table, evaluated_suites, held_out_rates
+from lerobot_pnp.report.results import build_comparisons, build_table, evaluated_suites, held_out_axes
 
 HEADLINE_SUITES = ("nominal", "nudge_0.03")
 
@@ -54,12 +54,9 @@ def write_report(layout: StudyLayout, study: StudyInputs) -> dict:
         "lerobot_eval_cli_check": study.cli_check,
         "figures": [f for _, f in figs],
     }
-    held_out = held_out_rates(results, methods)
-    if held_out:  # only a study that ran an axis' suites on both sides (issue 19's protocol)
-        summary["held_out_axes"] = [
-            {"axis": a.name, "method": m, "in_distribution": asdict(i), "held_out": asdict(o)}
-            for a, m, i, o in held_out
-        ]
+    held_out = held_out_axes(table, methods)
+    if held_out:  # only a study that ran every suite of an axis (the held-out protocol, issue 19)
+        summary["held_out_axes"] = [r.to_json() for r in held_out]
     layout.summary.write_text(json.dumps(summary, indent=1, default=str))
     text = markdown.render(layout, cfg, methods, results, suite_names, table, comparisons, figs, summary)
     layout.report.write_text(text)

@@ -1,0 +1,96 @@
+"""The held-out-disturbance protocol as a study (issue 19): the study's task (``task_preset``), the ``heldout``
+preset, the methods refused up front on a task they cannot train on, and the per-axis report on a tiny study."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+
+import pytest
+
+from lerobot_pnp.cache import Stage, code_versions
+from lerobot_pnp.errors import ConfigError
+from lerobot_pnp.evaluation.suites import HELD_OUT_AXES
+from lerobot_pnp.report import methods
+from lerobot_pnp.report.config import PROTOCOL_SUITES, StudyConfig, SuiteSpec
+from lerobot_pnp.report.stages import dataset_parts
+
+
+def test_a_paper_study_keeps_its_stage_keys(tmp_path):
+    """The new field leaves every key of a paper study as it was: its datasets, trainings and evaluations are
+    reused. The dataset's key before the field existed is the literal below."""
+    before = {"stage": "dataset", "num_episodes": 300, "seed": 0, "changes": {}, "versions": code_versions()}
+    paper = StudyConfig(preset="quick")
+    full = StudyConfig(preset="quick", task_preset="full", methods=["recovering"])
+    assert paper.task_preset == "paper"
+    key = Stage(tmp_path / "s.json", dataset_parts(paper)).key
+    assert key == Stage(tmp_path / "s.json", before).key
+    assert key != Stage(tmp_path / "s.json", dataset_parts(full)).key
+    (rec,) = methods.get_methods(["recovering"])
+    ctx = methods.TrainContext(tmp_path, tmp_path / "train", 1000, 2, data_keys={"keyframe": key})
+    untold = methods.train_stage(rec, ctx).key  # the context before it carried the task's budget
+    assert methods.train_stage(rec, replace(ctx, task_budget=10)).key == untold  # the paper task's
+    widened = methods.train_stage(rec, replace(ctx, task_budget=40))  # the full task's
+    assert widened.key != untold and widened.parts["overrides"]["max_episode_length"] == 41
+
+
+def test_the_heldout_preset_runs_the_protocol_on_the_full_task():
+    cfg = StudyConfig(preset="heldout")
+    assert (cfg.task_preset, cfg.num_episodes, cfg.epochs, cfg.train_seeds) == ("full", 1000, 300, [1000, 1001, 1002])
+    assert cfg.methods == ["expert", "lookup_table", "recovering", "memoryless_mlp"]
+    assert [s.name for s in cfg.suites] == ["nominal", *PROTOCOL_SUITES] and {s.n_episodes for s in cfg.suites} == {200}
+    assert set(PROTOCOL_SUITES) == {s for a in HELD_OUT_AXES for s in a.in_distribution + a.held_out}
+    assert cfg.cli_check_episodes == 100 and cfg.data_efficiency == []
+    for preset in ("demo", "quick", "full"):
+        assert StudyConfig(preset=preset).task_preset == "paper"
+
+
+@pytest.mark.parametrize(
+    ("changes", "message"),
+    [
+        ({"methods": ["clocked_lstm", "recovering"]}, "'clocked_lstm': the clocked planner trains on exactly 10-frame"),
+        ({"methods": ["recovering_dagger"]}, "'recovering_dagger': the study's DAgger round is set up for the paper"),
+        ({"data_efficiency": [10]}, "'clocked_lstm' (data_efficiency): the clocked planner"),
+        ({"task_preset": "bogus"}, "task_preset must be one of ['full', 'paper'], got 'bogus'"),
+    ],
+)
+def test_a_method_that_cannot_train_on_the_task_is_refused_up_front(changes, message, tmp_path):
+    with pytest.raises(ConfigError) as err:
+        StudyConfig(**{"output_dir": str(tmp_path / "never"), "preset": "heldout", **changes})
+    assert message in str(err.value) and "\n" not in str(err.value)
+    assert not (tmp_path / "never").exists()
+
+
+@pytest.mark.slow
+def test_a_tiny_heldout_study_reports_the_axis_table_and_cross_checks_on_the_full_task(tmp_path):
+    out = tmp_path / "study"
+    latency = ("train_latency", "heldout_latency_2", "heldout_latency_jitter")  # the latency axis, complete
+    cfg = StudyConfig(
+        output_dir=str(out),
+        preset="heldout",
+        num_episodes=20,
+        epochs=2,
+        train_seeds=[1000],
+        workers=1,
+        methods=["lookup_table", "recovering"],
+        suites=[SuiteSpec("nominal", 2), *(SuiteSpec(s, 2) for s in latency)],
+        cli_check_episodes=2,
+    )
+    from lerobot_pnp.recorded_task import read_recorded
+    from lerobot_pnp.report.run import run_study
+
+    run_study(cfg)
+    assert read_recorded(out / "dataset")["preset"] == "full"  # the task every suite applies its changes to
+    ckpt = out / "train/recovering/seed1000/checkpoints/last/pretrained_model"
+    assert read_recorded(ckpt)["preset"] == "full"  # what `lerobot-eval --policy.path` evaluates on
+    assert json.loads((ckpt / "config.json").read_text())["max_episode_length"] == 41  # the full task's episodes
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["lerobot_eval_cli_check"]["agree"] == 2
+    axes = summary["held_out_axes"]
+    assert [(a["axis"], a["method"]) for a in axes] == [("latency", "lookup_table"), ("latency", "recovering")]
+    assert all(a["held_out"]["n"] == 4 and set(a["held_out_suites"]) == set(latency[1:]) for a in axes)
+    report = (out / "report.md").read_text()
+    section = report[report.index("### latency: how old the observations are") :]
+    assert "| lookup table |" in section and "| recovering LSTM |" in section
+    assert "### timing" not in report  # an axis whose suites were not evaluated has no table
+    assert "- *Recovery generalises along latency*" in report
