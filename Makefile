@@ -1,5 +1,6 @@
 # Two entry points do all the set-up on a fresh machine (see README):
-#   make demo   the end-to-end job: generate expert data, train the LSTM planner, evaluate it closed loop
+#   make demo   the end-to-end job: generate expert data, train the LSTM planner, evaluate it closed loop; then
+#               the recovering planner on the full task, on a recovery suite and two held-out ones
 #   make test   the test suite (what CI runs)
 # Python 3.12 comes from pyenv when present (LeRobot 0.6 needs >= 3.12), else python3.12 on PATH.
 PYTHON ?= $(shell p=$$(pyenv prefix 3.12.1 2>/dev/null) && echo $$p/bin/python || command -v python3.12)
@@ -24,6 +25,7 @@ install: $(STAMP)
 
 demo: $(STAMP)
 	$(VENV)/bin/lerobot-pnp demo --config_path configs/demo.json
+	$(VENV)/bin/lerobot-pnp demo --config_path configs/demo_recovery.json
 
 test: $(STAMP)
 	$(VENV)/bin/ruff check .

@@ -45,6 +45,26 @@ def test_the_heldout_preset_runs_the_protocol_on_the_full_task():
         assert StudyConfig(preset=preset).task_preset == "paper"
 
 
+def test_make_demo_runs_the_paper_demo_then_the_recovery_headline():
+    """make demo's two configs: the paper study, then the held-out study cut to one seed and four suites (a
+    training condition and two held-out ones), both in their own folders."""
+    import json
+    from pathlib import Path
+
+    repo = Path(__file__).resolve().parents[1]
+    make = (repo / "Makefile").read_text()
+    assert "demo --config_path configs/demo.json" in make and "demo --config_path configs/demo_recovery.json" in make
+    paper, recovery = (json.loads((repo / "configs" / f).read_text()) for f in ("demo.json", "demo_recovery.json"))
+    assert paper["output_dir"] != recovery["output_dir"]
+    cfg = StudyConfig(**recovery)
+    assert cfg.task_preset == "full" and cfg.train_seeds == [1000]
+    assert cfg.methods == ["expert", "lookup_table", "recovering"]
+    names = [s.name for s in cfg.suites]
+    assert names[0] == "nominal" and {"train_drop", "heldout_far_drop", "heldout_latency_2"} == set(names[1:])
+    held_out = {s for a in HELD_OUT_AXES for s in a.held_out}
+    assert set(names[1:]) & held_out == {"heldout_far_drop", "heldout_latency_2"}
+
+
 @pytest.mark.parametrize(
     ("changes", "message"),
     [
