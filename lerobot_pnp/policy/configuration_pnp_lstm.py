@@ -130,12 +130,14 @@ class PnpLstmConfig(PreTrainedConfig):
 
     # Recovering mode (see recovering.py).
     mode: str = "clocked"
-    """The planner: ``"clocked"`` (default; ``clocked.ClockedPlanner``, the paper: steps 0-4 PICK net, 5-9 PLACE
-    net, fixed 10-frame episodes) or ``"recovering"`` (``recovering.RecoveringPlanner``: one trunk over the whole
-    variable-length episode, no clock, state carried across the switch, PICK/PLACE heads mixed by a learned subtask
-    classifier; runs until the env ends the episode). In recovering mode ``recurrent=False`` is the memoryless
-    control with an MLP trunk of about the LSTM trunk's parameter count; ``shared_network``,
-    ``carry_hidden_across_subtasks``, ``num_layers`` and the subtask structure fields are not used."""
+    """The planner: ``"clocked"`` (the paper's PICK/PLACE nets on a fixed 10-frame clock) or ``"recovering"``
+    (one trunk over the whole episode, no clock, a learned PICK/PLACE switch; runs until the env ends it).
+
+    The classes: ``clocked.ClockedPlanner`` (steps 0-4 PICK net, 5-9 PLACE net), ``recovering.RecoveringPlanner`` (state
+    carried across the switch, PICK/PLACE heads mixed by a learned subtask classifier). In recovering mode
+    ``recurrent=False`` is the memoryless control with an MLP trunk of about the LSTM trunk's parameter count;
+    ``shared_network``, ``carry_hidden_across_subtasks``, ``num_layers`` and the subtask structure fields are not
+    used."""
     max_episode_length: int = 41
     """Recovering mode: the longest episode, in frames, a training window holds (the env's ``keyframe_budget`` + 1,
     the final observed state). Windows are ``-(L-1) .. L-1`` around any frame, so each holds its whole episode;
