@@ -114,3 +114,18 @@ def test_a_tiny_heldout_study_reports_the_axis_table_and_cross_checks_on_the_ful
     assert "| lookup table |" in section and "| recovering LSTM |" in section
     assert "### timing" not in report  # an axis whose suites were not evaluated has no table
     assert "- *Recovery generalises along latency*" in report
+
+
+def test_the_recovering_planners_train_with_the_recipes_batch(tmp_path):
+    """The recovering planners train in the study as the recipe (and DAgger) does, 32 episodes per batch: the
+    study's default of 64 halves the optimiser steps, which measurably weakens them (heldout_protocol.md). The
+    batch is part of their training key; the clocked planners keep the default and their keys."""
+    from lerobot_pnp.dagger import RECOVERING_BATCH_SIZE, DaggerConfig
+
+    assert RECOVERING_BATCH_SIZE == DaggerConfig.batch_size == 32
+    ctx = methods.TrainContext(tmp_path, tmp_path / "train", 1000, 2, data_keys={"keyframe": "k"})
+    for name in ("recovering", "memoryless_mlp", "phase_told_mlp", "recovering_dagger"):
+        (m,) = methods.get_methods([name])
+        assert m.batch_size == 32 and methods.train_stage(m, ctx).parts["batch_size"] == 32
+    (clocked,) = methods.get_methods(["clocked_lstm"])
+    assert clocked.batch_size is None and "batch_size" not in methods.train_stage(clocked, ctx).parts

@@ -5,11 +5,12 @@ evaluation), ``writer`` (LeRobotDataset writing and aggregation), ``loop`` (the 
 The suites and the statistics are ``lerobot_pnp.evaluation``'s.
 """
 
-from .config import RECOVERING_RECIPE, DaggerConfig
+from .config import RECOVERING_BATCH_SIZE, RECOVERING_RECIPE, DaggerConfig
 from .loop import evaluate_checkpoint, run_dagger, write_table
 from .rollouts import evaluate, labelled_rollout
 
 __all__ = [
+    "RECOVERING_BATCH_SIZE",
     "RECOVERING_RECIPE",
     "DaggerConfig",
     "evaluate",

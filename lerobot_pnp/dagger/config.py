@@ -65,6 +65,7 @@ RECOVERING_RECIPE: dict[str, Any] = {
     "binary_gripper": True,
     "await_observation": True,
 }
+RECOVERING_BATCH_SIZE = 32  # episodes per batch of the recipe (DAgger's default, the held-out protocol's)
 
 
 def _recovering_policy() -> PnpLstmConfig:
@@ -128,7 +129,7 @@ class DaggerConfig:
     eval_seed: int = 10_000_000
     policy: PnpLstmConfig = field(default_factory=_recovering_policy)
     epochs: int = 100
-    batch_size: int = 32
+    batch_size: int = RECOVERING_BATCH_SIZE
     seed: int = 0
     progress: bool = True
 

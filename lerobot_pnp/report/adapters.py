@@ -55,7 +55,13 @@ def generate_dataset(
 
 
 def train_pnp_lstm(
-    dataset_root: Path, output_dir: Path, seed: int, epochs: int, policy_overrides: dict, n_demos: int | None = None
+    dataset_root: Path,
+    output_dir: Path,
+    seed: int,
+    epochs: int,
+    policy_overrides: dict,
+    n_demos: int | None = None,
+    batch_size: int = BATCH_SIZE,
 ) -> Path:
     """Train ``pnp_lstm`` with the fast trainer; returns the ``pretrained_model`` folder (lerobot-eval loads it).
 
@@ -73,7 +79,7 @@ def train_pnp_lstm(
         test_episodes = f"{n_demos}:{total}"
         # the same number of optimiser steps as a run on the whole training split (not the same epochs)
         n_full = len(recorded_splits(dataset_root).get("train", range(total)))
-        steps = epochs * math.ceil(n_full / BATCH_SIZE)
+        steps = epochs * math.ceil(n_full / batch_size)
 
     train_fast(
         TrainFastConfig(
@@ -87,7 +93,7 @@ def train_pnp_lstm(
             progress=False,
             test_episodes=test_episodes,
             steps=steps,
-            batch_size=BATCH_SIZE,
+            batch_size=batch_size,
         )
     )
     return checkpoint_of(output_dir)

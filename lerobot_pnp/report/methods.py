@@ -37,7 +37,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from lerobot_pnp.cache import STAGE_FILE, Stage, code_versions, remove
-from lerobot_pnp.dagger import RECOVERING_RECIPE
+from lerobot_pnp.dagger import RECOVERING_BATCH_SIZE, RECOVERING_RECIPE
 from lerobot_pnp.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.evaluation.checkpoints import load_policy
@@ -84,6 +84,9 @@ class Method:
     # the task presets (presets.PRESETS) whose demonstrations it can train on, and why only those; None = any
     tasks: tuple[str, ...] | None = None
     tasks_why: str = ""
+    # episodes per training batch when the method's recipe sets one (the recovering planners: the recipe's);
+    # None = the study's default (adapters.BATCH_SIZE), which is then not part of the training key
+    batch_size: int | None = None
 
     def env_config(self, env_cfg: BaxterPnPEnvConfig, ctx: TrainContext) -> BaxterPnPEnvConfig:
         return env_cfg if self.adapt_env is None else self.adapt_env(env_cfg, ctx)
@@ -122,13 +125,19 @@ def fit_window(overrides: dict, ctx: TrainContext) -> dict:
     return {**overrides, "max_episode_length": max(overrides["max_episode_length"], ctx.task_budget + 1)}
 
 
-def _pnp_lstm_trainer(overrides: dict) -> Callable[[TrainContext], Path]:
+def _pnp_lstm_trainer(overrides: dict, batch_size: int | None) -> Callable[[TrainContext], Path]:
     def train(ctx: TrainContext) -> Path:
         ckpt = adapters.checkpoint_of(ctx.train_dir)
         if (ckpt / "model.safetensors").is_file() and (ctx.train_dir / "test_keyframe_error.json").is_file():
             return ckpt  # finished earlier: reused
         return adapters.train_pnp_lstm(
-            ctx.dataset_root, ctx.train_dir, ctx.seed, ctx.epochs, fit_window(overrides, ctx), n_demos=ctx.n_demos
+            ctx.dataset_root,
+            ctx.train_dir,
+            ctx.seed,
+            ctx.epochs,
+            fit_window(overrides, ctx),
+            n_demos=ctx.n_demos,
+            batch_size=batch_size or adapters.BATCH_SIZE,
         )
 
     return train
@@ -146,9 +155,12 @@ CLOCKED_WHY = (
 
 
 def pnp_lstm_method(name: str, label: str, description: str, **overrides) -> Method:
+    """A ``pnp_lstm`` method; a recovering planner trains with the recipe's batch size, as DAgger does."""
     clocked = overrides.get("mode", "clocked") == "clocked"
-    return Method(name, label, description, True, _pnp_lstm_trainer(overrides), _checkpoint_eval, overrides,
-                  tasks=("paper",) if clocked else None, tasks_why=CLOCKED_WHY if clocked else "")  # fmt: skip
+    batch = None if clocked else RECOVERING_BATCH_SIZE
+    return Method(name, label, description, True, _pnp_lstm_trainer(overrides, batch), _checkpoint_eval, overrides,
+                  tasks=("paper",) if clocked else None, tasks_why=CLOCKED_WHY if clocked else "",
+                  batch_size=batch)  # fmt: skip
 
 
 # The recovering planner's recipe; its training windows hold the longest episode of the study (a recovery
@@ -183,7 +195,7 @@ def _dagger_train(ctx: TrainContext) -> Path:
             eval_episodes=0,  # the study evaluates it like every other method
             policy=PnpLstmConfig(**RECOVERING),
             epochs=ctx.epochs,
-            batch_size=adapters.BATCH_SIZE,
+            batch_size=RECOVERING_BATCH_SIZE,
             seed=ctx.seed,
             progress=False,
         )
@@ -255,11 +267,12 @@ METHODS: dict[str, Method] = {
             "the matched MLP with the phase one-hot inferred from the simulator appended to its input (privileged; "
             "the same demonstrations recorded with `observe_phase`; trained on current observations only)",
             True,
-            _pnp_lstm_trainer(PHASE_TOLD_MLP),
+            _pnp_lstm_trainer(PHASE_TOLD_MLP, RECOVERING_BATCH_SIZE),
             _checkpoint_eval,
             PHASE_TOLD_MLP,
             data="phase",
             adapt_env=_observe_phase,
+            batch_size=RECOVERING_BATCH_SIZE,
         ),
         pnp_lstm_method(
             "recovering",
@@ -279,6 +292,7 @@ METHODS: dict[str, Method] = {
             _checkpoint_eval,
             RECOVERING,
             continues="recovering",
+            batch_size=RECOVERING_BATCH_SIZE,
             tasks=("paper",),
             tasks_why="the study's DAgger round is set up for the paper task (its rollouts run at a "
             f"{RECOVERY_BUDGET}-keyframe budget, below the full task's); DAgger on full: `lerobot-pnp dagger`",
@@ -318,6 +332,7 @@ def train_stage(method: Method, ctx: TrainContext) -> Stage:
         if method.continues
         else None,
         "versions": code_versions(),
+        **({"batch_size": method.batch_size} if method.batch_size is not None else {}),
     }
     return Stage(ctx.train_dir / STAGE_FILE, parts)
 
