@@ -10,7 +10,7 @@ import math
 
 from lerobot_pnp.dataset.splits import train_count
 from lerobot_pnp.evaluation.records import summarize
-from lerobot_pnp.evaluation.suites import SUITES
+from lerobot_pnp.evaluation.suites import RECOVERY_BUDGET, SUITES
 from lerobot_pnp.report.claims import render_claims
 from lerobot_pnp.report.results import ALPHA, TARGET, Pooled, held_out_axes, main_records
 
@@ -30,7 +30,7 @@ def render(layout, cfg, methods, results, suite_names, table, comparisons, figur
     lines += ["## Claims", "", *render_claims(table, comparisons), ""]
     lines += ["## Where the methods differ beyond their intervals", "", *_separations(table, methods), ""]
     lines += _held_out_section(table, methods)
-    lines += _notes(methods)
+    lines += _notes(methods, suite_names, getattr(cfg, "task_preset", "paper"))
     return "\n".join(lines)
 
 
@@ -173,15 +173,41 @@ def _held_out_section(table, methods) -> list[str]:
     return lines
 
 
-def _notes(methods) -> list[str]:
+def _notes(methods, suite_names, task: str) -> list[str]:
+    """The limits that apply to this study's suites and task (a note about a suite it did not run is noise)."""
+    names = set(suite_names)
+    ring = {"edge_strip", "outside_ring"} & names
+    recovery = {n for n in names if n.split("_")[0] in ("grasp", "drop", "displace")}
     return [
         "## Notes and limits",
         "",
-        "- The inside strip and the outside ring are sampled exactly uniformly: one box minus an excluded inner box "
-        "(`object_exclude_low/high`, rejection sampling in the env).",
+        *(
+            [
+                "- The inside strip and the outside ring are sampled exactly uniformly: one box minus an excluded inner "
+                "box (`object_exclude_low/high`, rejection sampling in the env)."
+            ]
+            if ring
+            else []
+        ),
         "- The expert is privileged (it reads the simulator) and runs its own loop on the same seeds.",
-        "- Perturbations that need room to recover (missed grasp, drop, displacement) get a 20-keyframe budget for "
-        "every method; the clocked LSTM stops acting after its 10-step clock (it holds its last action).",
+        *(
+            [
+                f"- Perturbations that need room to recover (missed grasp, drop, displacement) get a {RECOVERY_BUDGET}-"
+                "keyframe budget for every method; the clocked LSTM stops acting after its 10-step clock (it holds its "
+                "last action)."
+            ]
+            if recovery and task == "paper"
+            else []
+        ),
+        *(
+            [
+                "- Each protocol suite keeps the recorded task's perturbations and gives every method 10 keyframes per "
+                "event plus two spare attempts (`suites._kind`); `train_nudge` and `train_mixture` are the training task "
+                "itself, so they repeat `nominal` on the same seeds."
+            ]
+            if task != "paper"
+            else []
+        ),
         *_dense_notes(methods),
         "",
     ]
