@@ -129,3 +129,12 @@ def test_the_recovering_planners_train_with_the_recipes_batch(tmp_path):
         assert m.batch_size == 32 and methods.train_stage(m, ctx).parts["batch_size"] == 32
     (clocked,) = methods.get_methods(["clocked_lstm"])
     assert clocked.batch_size is None and "batch_size" not in methods.train_stage(clocked, ctx).parts
+
+
+def test_the_report_notes_only_what_applies_to_the_study():
+    from lerobot_pnp.report.markdown import _notes
+
+    paper = "\n".join(_notes([], ["nominal", "edge_strip", "grasp_miss"], "paper"))
+    assert "inside strip" in paper and "20-keyframe budget" in paper and "spare attempts" not in paper
+    full = "\n".join(_notes([], ["nominal", "train_drop", "heldout_far_drop"], "full"))
+    assert "inside strip" not in full and "20-keyframe" not in full and "spare attempts" in full
