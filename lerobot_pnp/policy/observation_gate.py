@@ -12,8 +12,8 @@ With ``in_flight = k`` (a planner trained on observations up to ``k`` steps late
 is ``k`` moves behind, as in training. A move that never shows (too small to see) is given up on after
 ``max_steps`` steps; a command that moves nothing (a hold keyframe) is not counted.
 
-"Changed" ignores an observation that goes back to one of the states the last decisions were made on: when
-the latency grows within an episode the observation jumps back in time, to a pose the arm has already left.
+"Changed" ignores an observation that goes back to one of the last ``past`` observed states: when the latency
+grows within an episode the observation jumps back in time, to a pose the arm has already left.
 Thresholds are Euclidean norms in normalised units (the pre-processor's mean/std), which average the per-joint
 observation noise. A command counts as a move only when it changes by clearly more than an observation must
 change to count as its arrival (a normalised joint target and a normalised joint angle have about the same
