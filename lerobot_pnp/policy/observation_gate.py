@@ -30,25 +30,20 @@ from dataclasses import dataclass
 import torch
 from torch import Tensor
 
-# How many of the last observed states count as "the past" for a latency that grows.
-_PAST_STATES = 2
-
 
 @dataclass
 class ObservationGate:
-    """Per-batch gate state; ``decide`` says which envs step the planner now."""
+    """One episode's gate for a batch (a fresh one per episode); ``decide`` says which envs step the planner now.
+    Its settings are the policy config's ``await_*`` fields."""
 
     state_dim: int  # the leading input dims that are the robot state (joints + gripper)
     state_tol: float
     action_tol: float
     max_steps: int
-    in_flight: int = 0  # moves that may be unobserved when the planner plans the next one
-    past: int = _PAST_STATES
+    in_flight: int  # moves that may be unobserved when the planner plans the next one
+    past: int  # how many of the last observed states count as "the past" for a latency that grows
 
     def __post_init__(self) -> None:
-        self.reset()
-
-    def reset(self) -> None:
         self._seen: Tensor | None = None  # (B, P, S) the last distinct observed robot states, newest first
         self._unseen: Tensor | None = None  # (B,) commanded moves not observed yet
         self._waited: Tensor | None = None  # (B,) steps held since the last decision
