@@ -5,7 +5,8 @@ protocol's suites (stock eval_policy in process, the study's evaluator); numbers
         --env.preset full
     python scripts/heldout_protocol_eval.py train RUN 300 [seed=N] [field=value ...]  # epochs; PnpLstmConfig overrides
     python scripts/heldout_protocol_eval.py eval RUN 100 [suite,suite,...|all] [field=value ...]
-        # -> outputs/RUN/eval.json, or eval_<field=value...>.json with inference-time policy fields set
+        # -> outputs/RUN/eval.json, or eval_<field=value...>.json with inference-time policy fields set;
+        # env.<field>=value sets a task field on top of the suite (e.g. env.keyframe_budget=60, a diagnosis)
 
 RUN names the output folder outputs/RUN (the shipped recipe: no overrides); max_episode_length 41 as
 configs/dagger.json. Overrides are JSON values, e.g. latency_augment_stretch=true latency_augment_jitter=0.5.
@@ -68,13 +69,14 @@ if stage == "train":
     )
 else:
     ckpt = Path(json.loads((out / "train_done.json").read_text())["checkpoint"])
-    base = BaxterPnPEnvConfig(task_source=str(root))
     n = int(sys.argv[3])
     names = ["nominal"] + list(dict.fromkeys(x for a in HELD_OUT_AXES for x in (*a.in_distribution, *a.held_out)))
     if len(sys.argv) > 4 and sys.argv[4] != "all":
         names = sys.argv[4].split(",")
     # Inference-time policy fields (e.g. await_observation=true) set on the loaded checkpoint's config.
     overrides = {k: json.loads(v) for k, v in (a.split("=", 1) for a in sys.argv[5:])}
+    env_changes = {k.removeprefix("env."): v for k, v in overrides.items() if k.startswith("env.")}
+    base = BaxterPnPEnvConfig(task_source=str(root), **env_changes)
     result_file = out / (
         "eval.json" if not overrides else "eval_" + "_".join(f"{k}={v}" for k, v in overrides.items()) + ".json"
     )
@@ -86,17 +88,31 @@ else:
         lp = load_policy(ckpt, env_cfg=cfg)
         policy, pre, post = lp.policy, lp.preprocessor, lp.postprocessor
         for k, v in overrides.items():
-            setattr(policy.config, k, v)
+            if not k.startswith("env."):
+                setattr(policy.config, k, v)
         policy.reset()
         t = time.time()
         recs = eval_lerobot_policy(policy, pre, post, cfg, n, 10_000_000, 10)
         k = sum(r.success for r in recs)
         lo, hi = wilson_interval(k, n)
-        causes = {}
-        for r in recs:
+        causes, by_events, at_steps = {}, {}, {}
+        for r in recs:  # failures by cause, by the disturbances the episode drew, by the step it ended at
+            events = "+".join(sorted(set((r.perturbations or "none").split(","))))
+            ok, fails = by_events.get(events, [0, 0])
+            by_events[events] = [ok + r.success, fails + (not r.success)]
             if not r.success:
                 causes[r.failure_cause] = causes.get(r.failure_cause, 0) + 1
-        results[name] = {"successes": k, "n": n, "wilson95": [lo, hi], "failures": causes, "wall_s": time.time() - t}
+                at_steps[str(r.steps)] = at_steps.get(str(r.steps), 0) + 1
+        results[name] = {
+            "successes": k,
+            "n": n,
+            "wilson95": [lo, hi],
+            "failures": causes,
+            "failures_at_step": at_steps,
+            "by_disturbances": {e: {"successes": v[0], "failures": v[1]} for e, v in by_events.items()},
+            "mean_steps_success": sum(r.steps for r in recs if r.success) / max(k, 1),
+            "wall_s": time.time() - t,
+        }
         print(
             f"{name:<26} {k}/{n} = {100 * k / n:5.1f} % [{100 * lo:5.1f}, {100 * hi:5.1f}] {causes} {time.time() - t:.0f}s",
             flush=True,
