@@ -24,7 +24,7 @@ def render(layout, cfg, methods, results, suite_names, table, comparisons, figur
         "# lerobot_pnp: reproduction report",
         "",
         *_left_out_section(left, methods, summary),
-        *_header(layout, cfg, methods, summary),
+        *_header(layout, cfg, methods, summary, left),
         *_success_table(methods, suite_names, table, coverage.marks(left), aliases),
         *_alias_section(aliases),
         *_comparison_table(comparisons),
@@ -42,7 +42,7 @@ def render(layout, cfg, methods, results, suite_names, table, comparisons, figur
     return "\n".join(lines)
 
 
-def _header(layout, cfg, methods, summary) -> list[str]:
+def _header(layout, cfg, methods, summary, left=()) -> list[str]:
     mach, t = summary["machine"], summary["timings_s"]
     total = sum(v for k, v in t.items() if not k.startswith("run/"))
     return [
@@ -72,7 +72,7 @@ def _header(layout, cfg, methods, summary) -> list[str]:
         "",
         "## Methods",
         "",
-        *_method_lines(methods, t, _parameter_counts(layout, methods, cfg)),
+        *_method_lines(methods, t, _parameter_counts(layout, methods, cfg), left),
         "",
     ]
 
@@ -114,7 +114,6 @@ def _left_out_section(left, methods, summary) -> list[str]:
         "this report states, so no table, figure or claim below uses them (their cells read **stale** or "
         "**missing**; a figure's caption names what it does not draw). Their files are kept as they are; run the "
         "same command without `--report_only` to bring them up to date.",
-        "",
         *(f"- Dataset {d}: every training and evaluation keyed on it is left out." for d in stale_data),
         *([f"- The `lerobot-eval` cross-check: {cli}."] if cli else []),
     ]
@@ -290,8 +289,9 @@ def _parameter_counts(layout, methods, cfg) -> dict[str, int]:
     return counts
 
 
-def _method_lines(methods, timings: dict, params: dict[str, int]) -> list[str]:
-    """One line per method: what it is and, for a learned one, its size and training wall time per seed."""
+def _method_lines(methods, timings: dict, params: dict[str, int], left=()) -> list[str]:
+    """One line per method: what it is and, for a learned one, its size and training wall time per seed (of
+    the training on disk: said so when that is not the one the config states)."""
     out = []
     for m in methods:
         times = [v for k, v in timings.items() if k.startswith(f"train/{m.name}/") and k.split("/")[-1].isdigit()]
@@ -299,6 +299,7 @@ def _method_lines(methods, timings: dict, params: dict[str, int]) -> list[str]:
         if m.name in params:
             cost = f" {params[m.name]:,} parameters.{cost}"
         only = f" Evaluated on {', '.join(m.suites)} only (cost)." if m.suites is not None else ""
+        cost += coverage.training_note(left, m.name, m.label)
         out.append(f"- **{m.label}** (`{m.name}`): {m.description}.{only}{cost}")
     return out
 

@@ -223,11 +223,12 @@ def run_job(job: Job, cfg: StudyConfig, layout: StudyLayout, roots: dict[str, Pa
         stages = [eval_stage(layout.eval_record(method.name, job.tag, a), method, ctx, n_episodes, env_parts, cfg)
                   for a in names]  # fmt: skip
         stage = next((st for st in stages if st.changes() == []), stages[0])  # any alias' finished record
-        if stage.done(f"evaluation {method.name} {job.tag} {suite.name}"):
+        if stage.done("" if cfg.report_only else f"evaluation {method.name} {job.tag} {suite.name}"):
             data = stage.stored()  # finished earlier, with these settings and this trained artefact
         elif cfg.report_only:
             train = train_stage(method, ctx) if method.learned else None
             left += [coverage.left_out(method.name, job.tag, a, stage, train) for a in names]
+            print(f"  evaluation {method.name} {job.tag} {', '.join(names)}: left out ({left[-1].why()})", flush=True)
             continue
         else:
             if not trained:
