@@ -105,3 +105,12 @@ def test_report_only_names_the_stale_evaluations_keeps_their_files_and_aliases_a
     assert row.endswith("| **stale** (seed 1000) |"), row
     assert "not drawn, left out of this report: clocked LSTM (paper) on `nominal`" in report  # the heatmap's caption
     assert "training on disk, not the one this report's config states: train.epochs" in report  # the loss curves'
+
+    dataset = _files(out / "dataset")
+    assert _study(out, "--epochs", "1", "--num_episodes", "12", "--report_only", "true") == 0  # another dataset
+    assert _files(out / "dataset") == dataset  # not regenerated: report_only makes nothing
+    summary = json.loads((out / "summary.json").read_text())
+    assert "stale (num_episodes): not generated (report_only)" in summary["generation"]["status"]
+    left = {(x["method"], x["suite"]): x["changed"] for x in summary["left_out"]}
+    assert left[("lookup_table", "nominal")] == ["data"] and left[("clocked_lstm", "nominal")] == ["data", "train.data"]
+    assert "- Dataset `" in (out / "report.md").read_text()
