@@ -37,6 +37,9 @@ def small_args(name: str, out: Path, dataset: Path) -> list[str] | None:
             "--quick", "--dataset_root", str(dataset), "--workdir", str(out / "bench_policy_work"),
             "--out", str(out / "bench_policy.json"),
         ],
+        "bench_training": [
+            "--epochs", "2", "--workdir", str(out / "bench_training"), "--out", str(out / "bench_training.json"),
+        ],
         "bench_planner": [
             "--config", "configs/dagger_small.json", "--sections", "dagger,latency",
             "--output_dir", str(out / "bench_planner"),

@@ -130,14 +130,23 @@ class Stage:
     """A cached stage's record: its key and the key's parts, in ``record`` (a JSON file).
 
     ``compare`` maps a part's name to how an old value is compared with the new one (default: equal), for
-    parts with a compatibility rule (e.g. env fields added later that had their paper value then).
+    parts with a compatibility rule (e.g. env fields added later that had their paper value then); ``dropped``
+    names parts a key once had and no longer has (what they said is determined by the other parts), ignored
+    in an old record so that it stays valid.
     """
 
-    def __init__(self, record: Path, parts: dict, compare: dict[str, Callable[[Any, Any], bool]] | None = None):
+    def __init__(
+        self,
+        record: Path,
+        parts: dict,
+        compare: dict[str, Callable[[Any, Any], bool]] | None = None,
+        dropped: tuple[str, ...] = (),
+    ):
         self.record = Path(record)
         self.parts = canonical(parts)
         self.key = key_of(self.parts)
         self.compare = compare or {}
+        self.dropped = dropped
 
     def stored(self) -> dict | None:
         """The record on disk, or None when absent or unreadable (an unreadable record is not trusted)."""
@@ -152,7 +161,7 @@ class Stage:
         stored = self.stored()
         if stored is None:
             return None
-        old = stored["parts"]
+        old = {k: v for k, v in stored["parts"].items() if k not in self.dropped}
         names = sorted(set(old) | set(self.parts))
         return [n for n in names if n not in old or n not in self.parts or not self._same(n, old[n])]
 

@@ -1,6 +1,7 @@
 """The report's figures, drawn from the evaluation records (``plots`` draws; this picks what to draw).
 
-Each function returns the ``(caption, file name)`` of the figures it wrote under ``layout.figures``.
+Each function returns the ``(caption, file name)`` of the figures it wrote under ``layout.figures`` (with the
+suites each reads, for ``make_figures`` to name what was left out).
 """
 
 from __future__ import annotations
@@ -8,7 +9,7 @@ from __future__ import annotations
 from lerobot_pnp import robot
 from lerobot_pnp.evaluation.stats import Rate
 from lerobot_pnp.evaluation.suites import SUITES
-from lerobot_pnp.report import adapters, plots
+from lerobot_pnp.report import adapters, coverage, plots
 from lerobot_pnp.report.methods import DATA_EFFICIENCY_METHODS
 from lerobot_pnp.report.results import main_records, pooled
 
@@ -17,16 +18,23 @@ HEATMAP_SUITES = ("nominal", "nudge_0.03")
 FAILURE_SUITES = ("nudge_0.03", "grasp_miss")
 
 
-def make_figures(layout, cfg, methods, results, suite_names, base_env, prov: str) -> list[tuple[str, str]]:
-    """Every figure the records support, in the report's order."""
-    return [
-        *_loss_figure(layout, cfg, prov),
+def make_figures(layout, cfg, methods, results, suite_names, base_env, prov: str, left=()) -> list[tuple[str, str]]:
+    """Every figure the records support, in the report's order. A figure some of whose records were left out
+    of the report (``coverage.LeftOut``) is drawn from the rest, its caption naming what it does not draw: what
+    was measured still shows, and the figure never passes for the whole comparison."""
+    labels = {m.name: m.label for m in methods}
+    drawn = [  # (caption, file, the suites it reads, whether it reads the data-efficiency runs)
+        *(
+            (c + coverage.training_note(left, "clocked_lstm", labels.get("clocked_lstm", "clocked LSTM")), n, (), False)
+            for c, n in _loss_figure(layout, cfg, prov)
+        ),
         *_heatmaps(layout, cfg, methods, results, suite_names, base_env, prov),
         *_robustness(layout, methods, results, suite_names, prov),
-        *_data_efficiency(layout, cfg, methods, results, prov),
+        *((c, n, ("nominal",), True) for c, n in _data_efficiency(layout, cfg, methods, results, prov)),
         *_recovery(layout, methods, results, suite_names, prov),
         *_failures(layout, methods, results, suite_names, prov),
     ]
+    return [(c + coverage.figure_note(left, suites, labels, efficiency), n) for c, n, suites, efficiency in drawn]
 
 
 def _loss_figure(layout, cfg, prov):
@@ -47,7 +55,7 @@ def _heatmaps(layout, cfg, methods, results, suite_names, base_env, prov):
             if suite in results.get(m.name, {}).get(tag, {}):
                 panels[m.label if tag == "-" else f"{m.label} s{tag}"] = results[m.name][tag][suite]
         name = f"heatmap_{suite}.png"
-        out.append((f"Success over the object box, suite `{suite}` (first training seed)", name))
+        out.append((f"Success over the object box, suite `{suite}` (first training seed)", name, (suite,), False))
         plots.success_heatmap(
             panels, base_env.object_low, base_env.object_high, layout.figure(name), prov, title=f"suite {suite}"
         )
@@ -65,7 +73,7 @@ def _robustness(layout, methods, results, suite_names, prov):
                 pts.append((0.0, pooled(results.get(m.name, {}), "nominal")))
             curves[m.label] = [(x, p.rate) for x, p in pts if p]
         name = f"robustness_{group}.png"
-        out.append((f"Robustness: {group} sweep (x = 0 is the nominal suite)", name))
+        out.append((f"Robustness: {group} sweep (x = 0 is the nominal suite)", name, (*members, "nominal"), False))
         plots.rate_curves(curves, layout.figure(name), prov, SUITES[members[0]].x_label, f"success vs {group}")
     return out
 
@@ -94,7 +102,8 @@ def _recovery(layout, methods, results, suite_names, prov):
     plots.rate_bars(
         rates, layout.figure("recovery.png"), prov, "nominal vs disturbances that need a correction or a retry"
     )
-    return [("Success on the suites that need a correction or a retry (all training seeds)", "recovery.png")]
+    caption = "Success on the suites that need a correction or a retry (all training seeds)"
+    return [(caption, "recovery.png", tuple(recovery), False)]
 
 
 def _failures(layout, methods, results, suite_names, prov):
@@ -112,6 +121,7 @@ def _failures(layout, methods, results, suite_names, prov):
             if records:  # a method not evaluated on the suite is left out (not "no failures")
                 failures[m.label] = per
         name = f"failures_{fail_suite}.png"
-        out.append((f"Failures by furthest phase and cause, suite `{fail_suite}` (all training seeds)", name))
+        caption = f"Failures by furthest phase and cause, suite `{fail_suite}` (all training seeds)"
+        out.append((caption, name, (fail_suite,), False))
         plots.failures_by_phase(failures, layout.figure(name), prov, f"failures, suite {fail_suite}")
     return out

@@ -11,15 +11,22 @@ import math
 from lerobot_pnp.dataset.splits import train_count
 from lerobot_pnp.evaluation.records import summarize
 from lerobot_pnp.evaluation.suites import RECOVERY_BUDGET, SUITES
+from lerobot_pnp.report import coverage
 from lerobot_pnp.report.claims import render_claims
 from lerobot_pnp.report.results import ALPHA, TARGET, Pooled, held_out_axes, main_records
 
 
-def render(layout, cfg, methods, results, suite_names, table, comparisons, figures, summary) -> str:
-    """The whole report, section by section."""
+def render(layout, cfg, methods, results, suite_names, table, comparisons, figures, summary, covered=((), {})) -> str:
+    """The whole report, section by section; ``covered``: what it left out and the suite aliases (``coverage``),
+    the first stated at the top."""
+    left, aliases = covered
     lines = [
-        *_header(layout, cfg, methods, summary),
-        *_success_table(methods, suite_names, table),
+        "# lerobot_pnp: reproduction report",
+        "",
+        *_left_out_section(left, methods, summary),
+        *_header(layout, cfg, methods, summary, left),
+        *_success_table(methods, suite_names, table, coverage.marks(left), aliases),
+        *_alias_section(aliases),
         *_comparison_table(comparisons),
         *_failure_table(methods, results, suite_names),
         "## Figures",
@@ -27,19 +34,18 @@ def render(layout, cfg, methods, results, suite_names, table, comparisons, figur
     ]
     for caption, name in figures:
         lines += [f"### {caption}", "", f"![{caption}](figures/{name})", ""]
-    lines += ["## Claims", "", *render_claims(table, comparisons), ""]
+    stated = ["A claim that reads an evaluation left out of this report is not stated.", ""] if left else []
+    lines += ["## Claims", "", *stated, *render_claims(table, comparisons), ""]
     lines += ["## Where the methods differ beyond their intervals", "", *_separations(table, methods), ""]
     lines += _held_out_section(table, methods)
     lines += _notes(methods, suite_names, getattr(cfg, "task_preset", "paper"))
     return "\n".join(lines)
 
 
-def _header(layout, cfg, methods, summary) -> list[str]:
+def _header(layout, cfg, methods, summary, left=()) -> list[str]:
     mach, t = summary["machine"], summary["timings_s"]
     total = sum(v for k, v in t.items() if not k.startswith("run/"))
     return [
-        "# lerobot_pnp: reproduction report",
-        "",
         f"Produced by `{summary['command']}` (preset `{cfg.preset}`; full config in `{layout.config.name}`). "
         f"Task: `{cfg.task_preset}` (the demonstrations' task, recorded with them; every suite changes it).",
         f"Machine: {mach['cpu']}, {mach['cores_available']} cores available; Python {mach['python']}, "
@@ -66,12 +72,13 @@ def _header(layout, cfg, methods, summary) -> list[str]:
         "",
         "## Methods",
         "",
-        *_method_lines(methods, t, _parameter_counts(layout, methods, cfg)),
+        *_method_lines(methods, t, _parameter_counts(layout, methods, cfg), left),
         "",
     ]
 
 
-def _success_table(methods, suite_names, table) -> list[str]:
+def _success_table(methods, suite_names, table, marks: dict, aliases: dict) -> list[str]:
+    """Pooled success per suite and method; a cell left out of the report reads "stale" or "missing"."""
     lines = [
         "## Success by suite",
         "",
@@ -79,12 +86,57 @@ def _success_table(methods, suite_names, table) -> list[str]:
         "|---|---|" + "---|" * len(methods),
     ]
     for s in suite_names:
+        same = f" (the same conditions as `{aliases[s]}` on this task: its evaluation)" if s in aliases else ""
         lines.append(
-            f"| `{s}` | {SUITES[s].description} | "
-            + " | ".join(_cell(table.get(s, {}).get(m.name)) for m in methods)
+            f"| `{s}` | {SUITES[s].description}{same} | "
+            + " | ".join(marks.get((s, m.name)) or _cell(table.get(s, {}).get(m.name)) for m in methods)
             + " |"
         )
     return lines
+
+
+def _left_out_section(left, methods, summary) -> list[str]:
+    """Every evaluation (and stage) the report does not show, and why: at the top, so that it is read."""
+    datasets = {k: v for k, v in summary["generation"].items() if isinstance(v, dict)} | {
+        "keyframe": summary["generation"]
+    }
+    stale_data = [
+        f"`{v['root']}` {v['status']}" for v in datasets.values() if "report_only" in str(v.get("status", ""))
+    ]
+    cli = (summary.get("lerobot_eval_cli_check") or {}).get("left_out")
+    if not (left or stale_data or cli):
+        return []
+    labels = {m.name: m.label for m in methods}
+    lines = [
+        "## Left out of this report",
+        "",
+        "Written with `--report_only` from the finished evaluations only: the stages below do not match the config "
+        "this report states, so no table, figure or claim below uses them (their cells read **stale** or "
+        "**missing**; a figure's caption names what it does not draw). Their files are kept as they are; run the "
+        "same command without `--report_only` to bring them up to date.",
+        *(f"- Dataset {d}: every training and evaluation keyed on it is left out." for d in stale_data),
+        *([f"- The `lerobot-eval` cross-check: {cli}."] if cli else []),
+    ]
+    if left:
+        lines += ["", "| method | training seed | suite | why |", "|---|---|---|---|"]
+        lines += [f"| {labels.get(x.method, x.method)} | {x.tag} | `{x.suite}` | {x.why()} |" for x in left]
+    return [*lines, ""]
+
+
+def _alias_section(aliases: dict) -> list[str]:
+    """Which suites repeat another's conditions on this task (each such set is one evaluation)."""
+    if not aliases:
+        return []
+    groups: dict[str, list[str]] = {}
+    for alias, of in aliases.items():
+        groups.setdefault(of, []).append(alias)
+    return [
+        "",
+        "Suites of the same conditions on this task (their env configs built on it are equal) are one evaluation "
+        "(the same seeds, the same episodes), shown under each name: "
+        + "; ".join(f"{', '.join(f'`{a}`' for a in names)} = `{of}`" for of, names in groups.items())
+        + ".",
+    ]
 
 
 def _comparison_table(comparisons) -> list[str]:
@@ -203,7 +255,7 @@ def _notes(methods, suite_names, task: str) -> list[str]:
             [
                 "- Each protocol suite keeps the recorded task's perturbations and gives every method 10 keyframes per "
                 "event plus two spare attempts (`suites._kind`); `train_nudge` and `train_mixture` are the training task "
-                "itself, so they repeat `nominal` on the same seeds."
+                "itself: one evaluation with `nominal` (see under the success table)."
             ]
             if task != "paper"
             else []
@@ -237,8 +289,9 @@ def _parameter_counts(layout, methods, cfg) -> dict[str, int]:
     return counts
 
 
-def _method_lines(methods, timings: dict, params: dict[str, int]) -> list[str]:
-    """One line per method: what it is and, for a learned one, its size and training wall time per seed."""
+def _method_lines(methods, timings: dict, params: dict[str, int], left=()) -> list[str]:
+    """One line per method: what it is and, for a learned one, its size and training wall time per seed (of
+    the training on disk: said so when that is not the one the config states)."""
     out = []
     for m in methods:
         times = [v for k, v in timings.items() if k.startswith(f"train/{m.name}/") and k.split("/")[-1].isdigit()]
@@ -246,6 +299,7 @@ def _method_lines(methods, timings: dict, params: dict[str, int]) -> list[str]:
         if m.name in params:
             cost = f" {params[m.name]:,} parameters.{cost}"
         only = f" Evaluated on {', '.join(m.suites)} only (cost)." if m.suites is not None else ""
+        cost += coverage.training_note(left, m.name, m.label)
         out.append(f"- **{m.label}** (`{m.name}`): {m.description}.{only}{cost}")
     return out
 
@@ -265,6 +319,8 @@ def _dense_notes(methods) -> list[str]:
 def _cli_lines(c: dict | None) -> list[str]:
     if not c:
         return []
+    if "left_out" in c:
+        return [f"Cross-check with the real `lerobot-eval` CLI: left out ({c['left_out']}; see the top)."]
     return [
         f"Cross-check with the real `lerobot-eval` CLI (subprocess, `{c['eval_info']}`): {c['method']} seed "
         f"{c['seed']} on the first {c['n']} nominal seeds: {c['cli_pc_success']:.1f}% success; the in-process "

@@ -76,9 +76,9 @@ def compare(results, method: str, suite: str):
     return comps or None
 
 
-def evaluated_suites(results) -> list[str]:
-    """The suites some method was evaluated on, in catalogue order."""
-    return [s for s in SUITES if any(s in runs for r in results.values() for runs in r.values())]
+def evaluated_suites(results, also=()) -> list[str]:
+    """The suites some method was evaluated on (and those in ``also``), in catalogue order."""
+    return [s for s in SUITES if s in also or any(s in runs for r in results.values() for runs in r.values())]
 
 
 def build_table(results, methods, suite_names) -> dict[str, dict[str, Pooled]]:

@@ -28,7 +28,7 @@ from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.evaluation.records import records_from_json, records_to_json
 from lerobot_pnp.evaluation.suites import get_suites
 from lerobot_pnp.recorded_task import read_recorded
-from lerobot_pnp.report import adapters
+from lerobot_pnp.report import adapters, coverage
 from lerobot_pnp.report.adapters import check_same_demonstrations
 from lerobot_pnp.report.config import StudyConfig, SuiteSpec
 from lerobot_pnp.report.layout import StudyLayout
@@ -100,7 +100,8 @@ def _run_locked(cfg: StudyConfig, layout: StudyLayout, manifest: Manifest) -> di
         roots[data] = layout.dataset(data)
         manifest.claim(roots[data].name)
         generation[data], keys[data] = dataset_stage(out, roots[data].name, cfg, changes)
-        check_same_demonstrations(root, roots[data])
+        if not cfg.report_only or generation[data].get("status") == "reused":
+            check_same_demonstrations(root, roots[data])
         timings[f"dataset_{data}"] = time.perf_counter() - t
 
     _stage(f"2-3/4 train and evaluate: {', '.join(m.name for m in methods)} (learned: seeds {cfg.train_seeds})")
@@ -114,11 +115,14 @@ def _run_locked(cfg: StudyConfig, layout: StudyLayout, manifest: Manifest) -> di
     )
     finished = dict(_run_jobs(jobs, (cfg, layout, roots, base_env, keys), processes))
     results: dict[str, dict[str, dict[str, list]]] = {}  # method -> tag -> suite -> records, in job order
+    left: list[coverage.LeftOut] = []  # what report_only could not show (coverage)
     for job in jobs:
-        records, job_timings = finished[job]
+        records, job_timings, job_left = finished[job]
         timings.update(job_timings)
+        left += job_left
         for suite, recs in records.items():
             results.setdefault(job.method, {}).setdefault(job.tag, {})[suite] = recs
+    results, left = coverage.withhold(results, left)
 
     cli_check = _cli_check(cfg, methods, results, (layout, roots, keys), timings)
     timings["run/wall_clock"] = time.perf_counter() - started  # this invocation, all processes together
@@ -126,7 +130,9 @@ def _run_locked(cfg: StudyConfig, layout: StudyLayout, manifest: Manifest) -> di
 
     _stage("4/4 report")
     manifest.claim(*layout.report_names())
-    study = StudyInputs(cfg, methods, results, base_env, generation, timings, machine(), command(), cli_check)
+    aliases = coverage.suite_aliases(_suites_for(cfg, None), base_env)
+    study = StudyInputs(cfg, methods, results, base_env, generation, timings, machine(), command(), cli_check,
+                        left, {a: of for a, of in aliases.items() if a != of})  # fmt: skip
     summary = write_report(layout, study)
     manifest.claim(*({p.name for p in out.iterdir()} - before - {MANIFEST_FILE}))  # whatever else it wrote
     print(f"\nreport: {layout.report}")
@@ -200,20 +206,29 @@ def _context(job: Job, method, cfg: StudyConfig, layout: StudyLayout, roots: dic
 
 def run_job(job: Job, cfg: StudyConfig, layout: StudyLayout, roots: dict[str, Path], base_env, keys: dict[str, str]):
     """Train ``job`` if one of its evaluations is missing or stale, run those evaluations; return the records
-    per suite and the stage timings. Everything it finishes is on disk, so an interrupted study resumes."""
+    per suite, the stage timings and what ``report_only`` left out (``coverage.LeftOut``). Suites of the same
+    effective conditions are evaluated once (``coverage.suite_aliases``). Everything it finishes is on disk,
+    so an interrupted study resumes."""
     import torch
 
     torch.set_num_threads(1)
     (method,) = get_methods([job.method])
     ctx = _context(job, method, cfg, layout, roots, keys)
-    records, timings, artifact, trained = {}, {}, None, False
-    for suite, n_episodes in _suites_for(cfg, job.n_demos, method):
-        path = layout.eval_record(method.name, job.tag, suite.name)
+    records, timings, left, artifact, trained = {}, {}, [], None, False
+    pairs = _suites_for(cfg, job.n_demos, method)
+    aliases = coverage.suite_aliases(pairs, base_env)
+    for suite, n_episodes in [(s, n) for s, n in pairs if aliases[s.name] == s.name]:
         env_parts = [method.env_config(c, ctx).to_dict() for c in suite.env_configs(base_env)]
-        stage = eval_stage(path, method, ctx, suite, n_episodes, env_parts, cfg)
-        if stage.done(f"evaluation {method.name} {job.tag} {suite.name}"):
+        names = [a for a, of in aliases.items() if of == suite.name]  # this suite and its aliases
+        stages = [eval_stage(layout.eval_record(method.name, job.tag, a), method, ctx, n_episodes, env_parts, cfg)
+                  for a in names]  # fmt: skip
+        stage = next((st for st in stages if st.changes() == []), stages[0])  # any alias' finished record
+        if stage.done("" if cfg.report_only else f"evaluation {method.name} {job.tag} {suite.name}"):
             data = stage.stored()  # finished earlier, with these settings and this trained artefact
         elif cfg.report_only:
+            train = train_stage(method, ctx) if method.learned else None
+            left += [coverage.left_out(method.name, job.tag, a, stage, train) for a in names]
+            print(f"  evaluation {method.name} {job.tag} {', '.join(names)}: left out ({left[-1].why()})", flush=True)
             continue
         else:
             if not trained:
@@ -229,11 +244,11 @@ def run_job(job: Job, cfg: StudyConfig, layout: StudyLayout, roots: dict[str, Pa
                 f"  {method.name:<13} {job.tag:>5} {suite.name:<16} {ok}/{len(data['episodes'])} ({data['wall_s']:.0f} s)",
                 flush=True,
             )
-        timings[f"eval/{method.name}/{job.tag}/{suite.name}"] = data["wall_s"]
-        records[suite.name] = records_from_json(data)
+        timings[f"eval/{method.name}/{job.tag}/{suite.name}"] = data["wall_s"]  # once, not once per alias
+        records.update(dict.fromkeys(names, records_from_json(data)))
     if (ctx.train_dir / TRAIN_TIME).is_file():  # the time it took when it was trained (this run or earlier)
         timings[f"train/{method.name}/{job.tag}"] = json.loads((ctx.train_dir / TRAIN_TIME).read_text())["wall_s"]
-    return records, timings
+    return records, timings, left
 
 
 def _evaluate(method, artifact, ctx, suite, n_episodes: int, base_env, cfg: StudyConfig) -> dict:
@@ -256,12 +271,11 @@ def _cli_check(cfg: StudyConfig, methods, results, where: tuple, timings: dict) 
     from lerobot_pnp.report.cli_eval import EvalSpec, run_eval
 
     learned = [m for m in methods if m.learned]
-    if (
-        not cfg.cli_check_episodes
-        or not learned
-        or "nominal" not in results.get(learned[0].name, {}).get(tag := str(cfg.train_seeds[0]), {})
-    ):
+    if not cfg.cli_check_episodes or not learned:
         return None
+    if "nominal" not in results.get(learned[0].name, {}).get(tag := str(cfg.train_seeds[0]), {}):
+        planned = cfg.report_only and "nominal" in [s.name for s in cfg.suites]
+        return {"left_out": f"{learned[0].name} seed {tag} on `nominal` is left out"} if planned else None
     layout, roots, keys = where
     n = min(cfg.cli_check_episodes, len(results[learned[0].name][tag]["nominal"]))
     cli_dir = layout.cli_check
@@ -269,8 +283,8 @@ def _cli_check(cfg: StudyConfig, methods, results, where: tuple, timings: dict) 
     stage = Stage(cli_dir / STAGE_FILE, {"stage": "cli_check", "train": train_stage(learned[0], ctx).key, "n": n,
                                          "eval_seed": cfg.eval_seed, "versions": code_versions()})  # fmt: skip
     if not stage.done("lerobot-eval cross-check"):
-        if cfg.report_only:
-            return None
+        if cfg.report_only:  # the report says it was left out, and why
+            return {"left_out": coverage.left_out(learned[0].name, tag, "nominal", stage, None).why()}
         remove(cli_dir)
     _stage(f"3b cross-check: {n} nominal episodes of {learned[0].name} seed {tag} through the lerobot-eval CLI")
     t = time.perf_counter()

@@ -1,7 +1,7 @@
 """The study's stage keys (``lerobot_pnp.cache``): its datasets and evaluations, and what a study wrote.
 
 A dataset is keyed by its generation settings; a training by ``methods.train_stage``; an evaluation by the
-trained artefact's key (or the data's), the suite as defined now, its episode count and its seeds.
+trained artefact's key (or the data's), the effective env configs of its suite, its episode count and seeds.
 """
 
 from __future__ import annotations
@@ -50,11 +50,16 @@ def dataset_stage(out: Path, name: str, cfg, changes: dict | None = None) -> tup
     """Generate (or finish, or reuse) the recording ``name``, keyed by what determines it; (summary, key).
 
     A dataset of other settings (or one without a record) is verified by the generator against its own
-    record of how it was made, and replaced when that differs."""
+    record of how it was made, and replaced when that differs; with ``report_only`` it is left as it is (the
+    summary says so, and every stage keyed on it is then left out of the report)."""
     root = out / name
     stage = Stage(root / STAGE_FILE, dataset_parts(cfg, changes))
     if stage.done(f"dataset {name}"):
         return {"root": str(root), "status": "reused"}, stage.key
+    if cfg.report_only:
+        changed = stage.changes()
+        status = "missing" if changed is None else f"stale ({', '.join(changed)})"
+        return {"root": str(root), "status": f"{status}: not generated (report_only)"}, stage.key
     stage.invalidate()
     args = (root, cfg.num_episodes, cfg.dataset_seed, cfg.workers, cfg.task_preset)
     try:
@@ -67,17 +72,19 @@ def dataset_stage(out: Path, name: str, cfg, changes: dict | None = None) -> tup
     return summary, stage.key
 
 
-def eval_stage(path: Path, method, ctx, suite, n_episodes: int, env_parts: list, cfg) -> Stage:
-    """An evaluation's key: the trained artefact's (or the data's), the suite as defined now, its episodes
-    and seeds. A task field added since it ran counts as unchanged when its value is the paper's (off)."""
+def eval_stage(path: Path, method, ctx, n_episodes: int, env_parts: list, cfg) -> Stage:
+    """An evaluation's key: the trained artefact's (or the data's), the effective env config of each part of
+    its suite (the suite's changes built on the task, as the method runs them), its episodes and seeds; not
+    the suite's name, so suites of the same conditions are one evaluation (``coverage.suite_aliases``). The
+    name was once a part (``dropped``: an evaluation made then stays valid). A task field added since it ran
+    counts as unchanged when its value is the paper's (off)."""
     parts = {
         "stage": "eval",
         "train": train_stage(method, ctx).key if method.learned else None,
         "data": ctx.data_keys.get(method.data),
-        "suite": suite.name,
         "env_parts": env_parts,
         "n_episodes": n_episodes,
         "eval_seed": cfg.eval_seed,
         "versions": code_versions(),
     }
-    return Stage(path, parts, compare={"env_parts": same_env_configs})
+    return Stage(path, parts, compare={"env_parts": same_env_configs}, dropped=("suite",))

@@ -7,7 +7,7 @@ claims of ``claims``); every path from the study's ``StudyLayout``.
 from __future__ import annotations
 
 import json
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 
 from lerobot_pnp.report import figures, markdown
 from lerobot_pnp.report.layout import StudyLayout
@@ -30,6 +30,8 @@ class StudyInputs:
     machine: dict
     command: str
     cli_check: dict | None = None
+    left_out: list = field(default_factory=list)
+    aliases: dict = field(default_factory=dict)
 
 
 def write_report(layout: StudyLayout, study: StudyInputs) -> dict:
@@ -40,7 +42,8 @@ def write_report(layout: StudyLayout, study: StudyInputs) -> dict:
         f"{study.machine['cores_available']} cores"
     )
     suite_names = evaluated_suites(results)
-    figs = figures.make_figures(layout, cfg, methods, results, suite_names, study.base_env, prov)
+    figs = figures.make_figures(layout, cfg, methods, results, suite_names, study.base_env, prov, study.left_out)
+    suite_names = evaluated_suites(results, [x.suite for x in study.left_out])  # a left-out cell is marked
     table = build_table(results, methods, suite_names)
     comparisons = build_comparisons(results, methods, suite_names)
     summary = {
@@ -53,12 +56,15 @@ def write_report(layout: StudyLayout, study: StudyInputs) -> dict:
         "timings_s": study.timings,
         "lerobot_eval_cli_check": study.cli_check,
         "figures": [f for _, f in figs],
+        "left_out": [x.to_json() for x in study.left_out],  # evaluations not shown (report_only), and why
+        "suite_aliases": study.aliases,  # suite -> the suite of the same conditions whose evaluation it shows
     }
     held_out = held_out_axes(table, methods)
     if held_out:  # only a study that ran every suite of an axis (the held-out protocol, issue 19)
         summary["held_out_axes"] = [r.to_json() for r in held_out]
     layout.summary.write_text(json.dumps(summary, indent=1, default=str))
-    text = markdown.render(layout, cfg, methods, results, suite_names, table, comparisons, figs, summary)
+    text = markdown.render(layout, cfg, methods, results, suite_names, table, comparisons, figs, summary,
+                           (study.left_out, study.aliases))  # fmt: skip
     layout.report.write_text(text)
     labels = {m.name: m.label for m in methods}
     return {
