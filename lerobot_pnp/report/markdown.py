@@ -42,6 +42,16 @@ def render(layout, cfg, methods, results, suite_names, table, comparisons, figur
     return "\n".join(lines)
 
 
+def _invocation(cfg, t: dict) -> str:
+    """What this invocation itself did: report only, or its wall clock and job processes."""
+    if cfg.report_only:
+        return f"This invocation: the report only ({t.get('run/wall_clock', 0):.0f} s; nothing trained or evaluated)."
+    return (
+        f"This invocation: {t.get('run/wall_clock', 0) / 60:.0f} min wall clock with {t.get('run/processes', 1):.0f} "
+        "job process(es) (training and evaluation jobs run side by side, one core each)."
+    )
+
+
 def _header(layout, cfg, methods, summary, left=()) -> list[str]:
     mach, t = summary["machine"], summary["timings_s"]
     total = sum(v for k, v in t.items() if not k.startswith("run/"))
@@ -56,9 +66,7 @@ def _header(layout, cfg, methods, summary, left=()) -> list[str]:
         f"{sum(v for k, v in t.items() if k.startswith('train/')):.0f}, evaluation "
         f"{sum(v for k, v in t.items() if k.startswith('eval/')):.0f} (total {total:.0f}; an evaluation reused from an "
         "earlier run shows its original time, a training its original time if it was recorded (none otherwise), a "
-        "reused dataset only the time to find it). "
-        f"This invocation: {t.get('run/wall_clock', 0) / 60:.0f} min wall clock with {t.get('run/processes', 1):.0f} "
-        "job process(es) (training and evaluation jobs run side by side, one core each).",
+        "reused dataset only the time to find it). " + _invocation(cfg, t),
         "",
         "Evaluation: stock LeRobot `lerobot.scripts.lerobot_eval.eval_policy` (the function `lerobot-eval` runs), "
         "called in process on the `SyncVectorEnv` of `BaxterPnPEnvConfig.create_envs`, with a recording wrapper "

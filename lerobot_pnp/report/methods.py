@@ -243,7 +243,15 @@ def _act_description() -> str:
 METHODS: dict[str, Method] = {
     m.name: m
     for m in (
-        Method("expert", "expert (FSM)", "scripted feedback FSM; upper bound", False, _no_training, _expert_eval),
+        Method(
+            "expert",
+            "expert (FSM)",
+            "scripted feedback FSM; upper bound. It reads the simulator's state, so observation noise, bias and "
+            "latency do not reach it: on those suites it is not a like-for-like bound",
+            False,
+            _no_training,
+            _expert_eval,
+        ),
         Method(
             "lookup_table",
             "lookup table",
