@@ -213,8 +213,10 @@ def test_beta_decides_who_acts(full_cfg, beta):
     if beta == 1.0:
         np.testing.assert_array_equal(executed, ep.actions[: len(executed)])
         assert ep.success and ep.info["executed"] == len(executed) and ep.info["disagree"] == 0
+        assert ep.info["policy_disagree"] == len(executed)  # what the policy alone would have done
     else:
         assert not ep.success and ep.info["executed"] == 0 and ep.info["disagree"] == len(executed)
+        assert ep.info["policy_disagree"] == len(executed)
         assert np.all(executed[:, -1] == 1.0)  # the policy's own (gripper always open)
 
 

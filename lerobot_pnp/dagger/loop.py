@@ -51,7 +51,16 @@ from .writer import aggregate, write_episodes
 logger = logging.getLogger(__name__)
 ROUND_SEED_STRIDE = 1_000_000
 # in rollouts.json, beside the stage's key: "disagree" counts the frames whose label is not the executed action
-ROLLOUT_SUMMARY = ("episodes", "frames", "policy_successes", "executed_labels", "disagree", "beta", "by_suite")
+ROLLOUT_SUMMARY = (
+    "episodes",
+    "frames",
+    "policy_successes",
+    "executed_labels",
+    "disagree",
+    "policy_disagree",
+    "beta",
+    "by_suite",
+)
 
 
 def _tqdm(total: int, desc: str, enabled: bool):
@@ -150,6 +159,7 @@ def _rollout_counts(episodes) -> dict:
         "policy_successes": int(sum(e.success for e in episodes)),
         "executed_labels": int(sum(e.info.get("executed", 0) for e in episodes)),
         "disagree": int(sum(e.info.get("disagree", 0) for e in episodes)),
+        "policy_disagree": int(sum(e.info.get("policy_disagree", 0) for e in episodes)),
     }
 
 

@@ -78,7 +78,8 @@ def labelled_rollout(env, policy: LoadedPolicy, seed: int, suite: str = "", beta
     way, so its recurrent state has seen the whole history when it takes over. The draws come from a
     generator seeded by ``seed``: a rollout is deterministic. ``info["executed"]`` counts the steps that
     executed the label, ``info["disagree"]`` those whose executed action was not the label (a joint more
-    than ``FOLLOW_TOL`` from it, or the other gripper command): the frames that teach the policy something.
+    than ``FOLLOW_TOL`` from it, or the other gripper command), ``info["policy_disagree"]`` those where the
+    policy's own action was not: the frames that teach the policy something.
 
     When the policy has pushed the object where the expert has no IK solution (``UnreachableError``), the
     episode ends there: the states before it keep their labels (``info["stopped"] = "unreachable"``)."""
@@ -87,7 +88,7 @@ def labelled_rollout(env, policy: LoadedPolicy, seed: int, suite: str = "", beta
     expert = Teacher(env)
     mix = np.random.default_rng(seed)
     states, env_states, labels, phases = [], [], [], []
-    done, stopped, executed, disagree = False, None, 0, 0
+    done, stopped, executed, disagree, policy_disagree = False, None, 0, 0, 0
     while True:
         try:
             keyframe, phase = expert.label()
@@ -103,6 +104,7 @@ def labelled_rollout(env, policy: LoadedPolicy, seed: int, suite: str = "", beta
         if done:
             break
         action = np.asarray(policy.act(obs), np.float32)
+        policy_disagree += int(not follows(action, keyframe))
         if beta > 0.0 and mix.random() < beta:
             action, executed = np.asarray(keyframe, np.float32), executed + 1
         disagree += int(not follows(action, keyframe))
@@ -117,7 +119,7 @@ def labelled_rollout(env, policy: LoadedPolicy, seed: int, suite: str = "", beta
         bool(info.get("is_success", False)),
         suite,
         {"failure_cause": info.get("failure_cause"), "furthest_phase": info.get("furthest_phase"), "stopped": stopped,
-         "executed": executed, "disagree": disagree},
+         "executed": executed, "disagree": disagree, "policy_disagree": policy_disagree},
     )  # fmt: skip
 
 
