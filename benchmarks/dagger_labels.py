@@ -7,7 +7,7 @@ was not the executed action ("disagree", from ``rollouts.json``) or not the poli
 the first return of the label's phase to an earlier phase on. A recovery frame is "first" when its label is
 still the phase the recovery restarted at (its first keyframe), "later" when the labels have moved past it
 (the 2nd, 3rd, ... keyframes of the recovery, which a rollout only reaches when its executor followed the
-first). Rollout episode ``i`` ran suite ``rollout_suites[i % len(rollout_suites)]`` (the loop's rule).
+first); "depth" is the mean over recoveries of how many phases past the restart its labels got. Rollout episode ``i`` ran suite ``rollout_suites[i % len(rollout_suites)]`` (the loop's rule).
 """
 
 from __future__ import annotations
@@ -21,13 +21,15 @@ import numpy as np
 
 
 def recovery_counts(phases: np.ndarray) -> dict:
-    """Recovery frames of one episode's label phases: (first-keyframe, later-keyframe) label counts."""
+    """Recovery frames of one episode's label phases: first-keyframe and later-keyframe label counts, and the
+    depth (how many phases past its restart the labels of the recovery got: 9 or so for a whole recovery)."""
     back = np.flatnonzero(np.diff(phases) < 0)
     if not len(back):
-        return {"recoveries": 0, "first": 0, "later": 0}
+        return {"recoveries": 0, "first": 0, "later": 0, "depth": 0}
     start = int(back[0]) + 1
     rec = phases[start:]
-    return {"recoveries": 1, "first": int((rec <= rec[0]).sum()), "later": int((rec > rec[0]).sum())}
+    first, later = int((rec <= rec[0]).sum()), int((rec > rec[0]).sum())
+    return {"recoveries": 1, "first": first, "later": later, "depth": int(rec.max() - rec[0])}
 
 
 def round_stats(out: Path, rnd: int, suites: list[str]) -> dict:
@@ -51,6 +53,8 @@ def round_stats(out: Path, rnd: int, suites: list[str]) -> dict:
         stats[suite]["executed_labels"] = counts["executed_labels"]
         stats[suite]["policy_disagree"] = counts.get("policy_disagree", "-")
         stats[suite]["policy_successes"] = counts["policy_successes"]
+    for s in stats.values():  # the sum of depths -> the mean depth per recovery
+        s["depth"] = round(s["depth"] / s["recoveries"], 2) if s["recoveries"] else 0
     return {"beta": record.get("beta", 0.0), "suites": {k: dict(v) for k, v in stats.items()}}
 
 
@@ -63,17 +67,8 @@ def main() -> None:
     suites = cfg["suites"]
     rounds = sorted(int(p.name[6:]) for p in args.output_dir.glob("round_*") if (p / "rollouts.json").is_file())
     result = {rnd: round_stats(args.output_dir, rnd, suites) for rnd in rounds}
-    cols = [
-        "episodes",
-        "frames",
-        "policy_successes",
-        "executed_labels",
-        "disagree",
-        "policy_disagree",
-        "recoveries",
-        "first",
-        "later",
-    ]
+    cols = "episodes frames policy_successes executed_labels disagree policy_disagree recoveries first later depth"
+    cols = cols.split()
     print("| round | beta | suite | " + " | ".join(cols) + " |\n" + "|---" * (len(cols) + 3) + "|")
     for rnd, r in result.items():
         for suite, s in r["suites"].items():
