@@ -23,16 +23,17 @@ def run_curve(out: Path, round0: Path | None) -> dict:
     if round0 is not None:
         times = {**times, **json.loads((round0 / "summary.json").read_text())["timings_s"]}
     rounds = []
-    for rdir in sorted(out.glob("round_*")):
+    for rdir in sorted(d for d in out.glob("round_*") if (d / "eval.json").is_file()):
         rnd = int(rdir.name[6:])
         evals = json.loads((rdir / "eval.json").read_text())
-        row = {"round": rnd, "success": {}, "wall_s": round(times.get(f"round{rnd}_data_s", 0) + times.get(
-            f"round{rnd}_train_s", 0) + (times.get("demos_s", 0) if rnd == 0 else 0), 1)}  # fmt: skip
+        parts = [times.get(f"round{rnd}_data_s"), times.get(f"round{rnd}_train_s")]  # missing: a run in progress
+        wall = None if None in parts else round(sum(parts) + (times.get("demos_s", 0) if rnd == 0 else 0), 1)
+        row = {"round": rnd, "success": {}, "wall_s": wall}
         for suite, res in evals.items():
             r = Rate(res["successes"], res["n"])
             row["success"][suite] = {"successes": res["successes"], "n": res["n"], "wilson95": r.interval}
         if rnd > 0:
-            rec = summary["rollouts"][str(rnd)]
+            rec = summary["rollouts"].get(str(rnd)) or json.loads((rdir / "rollouts.json").read_text())
             row |= {k: rec.get(k) for k in ("beta", "frames", "policy_successes", "executed_labels", "disagree")}
             row["labels"] = round_stats(out, rnd, json.loads((rdir / "rollouts.json").read_text())["parts"]["suites"])
         rounds.append(row)
@@ -49,7 +50,11 @@ def table(name: str, curve: dict) -> str:
         cells = [str(Rate(v["successes"], v["n"])) for v in row["success"].values()]
         beta = "-" if row["round"] == 0 else f"{row['beta']:g}"
         added = "demos" if row["round"] == 0 else f"{row['frames']} (total {total})"
-        lines.append(f"| {row['round']} | {beta} | {added} | {row['wall_s']:g} | " + " | ".join(cells) + " |")
+        lines.append(
+            f"| {row['round']} | {beta} | {added} | {row['wall_s'] if row['wall_s'] is not None else '-'} | "
+            + " | ".join(cells)
+            + " |"
+        )
     return "\n".join(lines)
 
 
