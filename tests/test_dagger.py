@@ -172,3 +172,66 @@ def test_teacher_labels_equal_the_demonstrations_along_an_expert_trajectory(full
         env.step(action)
     env.close()
     assert suite == "quiet" or len(ep.actions) > 11  # the perturbation made the expert recover
+
+
+class _Wrong:
+    """A 'policy' that always commands the arm's current setpoints with the gripper open (never a label)."""
+
+    def __init__(self, env):
+        self.env = env
+
+    def reset(self):
+        pass
+
+    def act(self, obs):
+        return np.append(self.env.unwrapped.physics.arm_command(), 1.0).astype(np.float32)
+
+
+class _Recorder:
+    """Wraps an env and keeps the actions executed on it."""
+
+    def __init__(self, env):
+        self.env, self.actions = env, []
+        self.unwrapped = env.unwrapped
+
+    def reset(self, **kw):
+        return self.env.reset(**kw)
+
+    def step(self, action):
+        self.actions.append(np.asarray(action))
+        return self.env.step(action)
+
+
+@pytest.mark.parametrize("beta", [0.0, 1.0])
+def test_beta_decides_who_acts(full_cfg, beta):
+    """beta = 1 executes the teacher's label at every step (and recovers); beta = 0 the policy's action."""
+    env = suite_env(full_cfg, "quiet_drop")
+    rec = _Recorder(env)
+    ep = labelled_rollout(rec, _Wrong(env), seed=3, suite="quiet_drop", beta=beta)
+    env.close()
+    executed = np.stack(rec.actions)
+    if beta == 1.0:
+        np.testing.assert_array_equal(executed, ep.actions[: len(executed)])
+        assert ep.success and ep.info["executed"] == len(executed) and ep.info["disagree"] == 0
+        # what the policy alone would have done: holding matches only the FSM's hold after the pick retract
+        assert len(executed) - 1 <= ep.info["policy_disagree"] <= len(executed)
+    else:
+        assert not ep.success and ep.info["executed"] == 0 and ep.info["disagree"] == len(executed)
+        assert ep.info["policy_disagree"] == len(executed)
+        assert np.all(executed[:, -1] == 1.0)  # the policy's own (gripper always open)
+
+
+def test_a_changed_beta_reruns_the_rollouts(tmp_path):
+    cfg = dict(output_dir=str(tmp_path / "dg"), num_demos=4, rounds=1, rollouts_per_round=1,
+               rollout_suites=["quiet_drop"], eval_suites=["quiet"], eval_episodes=0, epochs=1, progress=False)  # fmt: skip
+    first = run_dagger(DaggerConfig(**cfg))
+    record = tmp_path / "dg" / "round_01" / "rollouts.json"
+    stamp = record.stat().st_mtime_ns
+    assert first["rollouts"][1]["beta"] == 0.0 and first["rollouts"][1]["executed_labels"] == 0
+    assert run_dagger(DaggerConfig(**cfg))["rollouts"][1] == first["rollouts"][1]
+    assert record.stat().st_mtime_ns == stamp  # same beta: reused
+    mixed = run_dagger(DaggerConfig(**cfg, beta=1.0))["rollouts"][1]
+    assert record.stat().st_mtime_ns != stamp and mixed["beta"] == 1.0
+    assert mixed["executed_labels"] == mixed["frames"] - 1 and mixed["disagree"] == 0  # every step the label's
+    with pytest.raises(ConfigError, match="beta must be in"):
+        DaggerConfig(beta=1.5)

@@ -77,7 +77,7 @@ class DaggerConfig:
     """DAgger with the scripted expert as teacher.
 
     Round 0 trains on expert demonstrations of the task; round ``r >= 1`` rolls out the round ``r-1`` policy
-    (its own actions are executed) under ``rollout_suites``, labels every visited state with
+    mixed with the expert (``beta``; by default the policy's own actions are executed) under ``rollout_suites``, labels every visited state with
     ``FSMExpert(env).label()``, aggregates the labelled episodes with everything before (LeRobot's
     ``aggregate_datasets``) and retrains from scratch (see ``loop``). Each round is evaluated on the same
     seeds. Everything lives in ``output_dir``; a finished step (dataset, checkpoint, evaluation) is reused
@@ -99,6 +99,11 @@ class DaggerConfig:
             (recoveries included); slot ``i`` is seed ``seed + i``; the last ``test_fraction`` is held out.
         rounds: DAgger rounds after round 0.
         rollouts_per_round: Policy episodes per round, cycled over ``rollout_suites``.
+        beta: Round 1's mixture weight (Ross et al.): at each rollout step the expert's label is executed with
+            probability ``beta``, the policy's action otherwise; every visited state is labelled either way. With
+            ``0`` a policy that does not yet recover only visits the first state of a recovery, so a round teaches
+            one more recovery keyframe at most; with ``1`` round 1 visits whole recoveries (docs/results/dagger_curve.md).
+        beta_decay: Round ``r``'s weight is ``beta * beta_decay ** (r - 1)`` (``beta_i = p^(i-1)`` in the paper).
         test_fraction: The fraction of the round-0 episodes (the last ones) held out of training.
         rollout_suites: Suites of the one catalogue (``lerobot_pnp.evaluation.suites``, one part each) that the
             rollouts cycle over: ``nominal`` (the task as recorded), the ``quiet*`` suites (every perturbation off,
@@ -123,6 +128,8 @@ class DaggerConfig:
     test_fraction: float = 0.1
     rounds: int = 1
     rollouts_per_round: int = 300
+    beta: float = 0.0
+    beta_decay: float = 0.5
     rollout_suites: list[str] = field(default_factory=lambda: list(DEFAULT_ROLLOUT_SUITES))
     eval_suites: list[str] = field(default_factory=lambda: list(DEFAULT_EVAL_SUITES))
     eval_episodes: int = 200
@@ -133,6 +140,10 @@ class DaggerConfig:
     seed: int = 0
     progress: bool = True
 
+    def beta_of(self, rnd: int) -> float:
+        """The mixture weight of round ``rnd >= 1``'s rollouts."""
+        return self.beta * self.beta_decay ** (rnd - 1)
+
     def __post_init__(self) -> None:
         checks = [
             *((False, problem) for problem in _suite_problems("rollout_suites", self.rollout_suites)),
@@ -141,6 +152,8 @@ class DaggerConfig:
             (self.num_demos >= 2, f"num_demos must be >= 2, got {self.num_demos}"),
             (0.0 < self.test_fraction < 1.0, f"test_fraction must be in (0, 1), got {self.test_fraction}"),
             (self.rollouts_per_round >= 1, f"rollouts_per_round must be >= 1, got {self.rollouts_per_round}"),
+            (0.0 <= self.beta <= 1.0, f"beta must be in [0, 1], got {self.beta}"),
+            (0.0 <= self.beta_decay <= 1.0, f"beta_decay must be in [0, 1], got {self.beta_decay}"),
             (self.eval_episodes >= 0, f"eval_episodes must be >= 0, got {self.eval_episodes}"),
             (self.epochs >= 1 and self.batch_size >= 1, "epochs and batch_size must be >= 1"),
             (bool(self.rollout_suites), "rollout_suites must not be empty"),

@@ -50,7 +50,17 @@ from .writer import aggregate, write_episodes
 
 logger = logging.getLogger(__name__)
 ROUND_SEED_STRIDE = 1_000_000
-ROLLOUT_SUMMARY = ("episodes", "frames", "policy_successes")  # in rollouts.json, beside the stage's key
+# in rollouts.json, beside the stage's key: "disagree" counts the frames whose label is not the executed action
+ROLLOUT_SUMMARY = (
+    "episodes",
+    "frames",
+    "policy_successes",
+    "executed_labels",
+    "disagree",
+    "policy_disagree",
+    "beta",
+    "by_suite",
+)
 
 
 def _tqdm(total: int, desc: str, enabled: bool):
@@ -112,13 +122,16 @@ def _demos(cfg: DaggerConfig, out: Path, env_cfg) -> tuple[Path, str, str, str]:
 
 
 def _rollouts(cfg: DaggerConfig, rnd: int, ckpt: tuple[Path, str], out: Path, env_cfg) -> tuple[Path, str, dict, str]:
-    """Round ``rnd``'s expert-labelled rollouts of the checkpoint ``ckpt`` (its path and key)."""
+    """Round ``rnd``'s expert-labelled rollouts of the checkpoint ``ckpt`` (its path and key), mixed with the
+    expert by ``cfg.beta_of(rnd)`` (part of the key when not 0, so the keys of pure on-policy rounds are as
+    before the mixture existed)."""
     root, repo_id = out / f"round_{rnd:02d}" / "rollouts", f"{cfg.base_repo_id}_dagger{rnd:02d}"
+    beta = cfg.beta_of(rnd)
     stage = _stage(root.parent / "rollouts.json", "rollouts", policy=ckpt[1], env=env_cfg.to_dict(),
                    episodes=cfg.rollouts_per_round, suites=cfg.rollout_suites, seed=cfg.seed + ROUND_SEED_STRIDE * rnd,
-                   repo_id=repo_id)  # fmt: skip
+                   repo_id=repo_id, **({"beta": beta} if beta else {}))  # fmt: skip
     if stage.done(f"dagger round {rnd} rollouts"):
-        return root, repo_id, {k: stage.stored()[k] for k in ROLLOUT_SUMMARY}, stage.key
+        return root, repo_id, {k: stage.stored().get(k) for k in ROLLOUT_SUMMARY}, stage.key
     stage.invalidate()
     policy = load_policy(ckpt[0])
     envs = {s: suite_env(env_cfg, s) for s in cfg.rollout_suites}
@@ -127,15 +140,27 @@ def _rollouts(cfg: DaggerConfig, rnd: int, ckpt: tuple[Path, str], out: Path, en
         for i in range(cfg.rollouts_per_round):
             suite = cfg.rollout_suites[i % len(cfg.rollout_suites)]
             seed = cfg.seed + ROUND_SEED_STRIDE * rnd + i
-            episodes.append(labelled_rollout(envs[suite], policy, seed, suite))
+            episodes.append(labelled_rollout(envs[suite], policy, seed, suite, beta))
             bar.update(1)
     for env in envs.values():
         env.close()
     write_episodes(root, repo_id, env_cfg, episodes)
-    counts = (len(episodes), int(sum(len(e.actions) for e in episodes)), int(sum(e.success for e in episodes)))
-    summary = dict(zip(ROLLOUT_SUMMARY, counts, strict=True))
+    summary = {**_rollout_counts(episodes), "beta": beta, "by_suite": {s: _rollout_counts([e for e in episodes
+               if e.suite == s]) for s in cfg.rollout_suites}}  # fmt: skip
     stage.commit(**summary)
     return root, repo_id, summary, stage.key
+
+
+def _rollout_counts(episodes) -> dict:
+    """Episodes, frames (labels added), policy successes, steps that executed the label, disagreeing frames."""
+    return {
+        "episodes": len(episodes),
+        "frames": int(sum(len(e.actions) for e in episodes)),
+        "policy_successes": int(sum(e.success for e in episodes)),
+        "executed_labels": int(sum(e.info.get("executed", 0) for e in episodes)),
+        "disagree": int(sum(e.info.get("disagree", 0) for e in episodes)),
+        "policy_disagree": int(sum(e.info.get("policy_disagree", 0) for e in episodes)),
+    }
 
 
 def _aggregate(inputs: list[tuple[Path, str, str]], data_root: Path, repo_id: str, env_cfg, test: str) -> str:

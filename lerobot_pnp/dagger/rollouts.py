@@ -69,17 +69,26 @@ class Teacher:
         return keyframe, phase
 
 
-def labelled_rollout(env, policy: LoadedPolicy, seed: int, suite: str = "") -> LabelledEpisode:
-    """Run ``policy`` from ``env.reset(seed)`` until the env ends the episode; label every visited state
-    (including the last) with the expert's next keyframe and phase. The policy's actions are executed.
+def labelled_rollout(env, policy: LoadedPolicy, seed: int, suite: str = "", beta: float = 0.0) -> LabelledEpisode:
+    """Run from ``env.reset(seed)`` until the env ends the episode; label every visited state (including the
+    last) with the expert's next keyframe and phase.
+
+    At each step the expert's label is executed with probability ``beta`` and the policy's action otherwise
+    (Ross et al.'s mixture policy; ``beta = 0``: always the policy's). The policy acts at every step either
+    way, so its recurrent state has seen the whole history when it takes over. The draws come from a
+    generator seeded by ``seed``: a rollout is deterministic. ``info["executed"]`` counts the steps that
+    executed the label, ``info["disagree"]`` those whose executed action was not the label (a joint more
+    than ``FOLLOW_TOL`` from it, or the other gripper command), ``info["policy_disagree"]`` those where the
+    policy's own action was not: the frames that teach the policy something.
 
     When the policy has pushed the object where the expert has no IK solution (``UnreachableError``), the
     episode ends there: the states before it keep their labels (``info["stopped"] = "unreachable"``)."""
     policy.reset()
     obs, info = env.reset(seed=seed)
     expert = Teacher(env)
+    mix = np.random.default_rng(seed)
     states, env_states, labels, phases = [], [], [], []
-    done, stopped = False, None
+    done, stopped, executed, disagree, policy_disagree = False, None, 0, 0, 0
     while True:
         try:
             keyframe, phase = expert.label()
@@ -94,7 +103,12 @@ def labelled_rollout(env, policy: LoadedPolicy, seed: int, suite: str = "") -> L
         phases.append(phase)
         if done:
             break
-        obs, _, terminated, truncated, info = env.step(policy.act(obs))
+        action = np.asarray(policy.act(obs), np.float32)
+        policy_disagree += int(not follows(action, keyframe))
+        if beta > 0.0 and mix.random() < beta:
+            action, executed = np.asarray(keyframe, np.float32), executed + 1
+        disagree += int(not follows(action, keyframe))
+        obs, _, terminated, truncated, info = env.step(action)
         done = terminated or truncated
     return LabelledEpisode(
         seed,
@@ -104,8 +118,16 @@ def labelled_rollout(env, policy: LoadedPolicy, seed: int, suite: str = "") -> L
         np.asarray(phases, np.int64),
         bool(info.get("is_success", False)),
         suite,
-        {"failure_cause": info.get("failure_cause"), "furthest_phase": info.get("furthest_phase"), "stopped": stopped},
-    )
+        {"failure_cause": info.get("failure_cause"), "furthest_phase": info.get("furthest_phase"), "stopped": stopped,
+         "executed": executed, "disagree": disagree, "policy_disagree": policy_disagree},
+    )  # fmt: skip
+
+
+def follows(action: np.ndarray, label: np.ndarray) -> bool:
+    """Whether an executed ``action`` is the ``label`` (joints within ``FOLLOW_TOL``, the same gripper side)."""
+    action, label = np.asarray(action), np.asarray(label)
+    joints = np.abs(action[: robot.N_JOINTS] - label[: robot.N_JOINTS]).max() < FOLLOW_TOL
+    return bool(joints and (action[robot.N_JOINTS] > 0.5) == (label[robot.N_JOINTS] > 0.5))
 
 
 def evaluate(policy: LoadedPolicy, base_cfg, suite: str, seeds: list[int], progress=None) -> dict:
