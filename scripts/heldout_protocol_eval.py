@@ -15,12 +15,14 @@ configs/dagger.json. Overrides are JSON values, e.g. latency_augment_stretch=tru
 import json
 import sys
 import time
+from collections import Counter
 from pathlib import Path
 
 from lerobot_pnp.dagger.config import RECOVERING_RECIPE
 from lerobot_pnp.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.evaluation.checkpoints import load_policy
 from lerobot_pnp.evaluation.episodes import eval_lerobot_policy
+from lerobot_pnp.evaluation.records import summarize
 from lerobot_pnp.evaluation.stats import wilson_interval
 from lerobot_pnp.evaluation.suites import HELD_OUT_AXES, SUITES
 from lerobot_pnp.policy.configuration_pnp_lstm import PnpLstmConfig
@@ -95,14 +97,12 @@ else:
         recs = eval_lerobot_policy(policy, pre, post, cfg, n, 10_000_000, 10)
         k = sum(r.success for r in recs)
         lo, hi = wilson_interval(k, n)
-        causes, by_events, at_steps = {}, {}, {}
-        for r in recs:  # failures by cause, by the disturbances the episode drew, by the step it ended at
+        causes = summarize(recs)["by_cause"]
+        at_steps = dict(Counter(str(r.steps) for r in recs if not r.success))  # the step each failure ended at
+        by_events = {}  # by the disturbances the episode drew: [successes, failures]
+        for r in recs:
             events = "+".join(sorted(set((r.perturbations or "none").split(","))))
-            ok, fails = by_events.get(events, [0, 0])
-            by_events[events] = [ok + r.success, fails + (not r.success)]
-            if not r.success:
-                causes[r.failure_cause] = causes.get(r.failure_cause, 0) + 1
-                at_steps[str(r.steps)] = at_steps.get(str(r.steps), 0) + 1
+            by_events.setdefault(events, [0, 0])[0 if r.success else 1] += 1
         results[name] = {
             "successes": k,
             "n": n,

@@ -77,8 +77,8 @@ class DaggerConfig:
     """DAgger with the scripted expert as teacher.
 
     Round 0 trains on expert demonstrations of the task; round ``r >= 1`` rolls out the round ``r-1`` policy
-    mixed with the expert (``beta``; by default the policy's own actions are executed) under ``rollout_suites``, labels every visited state with
-    ``FSMExpert(env).label()``, aggregates the labelled episodes with everything before (LeRobot's
+    mixed with the expert (``beta``; by default the policy's own actions are executed) under ``rollout_suites``,
+    labels every visited state with ``FSMExpert(env).label()``, aggregates the labelled episodes with everything before (LeRobot's
     ``aggregate_datasets``) and retrains from scratch (see ``loop``). Each round is evaluated on the same
     seeds. Everything lives in ``output_dir``; a finished step (dataset, checkpoint, evaluation) is reused
     while its key (the settings and inputs it was made from) is unchanged, so an interrupted run continues
@@ -102,7 +102,8 @@ class DaggerConfig:
         beta: Round 1's mixture weight (Ross et al.): at each rollout step the expert's label is executed with
             probability ``beta``, the policy's action otherwise; every visited state is labelled either way. With
             ``0`` a policy that does not yet recover only visits the first state of a recovery, so a round teaches
-            one more recovery keyframe at most; with ``1`` round 1 visits whole recoveries (docs/results/dagger_curve.md).
+            one more recovery keyframe at most; with ``1`` round 1 visits whole recoveries
+            (docs/results/dagger_curve.md).
         beta_decay: Round ``r``'s weight is ``beta * beta_decay ** (r - 1)`` (``beta_i = p^(i-1)`` in the paper).
         test_fraction: The fraction of the round-0 episodes (the last ones) held out of training.
         rollout_suites: Suites of the one catalogue (``lerobot_pnp.evaluation.suites``, one part each) that the

@@ -59,7 +59,7 @@ class Teacher:
     def label(self) -> tuple[np.ndarray, robot.Phase]:
         prev = self.prev
         command = np.asarray(self.physics.arm_command(), np.float32)
-        if prev is not None and np.abs(command - prev[1][: robot.N_JOINTS]).max() < FOLLOW_TOL:
+        if prev is not None and joints_at(command, prev[1]):
             self.expert.sync_to_state()
             self.expert.phase = robot.Phase(min(prev[0] + 1, robot.N_KEYFRAMES - 1))
             keyframe, phase = self.expert.next_keyframe(), self.expert.last_phase
@@ -123,11 +123,16 @@ def labelled_rollout(env, policy: LoadedPolicy, seed: int, suite: str = "", beta
     )  # fmt: skip
 
 
+def joints_at(joints: np.ndarray, keyframe: np.ndarray) -> bool:
+    """Whether arm joint setpoints are ``keyframe``'s (every joint within ``FOLLOW_TOL``)."""
+    return bool(
+        np.abs(np.asarray(joints)[: robot.N_JOINTS] - np.asarray(keyframe)[: robot.N_JOINTS]).max() < FOLLOW_TOL
+    )
+
+
 def follows(action: np.ndarray, label: np.ndarray) -> bool:
-    """Whether an executed ``action`` is the ``label`` (joints within ``FOLLOW_TOL``, the same gripper side)."""
-    action, label = np.asarray(action), np.asarray(label)
-    joints = np.abs(action[: robot.N_JOINTS] - label[: robot.N_JOINTS]).max() < FOLLOW_TOL
-    return bool(joints and (action[robot.N_JOINTS] > 0.5) == (label[robot.N_JOINTS] > 0.5))
+    """Whether an executed ``action`` is the ``label`` (its joints at the label's, the same gripper side)."""
+    return joints_at(action, label) and bool((action[robot.N_JOINTS] > 0.5) == (label[robot.N_JOINTS] > 0.5))
 
 
 def evaluate(policy: LoadedPolicy, base_cfg, suite: str, seeds: list[int], progress=None) -> dict:

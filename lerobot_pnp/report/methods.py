@@ -286,8 +286,8 @@ METHODS: dict[str, Method] = {
             "recovering",
             "recovering LSTM",
             "one LSTM over the whole episode, no clock, learned subtask switch; the recipe of `configs/dagger.json` "
-            "(hidden 256, late episodes, binary gripper, the observation gate); recoveries only as the task demonstrates "
-            "them (none on `paper`, every disturbance on `full`)",
+            "(hidden 256, late episodes, binary gripper, the observation gate); recoveries only as the task "
+            "demonstrates them (none on `paper`, every disturbance on `full`)",
             **RECOVERING,
         ),
         Method(
