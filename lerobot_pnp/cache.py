@@ -132,7 +132,8 @@ class Stage:
     ``compare`` maps a part's name to how an old value is compared with the new one (default: equal), for
     parts with a compatibility rule (e.g. env fields added later that had their paper value then); ``dropped``
     names parts a key once had and no longer has (what they said is determined by the other parts), ignored
-    in an old record so that it stays valid.
+    in an old record so that it stays valid; ``added`` maps a part a key did not always have to the value every
+    record made before it had (an old record without the part counts as made with that value).
     """
 
     def __init__(
@@ -141,12 +142,14 @@ class Stage:
         parts: dict,
         compare: dict[str, Callable[[Any, Any], bool]] | None = None,
         dropped: tuple[str, ...] = (),
+        added: dict[str, Any] | None = None,
     ):
         self.record = Path(record)
         self.parts = canonical(parts)
         self.key = key_of(self.parts)
         self.compare = compare or {}
         self.dropped = dropped
+        self.added = canonical(added or {})
 
     def stored(self) -> dict | None:
         """The record on disk, or None when absent or unreadable (an unreadable record is not trusted)."""
@@ -161,7 +164,7 @@ class Stage:
         stored = self.stored()
         if stored is None:
             return None
-        old = {k: v for k, v in stored["parts"].items() if k not in self.dropped}
+        old = {**self.added, **{k: v for k, v in stored["parts"].items() if k not in self.dropped}}
         names = sorted(set(old) | set(self.parts))
         return [n for n in names if n not in old or n not in self.parts or not self._same(n, old[n])]
 

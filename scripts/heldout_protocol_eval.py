@@ -6,7 +6,8 @@ protocol's suites (stock eval_policy in process, the study's evaluator); numbers
     python scripts/heldout_protocol_eval.py train RUN 300 [seed=N] [field=value ...]  # epochs; PnpLstmConfig overrides
     python scripts/heldout_protocol_eval.py eval RUN 100 [suite,suite,...|all] [field=value ...]
         # -> outputs/RUN/eval.json, or eval_<field=value...>.json with inference-time policy fields set;
-        # env.<field>=value sets a task field on top of the suite (e.g. env.keyframe_budget=60, a diagnosis)
+        # env.<field>=value sets a task field on top of the suite (e.g. env.keyframe_budget=60, a diagnosis);
+        # eval_seed=N starts the eval seeds at N (default 10,000,000; the study uses 100000)
 
 RUN names the output folder outputs/RUN (the shipped recipe: no overrides); max_episode_length 41 as
 configs/dagger.json. Overrides are JSON values, e.g. latency_augment_stretch=true latency_augment_jitter=0.5.
@@ -77,11 +78,14 @@ else:
         names = sys.argv[4].split(",")
     # Inference-time policy fields (e.g. await_observation=true) set on the loaded checkpoint's config.
     overrides = {k: json.loads(v) for k, v in (a.split("=", 1) for a in sys.argv[5:])}
+    eval_seed = int(overrides.pop("eval_seed", 10_000_000))  # the first eval seed (the study's: 100000)
     env_changes = {k.removeprefix("env."): v for k, v in overrides.items() if k.startswith("env.")}
     base = BaxterPnPEnvConfig(task_source=str(root), **env_changes)
     result_file = out / (
         "eval.json" if not overrides else "eval_" + "_".join(f"{k}={v}" for k, v in overrides.items()) + ".json"
     )
+    if eval_seed != 10_000_000:
+        result_file = result_file.with_name(f"{result_file.stem}_seed{eval_seed}.json")
     results = json.loads(result_file.read_text()) if result_file.is_file() else {}
     for name in names:
         if name in results:
@@ -94,7 +98,7 @@ else:
                 setattr(policy.config, k, v)
         policy.reset()
         t = time.time()
-        recs = eval_lerobot_policy(policy, pre, post, cfg, n, 10_000_000, 10)
+        recs = eval_lerobot_policy(policy, pre, post, cfg, n, eval_seed, 10)
         k = sum(r.success for r in recs)
         lo, hi = wilson_interval(k, n)
         causes = summarize(recs)["by_cause"]

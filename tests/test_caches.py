@@ -424,3 +424,21 @@ def test_a_task_field_added_since_a_stage_ran_counts_as_unchanged_at_its_paper_v
     assert same_env_configs(old, now) and same_env_configs([old], [now])
     assert not same_env_configs(old, {**now, "observe_phase": True})
     assert not same_env_configs({**old, "drop_prob": 0.5}, now)
+
+
+def test_an_evaluation_is_keyed_by_its_batch_size_and_older_records_count_as_the_default(tmp_path):
+    """A learned policy's episode can end differently at another eval batch size (float sums in the network),
+    so a record made at one batch size is not reused at another; a record made before the batch size was a
+    key part was made at the default (50) and stays valid at 50."""
+    from lerobot_pnp.cache import Stage
+    from lerobot_pnp.report.stages import EVAL_BATCH_SIZE_BEFORE
+
+    parts = {"stage": "eval", "n_episodes": 10, "eval_seed": 100000}
+    old = Stage(tmp_path / "stage.json", parts)  # how the record was written before the part existed
+    old.commit()
+    at = {b: Stage(tmp_path / "stage.json", {**parts, "eval_batch_size": b}, added=EVAL_BATCH_SIZE_BEFORE)
+          for b in (50, 10)}  # fmt: skip
+    assert at[50].done() and at[50].changes() == []
+    assert not at[10].done() and at[10].changes() == ["eval_batch_size"]
+    at[10].commit()  # re-run at 10: now 50 is the one that differs
+    assert at[10].done() and at[50].changes() == ["eval_batch_size"]

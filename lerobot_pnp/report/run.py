@@ -34,7 +34,7 @@ from lerobot_pnp.report.config import StudyConfig, SuiteSpec
 from lerobot_pnp.report.layout import StudyLayout
 from lerobot_pnp.report.methods import DATA_EFFICIENCY_METHODS, TrainContext, get_methods, keyed_train, train_stage
 from lerobot_pnp.report.provenance import command, machine
-from lerobot_pnp.report.stages import dataset_stage, eval_stage, written_by_the_study
+from lerobot_pnp.report.stages import EVAL_BATCH_SIZE_BEFORE, dataset_stage, eval_stage, written_by_the_study
 
 # The recordings a method can train on besides the keyframe dataset (``Method.data``): what they are and the
 # env-config changes they are generated with (the same seeds, so the same demonstrations).
@@ -281,7 +281,8 @@ def _cli_check(cfg: StudyConfig, methods, results, where: tuple, timings: dict) 
     cli_dir = layout.cli_check
     ctx = _context(Job(learned[0].name, tag, None), learned[0], cfg, layout, roots, keys)
     stage = Stage(cli_dir / STAGE_FILE, {"stage": "cli_check", "train": train_stage(learned[0], ctx).key, "n": n,
-                                         "eval_seed": cfg.eval_seed, "versions": code_versions()})  # fmt: skip
+                                         "eval_seed": cfg.eval_seed, "eval_batch_size": cfg.eval_batch_size,
+                                         "versions": code_versions()}, added=EVAL_BATCH_SIZE_BEFORE)  # fmt: skip
     if not stage.done("lerobot-eval cross-check"):
         if cfg.report_only:  # the report says it was left out, and why
             return {"left_out": coverage.left_out(learned[0].name, tag, "nominal", stage, None).why()}

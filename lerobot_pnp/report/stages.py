@@ -25,6 +25,8 @@ STUDY_ENTRIES = (
     "summary.json",
     "figures",
 )
+# The eval batch size of every evaluation recorded before it was a key part (StudyConfig's default then and now)
+EVAL_BATCH_SIZE_BEFORE = {"eval_batch_size": 50}
 
 
 def written_by_the_study(name: str) -> bool:
@@ -77,7 +79,9 @@ def eval_stage(path: Path, method, ctx, n_episodes: int, env_parts: list, cfg) -
     its suite (the suite's changes built on the task, as the method runs them), its episodes and seeds; not
     the suite's name, so suites of the same conditions are one evaluation (``coverage.suite_aliases``). The
     name was once a part (``dropped``: an evaluation made then stays valid). A task field added since it ran
-    counts as unchanged when its value is the paper's (off)."""
+    counts as unchanged when its value is the paper's (off). The eval batch size is a part because a learned
+    policy's outcome on an episode can depend on it: the network's float sums differ in the last bits with the
+    batch, and a marginal grasp amplifies that (records made before it was a part used the default, 50)."""
     parts = {
         "stage": "eval",
         "train": train_stage(method, ctx).key if method.learned else None,
@@ -85,6 +89,7 @@ def eval_stage(path: Path, method, ctx, n_episodes: int, env_parts: list, cfg) -
         "env_parts": env_parts,
         "n_episodes": n_episodes,
         "eval_seed": cfg.eval_seed,
+        "eval_batch_size": cfg.eval_batch_size,
         "versions": code_versions(),
     }
-    return Stage(path, parts, compare={"env_parts": same_env_configs}, dropped=("suite",))
+    return Stage(path, parts, compare={"env_parts": same_env_configs}, dropped=("suite",), added=EVAL_BATCH_SIZE_BEFORE)
