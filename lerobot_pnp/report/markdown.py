@@ -71,7 +71,8 @@ def _header(layout, cfg, methods, summary, left=()) -> list[str]:
         "Evaluation: stock LeRobot `lerobot.scripts.lerobot_eval.eval_policy` (the function `lerobot-eval` runs), "
         f"called in process on the `SyncVectorEnv` of `BaxterPnPEnvConfig.create_envs` ({cfg.eval_batch_size} envs "
         "at a time, part of each evaluation's key: a learned policy's marginal episodes can end differently at "
-        "another batch size), with a recording wrapper for the final `info` of each episode. Every method runs the same seeds ({cfg.eval_seed} onwards, unseen "
+        "another batch size), with a recording wrapper for the final `info` of each episode. Every method runs "
+        f"the same seeds ({cfg.eval_seed} onwards, unseen "
         f"by the dataset's seeds 0..). Learned methods: {len(cfg.train_seeds)} training seeds {cfg.train_seeds}, "
         f"{cfg.epochs} epochs each on {train_count(cfg.num_episodes)} demonstrations"
         + (" (dense-control methods: their budget is under Methods)" if any(m.data == "dense" for m in methods) else "")
