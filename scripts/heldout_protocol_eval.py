@@ -3,7 +3,7 @@ protocol's suites (stock eval_policy in process, the study's evaluator); numbers
 
     lerobot-pnp generate --repo_id local/baxter_pnp_full19 --root outputs/ds_full --num_episodes 1000 \
         --env.preset full
-    python scripts/heldout_protocol_eval.py train RUN 300 [seed=N] [field=value ...]  # epochs; PnpLstmConfig overrides
+    python scripts/heldout_protocol_eval.py train RUN 300 [seed=N] [data=ROOT] [field=value ...]  # epochs; PnpLstmConfig overrides
     python scripts/heldout_protocol_eval.py eval RUN 100 [suite,suite,...|all] [field=value ...]
         # -> outputs/RUN/eval.json, or eval_<field=value...>.json with inference-time policy fields set;
         # env.<field>=value sets a task field on top of the suite (e.g. env.keyframe_budget=60, a diagnosis);
@@ -29,6 +29,9 @@ from lerobot_pnp.evaluation.suites import HELD_OUT_AXES, SUITES
 from lerobot_pnp.policy.configuration_pnp_lstm import PnpLstmConfig
 
 root, out = Path("outputs/ds_full"), Path("outputs") / sys.argv[2]
+if data := [a for a in sys.argv if a.startswith("data=")]:  # another dataset of the full task (train only)
+    sys.argv.remove(data[0])
+    root = Path(data[0].split("=", 1)[1])
 stage = sys.argv[1]
 if stage == "train":
     from lerobot_pnp.train_fast import TrainFastConfig, train_fast
