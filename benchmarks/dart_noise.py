@@ -7,6 +7,10 @@ the clean keyframe and of the noised one, median and 90th percentile over keyfra
 noisy expert does in the task as DAgger's DART round runs it (``labelled_rollout`` with ``beta = 1``, seeds
 ``1,000,000 + i`` as round 1's): success, episodes with a recovery (a label phase returning to an earlier one),
 labelled frames per episode.
+
+``python benchmarks/dart_noise.py --rollouts ROLLOUTS_DIR ...`` instead reads DAgger rollout datasets
+(``round_XX/rollouts``) and prints, per dataset, how far from the hand (xy, cm) the object was at the first
+frame of each recovery (the first return of the label phase): where the recoveries it teaches start.
 """
 
 from __future__ import annotations
@@ -59,14 +63,39 @@ def noisy_expert(env, dart: DartNoise, episodes: int) -> dict:
     return {"success": succ, "recovered": recovered, "frames_per_episode": frames / episodes}
 
 
+def restart_offsets(root: str, env) -> np.ndarray:
+    """Hand-to-object xy distances (m) at the first frame of each episode's first recovery in ``root``."""
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    ik = env.unwrapped.physics.ik
+    frames = LeRobotDataset("local/rollouts", root=root).hf_dataset.with_format("numpy")[:]
+    episode, phase = frames["episode_index"].reshape(-1), frames["phase.index"].reshape(-1)
+    offsets = []
+    for e in np.unique(episode):
+        idx = np.flatnonzero(episode == e)
+        back = np.flatnonzero(np.diff(phase[idx]) < 0)
+        if len(back):
+            k = idx[back[0] + 1]
+            hand, _ = ik.forward(frames["observation.state"][k][: robot.N_JOINTS])
+            offsets.append(np.linalg.norm(hand[:2] - frames["observation.environment_state"][k][:2]))
+    return np.asarray(offsets)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("settings", nargs="+", help="SIGMA[,GRIPPER_FLIP]")
+    ap.add_argument("settings", nargs="*", help="SIGMA[,GRIPPER_FLIP]")
+    ap.add_argument("--rollouts", nargs="*", default=[], help="rollout dataset folders (round_XX/rollouts)")
     ap.add_argument("--preset", default="paper")
     ap.add_argument("--keyframe_budget", type=int, default=40)
     ap.add_argument("--episodes", type=int, default=40)
     args = ap.parse_args()
     env = suite_env(BaxterPnPEnvConfig(preset=args.preset, keyframe_budget=args.keyframe_budget), "nominal")
+    for root in args.rollouts:
+        d = 100 * restart_offsets(root, env)
+        print(f"{root}: {len(d)} recoveries; object-hand xy at the restart: median {np.median(d):.1f} cm, "
+              f"90th percentile {np.percentile(d, 90):.1f} cm, max {d.max():.1f} cm")  # fmt: skip
+    if not args.settings:
+        return
     print("| sigma (rad) | gripper flip | hand shift median / p90 (cm) | noisy expert success | with a recovery | "
           "frames / episode |\n|---|---|---|---|---|---|")  # fmt: skip
     for spec in args.settings:
