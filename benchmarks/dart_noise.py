@@ -94,17 +94,16 @@ def main() -> None:
         d = 100 * restart_offsets(root, env)
         print(f"{root}: {len(d)} recoveries; object-hand xy at the restart: median {np.median(d):.1f} cm, "
               f"90th percentile {np.percentile(d, 90):.1f} cm, max {d.max():.1f} cm")  # fmt: skip
-    if not args.settings:
-        return
-    print("| sigma (rad) | gripper flip | hand shift median / p90 (cm) | noisy expert success | with a recovery | "
-          "frames / episode |\n|---|---|---|---|---|---|")  # fmt: skip
-    for spec in args.settings:
-        sigma, flip = (float(x) for x in (spec.split(",") + ["0"])[:2])
-        med, p90 = hand_displacement(env, sigma, range(5)) if sigma > 0 else (0.0, 0.0)
-        r = noisy_expert(env, DartNoise(sigma, flip), args.episodes)
-        n = args.episodes
-        print(f"| {sigma:g} | {flip:g} | {100 * med:.1f} / {100 * p90:.1f} | {r['success']}/{n} | "
-              f"{r['recovered']}/{n} | {r['frames_per_episode']:.1f} |", flush=True)  # fmt: skip
+    if args.settings:
+        print("| sigma (rad) | gripper flip | hand shift median / p90 (cm) | noisy expert success | with a recovery | "
+              "frames / episode |\n|---|---|---|---|---|---|")  # fmt: skip
+        for spec in args.settings:
+            sigma, flip = (float(x) for x in (spec.split(",") + ["0"])[:2])
+            med, p90 = hand_displacement(env, sigma, range(5)) if sigma > 0 else (0.0, 0.0)
+            r = noisy_expert(env, DartNoise(sigma, flip), args.episodes)
+            n = args.episodes
+            print(f"| {sigma:g} | {flip:g} | {100 * med:.1f} / {100 * p90:.1f} | {r['success']}/{n} | "
+                  f"{r['recovered']}/{n} | {r['frames_per_episode']:.1f} |", flush=True)  # fmt: skip
     env.close()
 
 
