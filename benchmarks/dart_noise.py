@@ -9,8 +9,10 @@ noisy expert does in the task as DAgger's DART round runs it (``labelled_rollout
 labelled frames per episode.
 
 ``python benchmarks/dart_noise.py --rollouts ROLLOUTS_DIR ...`` instead reads DAgger rollout datasets
-(``round_XX/rollouts``) and prints, per dataset, how far from the hand (xy, cm) the object was at the first
-frame of each recovery (the first return of the label phase): where the recoveries it teaches start.
+(``round_XX/rollouts``) and prints, per dataset, the recoveries it teaches (each episode's first return of
+the label phase to an earlier one) by the phase left: after the close (a missed grasp), in transport (pick
+retract .. place approach: a drop), after the place (the object off the target); and how far from the hand
+(xy, cm) the object was at their first frame.
 """
 
 from __future__ import annotations
@@ -63,14 +65,18 @@ def noisy_expert(env, dart: DartNoise, episodes: int) -> dict:
     return {"success": succ, "recovered": recovered, "frames_per_episode": frames / episodes}
 
 
-def restart_offsets(root: str, env) -> np.ndarray:
-    """Hand-to-object xy distances (m) at the first frame of each episode's first recovery in ``root``."""
+RECOVERY_KINDS = {"missed grasp": (3, 3), "drop": (4, 6), "off target": (7, 9)}  # the phase left (inclusive)
+
+
+def restart_offsets(root: str, env) -> tuple[np.ndarray, np.ndarray]:
+    """Per episode's first recovery in ``root``: the hand-to-object xy distance (m) at its first frame, and
+    the label phase it left."""
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
     ik = env.unwrapped.physics.ik
     frames = LeRobotDataset("local/rollouts", root=root).hf_dataset.with_format("numpy")[:]
     episode, phase = frames["episode_index"].reshape(-1), frames["phase.index"].reshape(-1)
-    offsets = []
+    offsets, left = [], []
     for e in np.unique(episode):
         idx = np.flatnonzero(episode == e)
         back = np.flatnonzero(np.diff(phase[idx]) < 0)
@@ -78,7 +84,8 @@ def restart_offsets(root: str, env) -> np.ndarray:
             k = idx[back[0] + 1]
             hand, _ = ik.forward(frames["observation.state"][k][: robot.N_JOINTS])
             offsets.append(np.linalg.norm(hand[:2] - frames["observation.environment_state"][k][:2]))
-    return np.asarray(offsets)
+            left.append(phase[k - 1])
+    return np.asarray(offsets), np.asarray(left)
 
 
 def main() -> None:
@@ -91,9 +98,11 @@ def main() -> None:
     args = ap.parse_args()
     env = suite_env(BaxterPnPEnvConfig(preset=args.preset, keyframe_budget=args.keyframe_budget), "nominal")
     for root in args.rollouts:
-        d = 100 * restart_offsets(root, env)
-        print(f"{root}: {len(d)} recoveries; object-hand xy at the restart: median {np.median(d):.1f} cm, "
-              f"90th percentile {np.percentile(d, 90):.1f} cm, max {d.max():.1f} cm")  # fmt: skip
+        offsets, left = restart_offsets(root, env)
+        d = 100 * offsets
+        kinds = ", ".join(f"{k} {int(((left >= lo) & (left <= hi)).sum())}" for k, (lo, hi) in RECOVERY_KINDS.items())
+        print(f"{root}: {len(d)} recoveries ({kinds}); object-hand xy at the restart: median {np.median(d):.1f} "
+              f"cm, 90th percentile {np.percentile(d, 90):.1f} cm, max {d.max():.1f} cm")  # fmt: skip
     if args.settings:
         print("| sigma (rad) | gripper flip | hand shift median / p90 (cm) | noisy expert success | with a recovery | "
               "frames / episode |\n|---|---|---|---|---|---|")  # fmt: skip
