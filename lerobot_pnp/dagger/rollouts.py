@@ -88,10 +88,10 @@ def labelled_rollout(
     (Ross et al.'s mixture policy; ``beta = 0``: always the policy's). The policy acts at every step either
     way, so its recurrent state has seen the whole history when it takes over. With ``dart`` the expert's
     executed label carries DART's noise (``dagger.dart``) while the frame keeps the clean label. The draws
-    come from generators seeded by ``seed``: a rollout is deterministic. ``info["executed"]`` counts the steps that
-    executed the label, ``info["disagree"]`` those whose executed action was not the label (a joint more
-    than ``FOLLOW_TOL`` from it, or the other gripper command), ``info["policy_disagree"]`` those where the
-    policy's own action was not: the frames that teach the policy something.
+    come from generators seeded by ``seed``: a rollout is deterministic. ``info["executed"]`` counts the
+    steps that executed the label, ``info["disagree"]`` those whose executed action was not the label (a
+    joint more than ``FOLLOW_TOL`` from it, or the other gripper command), ``info["policy_disagree"]`` those
+    where the policy's own action was not: the frames that teach the policy something.
 
     When the policy has pushed the object where the expert has no IK solution (``UnreachableError``), the
     episode ends there: the states before it keep their labels (``info["stopped"] = "unreachable"``)."""
