@@ -1,7 +1,8 @@
 """How large DART's joint noise is on the task's scale: what a noise setting does to the expert's hand and to
 its demonstrations (the measurement that picks ``dart.sigma``; docs/results/dart.md).
 
-``python benchmarks/dart_noise.py [--preset paper] [--episodes 40] SIGMA[,FLIP] ...`` prints per setting:
+``python benchmarks/dart_noise.py [--config configs/dart_paper.json] [--episodes 40] SIGMA[,FLIP] ...`` prints,
+per setting, in the task of a dagger config (its preset with ``env_changes``, the rollout suite ``nominal``):
 the end-effector displacement that the joint noise causes at the expert's keyframes (forward kinematics of
 the clean keyframe and of the noised one, median and 90th percentile over keyframes and draws), and what the
 noisy expert does in the task as DAgger's DART round runs it (``labelled_rollout`` with ``beta = 1``, seeds
@@ -19,12 +20,14 @@ from __future__ import annotations
 
 import argparse
 
+import draccus
 import numpy as np
 
 from lerobot_pnp import robot
+from lerobot_pnp.dagger import DaggerConfig
 from lerobot_pnp.dagger.dart import DartNoise
+from lerobot_pnp.dagger.loop import base_env_config
 from lerobot_pnp.dagger.rollouts import labelled_rollout, suite_env
-from lerobot_pnp.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.expert import run_expert_episode
 
 
@@ -92,11 +95,10 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("settings", nargs="*", help="SIGMA[,GRIPPER_FLIP]")
     ap.add_argument("--rollouts", nargs="*", default=[], help="rollout dataset folders (round_XX/rollouts)")
-    ap.add_argument("--preset", default="paper")
-    ap.add_argument("--keyframe_budget", type=int, default=40)
+    ap.add_argument("--config", default="configs/dart_paper.json", help="a dagger config: its task (env_changes)")
     ap.add_argument("--episodes", type=int, default=40)
     args = ap.parse_args()
-    env = suite_env(BaxterPnPEnvConfig(preset=args.preset, keyframe_budget=args.keyframe_budget), "nominal")
+    env = suite_env(base_env_config(draccus.parse(DaggerConfig, config_path=args.config, args=[])), "nominal")
     for root in args.rollouts:
         offsets, left = restart_offsets(root, env)
         d = 100 * offsets
