@@ -1,5 +1,5 @@
 """The learning curve of ``lerobot-pnp dagger`` runs: success per round with 95 % Wilson intervals, the labels
-each round added, the rollouts' label statistics and the wall time (docs/results/dagger_curve.md).
+each round added, the rollouts' label statistics and the wall time (docs/results/dagger_curve.md, dart.md).
 
 ``python benchmarks/dagger_curve.py NAME=OUTPUT_DIR ... [--round0 OUTPUT_DIR] [--json FILE]``: one column
 block per run; ``--round0`` names the run whose round-0 time is reported when the runs reused a copied round 0.
@@ -34,10 +34,19 @@ def run_curve(out: Path, round0: Path | None) -> dict:
             row["success"][suite] = {"successes": res["successes"], "n": res["n"], "wilson95": r.interval}
         if rnd > 0:
             rec = summary["rollouts"].get(str(rnd)) or json.loads((rdir / "rollouts.json").read_text())
-            row |= {k: rec.get(k) for k in ("beta", "frames", "policy_successes", "executed_labels", "disagree")}
+            keys = ("beta", "dart", "frames", "policy_successes", "executed_labels", "disagree")
+            row |= {k: rec.get(k) for k in keys}
             row["labels"] = round_stats(out, rnd, json.loads((rdir / "rollouts.json").read_text())["parts"]["suites"])
         rounds.append(row)
     return {"output_dir": str(out), "rounds": rounds}
+
+
+def dart_cell(dart: dict | None) -> str:
+    """DART's noise of a round's rollouts, as the beta cell's suffix (nothing when off)."""
+    if not dart:
+        return ""
+    flip = f", flip {dart['gripper_flip']:g}" if dart["gripper_flip"] else ""
+    return f" + DART (sigma {dart['sigma']:g} rad{flip})"
 
 
 def table(name: str, curve: dict) -> str:
@@ -48,7 +57,7 @@ def table(name: str, curve: dict) -> str:
     for row in curve["rounds"]:
         total += row.get("frames") or 0
         cells = [str(Rate(v["successes"], v["n"])) for v in row["success"].values()]
-        beta = "-" if row["round"] == 0 else f"{row['beta']:g}"
+        beta = "-" if row["round"] == 0 else f"{row['beta']:g}" + dart_cell(row.get("dart"))
         added = "demos" if row["round"] == 0 else f"{row['frames']} (total {total})"
         lines.append(
             f"| {row['round']} | {beta} | {added} | {row['wall_s'] if row['wall_s'] is not None else '-'} | "

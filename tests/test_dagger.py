@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from lerobot_pnp.dagger import DaggerConfig, labelled_rollout, run_dagger
+from lerobot_pnp.dagger.dart import DartNoise
 from lerobot_pnp.dagger.rollouts import suite_env
 from lerobot_pnp.dagger.writer import aggregate, features_for, write_episodes
 from lerobot_pnp.env_config import BaxterPnPEnvConfig
@@ -221,7 +222,7 @@ def test_beta_decides_who_acts(full_cfg, beta):
         assert np.all(executed[:, -1] == 1.0)  # the policy's own (gripper always open)
 
 
-def test_a_changed_beta_reruns_the_rollouts(tmp_path):
+def test_a_changed_beta_or_dart_noise_reruns_the_rollouts(tmp_path):
     cfg = dict(output_dir=str(tmp_path / "dg"), num_demos=4, rounds=1, rollouts_per_round=1,
                rollout_suites=["quiet_drop"], eval_suites=["quiet"], eval_episodes=0, epochs=1, progress=False)  # fmt: skip
     first = run_dagger(DaggerConfig(**cfg))
@@ -233,5 +234,86 @@ def test_a_changed_beta_reruns_the_rollouts(tmp_path):
     mixed = run_dagger(DaggerConfig(**cfg, beta=1.0))["rollouts"][1]
     assert record.stat().st_mtime_ns != stamp and mixed["beta"] == 1.0
     assert mixed["executed_labels"] == mixed["frames"] - 1 and mixed["disagree"] == 0  # every step the label's
+    stamp = record.stat().st_mtime_ns
+    noisy = run_dagger(DaggerConfig(**cfg, beta=1.0, dart=DartNoise(sigma=0.1)))["rollouts"][1]
+    assert record.stat().st_mtime_ns != stamp and noisy["dart"] == {"sigma": 0.1, "gripper_flip": 0.0}
+    assert noisy["disagree"] > 0  # the executed actions carried the noise
+    stamp = record.stat().st_mtime_ns
+    assert run_dagger(DaggerConfig(**cfg, beta=1.0, dart=DartNoise(sigma=0.1)))["rollouts"][1] == noisy
+    assert record.stat().st_mtime_ns == stamp  # same noise: reused
+    run_dagger(DaggerConfig(**cfg, beta=1.0, dart=DartNoise(sigma=0.2)))
+    assert record.stat().st_mtime_ns != stamp  # another sigma: re-run
     with pytest.raises(ConfigError, match="beta must be in"):
         DaggerConfig(beta=1.5)
+
+
+@pytest.mark.parametrize(
+    ("settings", "match"),
+    [
+        ({"sigma": -0.01}, r"dart.sigma must be a finite number >= 0 \(rad\), got -0.01"),
+        ({"sigma": float("nan")}, "dart.sigma must be a finite number"),
+        ({"gripper_flip": 1.5}, r"dart.gripper_flip must be a probability in \[0, 1\], got 1.5"),
+        ({"gripper_flip": -0.1}, "dart.gripper_flip must be a probability"),
+    ],
+)
+def test_bad_dart_settings_are_refused(settings, match):
+    with pytest.raises(ConfigError, match=match):
+        DartNoise(**settings)
+
+
+def test_dart_noise_needs_the_expert_to_act():
+    with pytest.raises(ConfigError, match="with beta 0 the expert never acts"):
+        DaggerConfig(beta=0.0, dart=DartNoise(sigma=0.01))
+    assert DaggerConfig(beta=1.0, dart=DartNoise(sigma=0.01)).dart.key() == {
+        "dart": {"sigma": 0.01, "gripper_flip": 0.0}
+    }
+    assert DaggerConfig().dart.key() == {}  # off: the keys of earlier runs are unchanged
+
+
+def _noisy_rollout(env, seed, dart):
+    rec = _Recorder(env)
+    ep = labelled_rollout(rec, _Wrong(env), seed=seed, suite="quiet", beta=1.0, dart=dart)
+    return ep, np.stack(rec.actions)
+
+
+def test_a_dart_rollout_executes_noise_and_keeps_the_clean_expert_labels(full_cfg):
+    """DART: the executed action is the label plus noise; the label is what the noiseless teacher commands at
+    the visited state (replayed: a fresh teacher along the same executed actions gives the same labels)."""
+    from lerobot_pnp.dagger.rollouts import Teacher
+
+    sigma = 0.02
+    env = suite_env(full_cfg, "quiet")
+    ep, executed = _noisy_rollout(env, 7, DartNoise(sigma=sigma, gripper_flip=1.0))
+    again, executed_again = _noisy_rollout(env, 7, DartNoise(sigma=sigma, gripper_flip=1.0))
+    other, _ = _noisy_rollout(env, 8, DartNoise(sigma=sigma))
+    labels = ep.actions[: len(executed)]
+    noise = executed[:, :7] - labels[:, :7]
+    assert np.all(np.abs(noise).max(axis=1) > 0)  # every executed expert step was perturbed
+    assert 0.5 * sigma < noise.std() < 1.5 * sigma and abs(noise.mean()) < 0.5 * sigma
+    assert np.all((executed[:, 7] > 0.5) != (labels[:, 7] > 0.5))  # gripper_flip 1: always the other side
+    np.testing.assert_array_equal(executed, executed_again)  # the noise is seeded by the rollout's seed
+    np.testing.assert_array_equal(ep.actions, again.actions)
+    assert not np.array_equal(ep.actions[:3], other.actions[:3])
+    env.reset(seed=7)
+    teacher = Teacher(env)
+    for k, action in enumerate(executed):
+        keyframe, phase = teacher.label()
+        np.testing.assert_array_equal(keyframe, ep.actions[k])
+        assert phase == ep.phases[k]
+        teacher.executed(action)
+        env.step(action)
+    env.close()
+
+
+def test_dart_with_sigma_0_reproduces_the_expert_episode(full_cfg):
+    from lerobot_pnp.expert import run_expert_episode
+
+    env = suite_env(full_cfg, "quiet_drop")
+    expert = run_expert_episode(env, 4)
+    ep, executed = _noisy_rollout(env, 4, DartNoise(sigma=0.0))
+    env.close()
+    assert ep.success and len(ep.actions) == len(expert.actions) > 11  # the drop made both recover
+    np.testing.assert_array_equal(executed, ep.actions[: len(executed)])  # the clean labels were executed
+    np.testing.assert_allclose(executed, expert.actions[:-1], atol=1e-2)  # the teacher's labels (IK-seeded)
+    np.testing.assert_allclose(ep.states, expert.states, atol=1e-3)
+    np.testing.assert_array_equal(ep.phases[:-1], expert.phases[:-1])

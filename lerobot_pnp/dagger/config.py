@@ -11,6 +11,8 @@ from lerobot_pnp.evaluation.suites import SUITES
 from lerobot_pnp.policy import PnpLstmConfig
 from lerobot_pnp.presets import TASK_FIELDS
 
+from .dart import DartNoise
+
 # Rollouts under observation latency are left out by default: their recorded observations are already late,
 # and training shows half of all episodes late still (policy.latency_augment_*: as the env draws latency, with
 # each recovery retimed as a late robot performs it; docs/results/heldout_protocol.md). With an earlier recipe
@@ -105,6 +107,9 @@ class DaggerConfig:
             one more recovery keyframe at most; with ``1`` round 1 visits whole recoveries
             (docs/results/dagger_curve.md).
         beta_decay: Round ``r``'s weight is ``beta * beta_decay ** (r - 1)`` (``beta_i = p^(i-1)`` in the paper).
+        dart: DART's noise (``dagger.dart``) on the expert's executed labels (``--dart.sigma`` rad on each
+            joint target, ``--dart.gripper_flip`` probability per step); the frames keep the clean labels. With
+            ``beta = 1`` a round's rollouts are noisy expert demonstrations: DART. Off by default.
         test_fraction: The fraction of the round-0 episodes (the last ones) held out of training.
         rollout_suites: Suites of the one catalogue (``lerobot_pnp.evaluation.suites``, one part each) that the
             rollouts cycle over: ``nominal`` (the task as recorded), the ``quiet*`` suites (every perturbation off,
@@ -131,6 +136,7 @@ class DaggerConfig:
     rollouts_per_round: int = 300
     beta: float = 0.0
     beta_decay: float = 0.5
+    dart: DartNoise = field(default_factory=DartNoise)
     rollout_suites: list[str] = field(default_factory=lambda: list(DEFAULT_ROLLOUT_SUITES))
     eval_suites: list[str] = field(default_factory=lambda: list(DEFAULT_EVAL_SUITES))
     eval_episodes: int = 200
@@ -155,6 +161,11 @@ class DaggerConfig:
             (self.rollouts_per_round >= 1, f"rollouts_per_round must be >= 1, got {self.rollouts_per_round}"),
             (0.0 <= self.beta <= 1.0, f"beta must be in [0, 1], got {self.beta}"),
             (0.0 <= self.beta_decay <= 1.0, f"beta_decay must be in [0, 1], got {self.beta_decay}"),
+            (
+                self.beta > 0.0 or not self.dart.active,
+                f"dart noise {self.dart} is added to the expert's executed labels; with beta 0 the expert never "
+                "acts: set beta > 0 (1 for DART)",
+            ),
             (self.eval_episodes >= 0, f"eval_episodes must be >= 0, got {self.eval_episodes}"),
             (self.epochs >= 1 and self.batch_size >= 1, "epochs and batch_size must be >= 1"),
             (bool(self.rollout_suites), "rollout_suites must not be empty"),

@@ -59,6 +59,7 @@ ROLLOUT_SUMMARY = (
     "disagree",
     "policy_disagree",
     "beta",
+    "dart",
     "by_suite",
 )
 
@@ -123,13 +124,13 @@ def _demos(cfg: DaggerConfig, out: Path, env_cfg) -> tuple[Path, str, str, str]:
 
 def _rollouts(cfg: DaggerConfig, rnd: int, ckpt: tuple[Path, str], out: Path, env_cfg) -> tuple[Path, str, dict, str]:
     """Round ``rnd``'s expert-labelled rollouts of the checkpoint ``ckpt`` (its path and key), mixed with the
-    expert by ``cfg.beta_of(rnd)`` (part of the key when not 0, so the keys of pure on-policy rounds are as
-    before the mixture existed)."""
+    expert by ``cfg.beta_of(rnd)`` with ``cfg.dart``'s noise on the expert's steps (each part of the key when
+    not 0 / off, so the keys of pure on-policy rounds are as before the mixture and DART existed)."""
     root, repo_id = out / f"round_{rnd:02d}" / "rollouts", f"{cfg.base_repo_id}_dagger{rnd:02d}"
     beta = cfg.beta_of(rnd)
     stage = _stage(root.parent / "rollouts.json", "rollouts", policy=ckpt[1], env=env_cfg.to_dict(),
                    episodes=cfg.rollouts_per_round, suites=cfg.rollout_suites, seed=cfg.seed + ROUND_SEED_STRIDE * rnd,
-                   repo_id=repo_id, **({"beta": beta} if beta else {}))  # fmt: skip
+                   repo_id=repo_id, **({"beta": beta} if beta else {}), **cfg.dart.key())  # fmt: skip
     if stage.done(f"dagger round {rnd} rollouts"):
         return root, repo_id, {k: stage.stored().get(k) for k in ROLLOUT_SUMMARY}, stage.key
     stage.invalidate()
@@ -140,13 +141,13 @@ def _rollouts(cfg: DaggerConfig, rnd: int, ckpt: tuple[Path, str], out: Path, en
         for i in range(cfg.rollouts_per_round):
             suite = cfg.rollout_suites[i % len(cfg.rollout_suites)]
             seed = cfg.seed + ROUND_SEED_STRIDE * rnd + i
-            episodes.append(labelled_rollout(envs[suite], policy, seed, suite, beta))
+            episodes.append(labelled_rollout(envs[suite], policy, seed, suite, beta, cfg.dart))
             bar.update(1)
     for env in envs.values():
         env.close()
     write_episodes(root, repo_id, env_cfg, episodes)
-    summary = {**_rollout_counts(episodes), "beta": beta, "by_suite": {s: _rollout_counts([e for e in episodes
-               if e.suite == s]) for s in cfg.rollout_suites}}  # fmt: skip
+    by_suite = {s: _rollout_counts([e for e in episodes if e.suite == s]) for s in cfg.rollout_suites}
+    summary = {**_rollout_counts(episodes), "beta": beta, "dart": cfg.dart.key().get("dart"), "by_suite": by_suite}
     stage.commit(**summary)
     return root, repo_id, summary, stage.key
 

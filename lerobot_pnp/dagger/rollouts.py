@@ -15,6 +15,7 @@ from lerobot_pnp.errors import UnreachableError
 from lerobot_pnp.evaluation.checkpoints import LoadedPolicy
 from lerobot_pnp.evaluation.suites import SUITES
 
+from .dart import DartNoise
 from .writer import LabelledEpisode
 
 
@@ -68,18 +69,29 @@ class Teacher:
         self.prev = (phase, keyframe)
         return keyframe, phase
 
+    def executed(self, action: np.ndarray) -> None:
+        """The teacher's last label was executed as ``action`` (itself, or with DART's noise): the next label
+        continues its FSM, as the demonstrating expert continues after commanding a keyframe. (Compared with
+        the label alone, a joint noised past ``FOLLOW_TOL`` would make it replan with ``FSMExpert.label()``,
+        whose labels differ from the demonstrations in the states listed above.)"""
+        assert self.prev is not None, "executed() before label()"
+        self.prev = (self.prev[0], np.asarray(action, np.float32))
 
-def labelled_rollout(env, policy: LoadedPolicy, seed: int, suite: str = "", beta: float = 0.0) -> LabelledEpisode:
+
+def labelled_rollout(
+    env, policy: LoadedPolicy, seed: int, suite: str = "", beta: float = 0.0, dart: DartNoise | None = None
+) -> LabelledEpisode:
     """Run from ``env.reset(seed)`` until the env ends the episode; label every visited state (including the
     last) with the expert's next keyframe and phase.
 
     At each step the expert's label is executed with probability ``beta`` and the policy's action otherwise
     (Ross et al.'s mixture policy; ``beta = 0``: always the policy's). The policy acts at every step either
-    way, so its recurrent state has seen the whole history when it takes over. The draws come from a
-    generator seeded by ``seed``: a rollout is deterministic. ``info["executed"]`` counts the steps that
-    executed the label, ``info["disagree"]`` those whose executed action was not the label (a joint more
-    than ``FOLLOW_TOL`` from it, or the other gripper command), ``info["policy_disagree"]`` those where the
-    policy's own action was not: the frames that teach the policy something.
+    way, so its recurrent state has seen the whole history when it takes over. With ``dart`` the expert's
+    executed label carries DART's noise (``dagger.dart``) while the frame keeps the clean label. The draws
+    come from generators seeded by ``seed``: a rollout is deterministic. ``info["executed"]`` counts the
+    steps that executed the label, ``info["disagree"]`` those whose executed action was not the label (a
+    joint more than ``FOLLOW_TOL`` from it, or the other gripper command), ``info["policy_disagree"]`` those
+    where the policy's own action was not: the frames that teach the policy something.
 
     When the policy has pushed the object where the expert has no IK solution (``UnreachableError``), the
     episode ends there: the states before it keep their labels (``info["stopped"] = "unreachable"``)."""
@@ -87,6 +99,8 @@ def labelled_rollout(env, policy: LoadedPolicy, seed: int, suite: str = "", beta
     obs, info = env.reset(seed=seed)
     expert = Teacher(env)
     mix = np.random.default_rng(seed)
+    dart = dart if dart is not None and dart.active else None
+    noise = DartNoise.rng_for(seed) if dart else None
     states, env_states, labels, phases = [], [], [], []
     done, stopped, executed, disagree, policy_disagree = False, None, 0, 0, 0
     while True:
@@ -106,7 +120,9 @@ def labelled_rollout(env, policy: LoadedPolicy, seed: int, suite: str = "", beta
         action = np.asarray(policy.act(obs), np.float32)
         policy_disagree += int(not follows(action, keyframe))
         if beta > 0.0 and mix.random() < beta:
-            action, executed = np.asarray(keyframe, np.float32), executed + 1
+            action = dart.apply(keyframe, noise) if dart else np.asarray(keyframe, np.float32)
+            expert.executed(action)
+            executed += 1
         disagree += int(not follows(action, keyframe))
         obs, _, terminated, truncated, info = env.step(action)
         done = terminated or truncated
