@@ -33,3 +33,18 @@ def test_recorder_does_not_simulate_the_autoreset_episode_after_a_recorded_one()
     env.reset(seed=4)
     env.step(hold)
     assert len(calls) == n + 1  # a seeded reset simulates again
+
+
+def test_dense_recording_of_full_draws_the_same_episode_schedule():
+    """What makes the dense recording of `full` the same demonstrations as the keyframe one: per seed, the
+    start and every perturbation's count, moment in its window and the latency are drawn at reset, alike in
+    both control modes (what an event draws when it fires is another draw of the same distribution)."""
+    envs = [make_env(BaxterPnPEnvConfig(preset="full", control_mode=mode)) for mode in ("keyframe", "dense")]
+    for seed in range(12):
+        drawn = []
+        for env in envs:
+            env.reset(seed=seed)
+            d, physics = env.unwrapped.pnp_task.disturbances, env.unwrapped.physics
+            drawn.append((repr(d.pending), d.latency, d.nudge_step, np.round(physics.object_pose()[0], 6).tolist()))
+        assert drawn[0] == drawn[1], seed
+    assert envs[1].unwrapped.config.episode_length == 60 * envs[0].unwrapped.config.keyframe_budget
