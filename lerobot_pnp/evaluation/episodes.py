@@ -43,22 +43,33 @@ class EpisodeRecorder(gym.Wrapper):
     """Appends an ``EpisodeRecord`` to ``sink`` when an episode started by a seeded reset first ends.
 
     Gymnasium's autoreset (a reset without seed or LeRobot's new-rollout option) starts nothing: the
-    rollout ignores those episodes, and so does the recorder.
+    rollout ignores those episodes, and so does the recorder. It also does not simulate them: LeRobot's
+    rollout steps every sub-env until the last one of the batch is done, and masks what a sub-env returns
+    after the step that follows its end (the autoreset). Until the next seeded reset, a step of this sub-env
+    repeats the autoreset's observation instead of running the physics, so a batch costs the sum of its
+    episodes' lengths, not its longest episode times its size; the recorded episodes are the same.
     """
 
     def __init__(self, env: gym.Env, sink: list[EpisodeRecord]):
         super().__init__(env)
         self.sink = sink
         self._current: dict | None = None
+        self._idle: tuple | None = None  # (obs, info) of the autoreset after a recorded episode ended
 
     def reset(self, *, seed=None, options=None):
         obs, info = self.env.reset(seed=seed, options=options)
         if seed is not None or (options or {}).get(NEW_ROLLOUT_OPTION):
             pos, _ = self.env.unwrapped.physics.object_pose()
             self._current = {"seed": -1 if seed is None else int(seed), "steps": 0, "xy": pos[:2].copy()}
+            self._idle = None
+        elif self._current is None:
+            self._idle = (obs, info)
         return obs, info
 
     def step(self, action):
+        if self._idle is not None:
+            obs, info = self._idle
+            return obs, 0.0, False, False, info
         obs, reward, terminated, truncated, info = self.env.step(action)
         cur = self._current
         if cur is not None:

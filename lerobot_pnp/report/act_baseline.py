@@ -16,6 +16,14 @@ LeRobot's ``save_checkpoint`` in ``lerobot-train``'s layout (``lerobot-eval --po
 loads it). Everything else (model, processors, inference with its action queue, evaluation through
 ``eval_policy``) is stock LeRobot.
 
+On a task with perturbations (``full``) the dense recording draws the same episodes: the start, the events'
+counts and moments within their windows and the latency are drawn at reset, before any step, so they are
+the same in both control modes; what an event draws when it fires (a drop's landing point, a nudge's push)
+comes after a different number of per-step observation-noise draws, so it is another draw from the same
+distribution. The nudge is timed by an env step (``nudge_at_step``), so the recording pushes the object at
+dense step 1, after the expert planned its first keyframe: the arm still goes to the hover point above where
+the object was and corrects at the descent, the states that follow the evaluation's nudge (``dense_env``).
+
 Tuning, measured on seed 1000 with 3000 steps x batch 64 (nominal success over 100 evaluation episodes):
 constant lr 3e-4 with dropout 0.1: 32 % (of 200); peak lr 1e-3 with cosine decay and dropout 0.1: 59 %; the
 same with dropout 0: 99 %. Dense joint targets move ~0.01 rad a step, so the regression must be precise to a
@@ -38,7 +46,8 @@ from lerobot_pnp.recorded_task import copy_recorded
 
 # ACT sized to the task: an expert dense episode is ~140-160 steps (7-8 s at 20 fps) with a keyframe reached
 # every ~15-20 steps. A 20-step chunk (1 s) spans about one keyframe; executing 10 of them re-plans every
-# 0.5 s (closed loop at 2 Hz). The inputs are 8 + 3 numbers, so a 2-layer encoder of width 128 is ample
+# 0.5 s (closed loop at 2 Hz). The inputs are 8 + 3 numbers (+ 4 on ``full``: yaw and goal), so a 2-layer
+# encoder of width 128 is ample
 # (0.67 M parameters; LeRobot's default, 512 wide with 4 encoder layers, a VAE and a ResNet-18, has ~50 M
 # and is built for images). No VAE: the expert is deterministic given the state (no multi-modal
 # demonstrations to capture); ACT without it is the plain chunked transformer regressor (latent fixed at 0).
@@ -271,10 +280,10 @@ def dense_nudge_step(dataset_root: Path) -> int:
 def dense_env(env_cfg, dense_root: Path | None):
     """A suite's env config (the keyframe task with the suite's changes) in dense control mode.
 
-    fps and episode length become the dense defaults (20 fps, 3 s per keyframe of the budget: 600 steps for
-    the paper's 10 keyframes, 1200 for the recovery suites' 20). A nudge fires when the expert would have
-    reached its first keyframe (``dense_nudge_step``). Observation latency stays one env step (50 ms here,
-    one whole keyframe move in keyframe mode): the suite is not comparable across control modes.
+    fps and episode length become the dense defaults (20 fps, 3 s per keyframe of the suite's budget: 600
+    steps for the paper's 10 keyframes, 2400 for the full task's 40). A nudge fires when the expert would have
+    reached its first keyframe (``dense_nudge_step``). Observation latency counts env steps (50 ms here, one
+    whole keyframe move in keyframe mode): the latency suites are not comparable across control modes.
     """
     changes: dict = {"control_mode": "dense"}
     if env_cfg.nudge_max > 0 and env_cfg.nudge_at_step == 1:

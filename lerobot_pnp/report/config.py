@@ -96,7 +96,7 @@ PRESETS: dict[str, dict] = {
         "num_episodes": 1000,
         "epochs": 300,
         "train_seeds": [1000, 1001, 1002],
-        "methods": ["expert", "lookup_table", "recovering", "memoryless_mlp"],
+        "methods": ["expert", "lookup_table", "recovering", "memoryless_mlp", "act"],
         "suites": [
             SuiteSpec("nominal", 200),
             *(SuiteSpec(s, 200) for s in PROTOCOL_SUITES),

@@ -319,10 +319,11 @@ def _dense_notes(methods) -> list[str]:
         return []
     return [
         "- Dense-control methods (ACT) run each suite's task at 20 fps with 3 s of control per keyframe of the "
-        "budget (600 steps nominal, 1200 with the recovery budget). A nudge fires at the dense step where the "
-        "expert reaches its first keyframe (median over the training demonstrations), the keyframe suites' "
-        "'after the first keyframe'. `latency` stays one env step: 50 ms in dense mode against one whole keyframe "
-        "move in keyframe mode, so that row does not compare the two control modes.",
+        "suite's budget (600 steps for the paper task's 10 keyframes, 1200 for its recovery suites' 20, 2400 for "
+        "the full task's 40). A nudge fires at the dense step where the expert reaches its first keyframe (median "
+        "over the training demonstrations), the keyframe suites' 'after the first keyframe'. Observation latency "
+        "counts env steps: one is 50 ms in dense mode against one whole keyframe move in keyframe mode, so the "
+        "latency suites do not compare the two control modes.",
     ]
 
 

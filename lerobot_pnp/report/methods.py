@@ -233,7 +233,8 @@ def _act_env(env_cfg: BaxterPnPEnvConfig, ctx: TrainContext) -> BaxterPnPEnvConf
 def _act_description() -> str:
     o = act_baseline.ACT_OVERRIDES
     return (
-        f"LeRobot ACT, state-only (joints + object position), no VAE, chunk {o['chunk_size']} / "
+        "LeRobot ACT, state-only (joints + the environment state: object position; on `full` also its yaw and "
+        f"the goal), no VAE, chunk {o['chunk_size']} / "
         f"{o['n_action_steps']} executed, width {o['dim_model']}, {o['n_encoder_layers']}+{o['n_decoder_layers']} "
         f"layers; trained on the dense recording of the same demonstrations ({act_baseline.ActBudget().describe()} per seed); "
         "run in dense control mode (20 fps)"
