@@ -19,6 +19,7 @@ import time
 from collections import Counter
 from pathlib import Path
 
+from lerobot_pnp.cache import CHECKPOINT_FILES, digest_files
 from lerobot_pnp.dagger.config import RECOVERING_RECIPE
 from lerobot_pnp.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.evaluation.checkpoints import load_policy
@@ -89,9 +90,12 @@ else:
     )
     if eval_seed != 10_000_000:
         result_file = result_file.with_name(f"{result_file.stem}_seed{eval_seed}.json")
+    # A suite's result is reused only when it was made from this checkpoint's content with this many episodes
+    # (the file name holds the overrides and the eval seed); a result without the checkpoint's digest is redone.
+    ckpt_digest = digest_files(ckpt, CHECKPOINT_FILES)
     results = json.loads(result_file.read_text()) if result_file.is_file() else {}
     for name in names:
-        if name in results:
+        if results.get(name, {}).get("checkpoint_digest") == ckpt_digest and results[name].get("n") == n:
             continue
         cfg = SUITES[name].env_configs(base)[0]
         lp = load_policy(ckpt, env_cfg=cfg)
@@ -119,6 +123,7 @@ else:
             "by_disturbances": {e: {"successes": v[0], "failures": v[1]} for e, v in by_events.items()},
             "mean_steps_success": sum(r.steps for r in recs if r.success) / max(k, 1),
             "wall_s": time.time() - t,
+            "checkpoint_digest": ckpt_digest,
         }
         print(
             f"{name:<26} {k}/{n} = {100 * k / n:5.1f} % [{100 * lo:5.1f}, {100 * hi:5.1f}] {causes} {time.time() - t:.0f}s",
