@@ -99,8 +99,7 @@ def labelled_rollout(
     obs, info = env.reset(seed=seed)
     expert = Teacher(env)
     mix = np.random.default_rng(seed)
-    dart = dart if dart is not None and dart.active else None
-    noise = DartNoise.rng_for(seed) if dart else None
+    dart, noise = dart or DartNoise(), DartNoise.rng_for(seed)  # off: apply() returns the label, draws nothing
     states, env_states, labels, phases = [], [], [], []
     done, stopped, executed, disagree, policy_disagree = False, None, 0, 0, 0
     while True:
@@ -120,7 +119,7 @@ def labelled_rollout(
         action = np.asarray(policy.act(obs), np.float32)
         policy_disagree += int(not follows(action, keyframe))
         if beta > 0.0 and mix.random() < beta:
-            action = dart.apply(keyframe, noise) if dart else np.asarray(keyframe, np.float32)
+            action = dart.apply(keyframe, noise)
             expert.executed(action)
             executed += 1
         disagree += int(not follows(action, keyframe))
