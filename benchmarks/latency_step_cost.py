@@ -1,0 +1,121 @@
+"""What the 40-keyframe budget leaves to a controller that waits to see each of its moves (issue 19, latency).
+
+At ``L`` steps of observation latency a planner trained on observations at most ``k`` steps old waits ``L - k``
+steps per move (``observation_gate``, ``in_flight = k``): at ``heldout_latency_2`` the recovering recipe
+(``k = 1``) spends one extra step per keyframe that moves the arm or gripper. This measures what that step
+cost alone does, without any learning: the privileged scripted expert (it plans from the simulator's state, so
+the latency itself cannot hurt it) holds each moving keyframe for ``hold`` extra steps, on a suite's episodes
+and the study's eval seeds. ``hold = 0`` is the expert as the benchmark measures it.
+
+With ``--planner EVALS_DIR`` (a study's ``evals/recovering``) it pairs the expert's episodes with the planner's
+records of the same suite and seeds (each training seed): the planner's failures that the waiting expert also
+fails, and the other way round.
+
+    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/latency_step_cost.py --holds 0 1 2 \
+        --planner outputs/heldout/evals/recovering --out docs/results/latency_step_cost.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import json
+from pathlib import Path
+
+import numpy as np
+
+from lerobot_pnp.env_config import BaxterPnPEnvConfig, make_env
+from lerobot_pnp.evaluation.stats import wilson_interval
+from lerobot_pnp.evaluation.suites import get_suites
+from lerobot_pnp.expert import FSMExpert
+
+MOVE_TOL = 1e-3  # a keyframe that changes the command by less (a hold keyframe) is not waited for
+
+
+def waiting_expert(env, seed: int, hold: int) -> dict:
+    """One episode of the expert holding each moving keyframe ``hold`` extra steps; the env's budget applies."""
+    env.reset(seed=seed)
+    expert = FSMExpert(env)
+    previous, steps = expert.command, 0
+    while True:
+        command = expert.next_keyframe()
+        repeats = 1 + (hold if np.linalg.norm(command - previous) > MOVE_TOL else 0)
+        previous = command
+        for _ in range(repeats):
+            _, _, terminated, truncated, info = env.step(command)
+            steps += 1
+            if terminated or truncated:
+                success = bool(info["is_success"])  # terminated means success (env.step)
+                return {"seed": seed, "success": success, "steps": steps,
+                        "failure_cause": None if success else info.get("failure_cause") or "truncated"}  # fmt: skip
+
+
+def run(suite: str, holds: list[int], seeds: list[int]) -> dict[int, list[dict]]:
+    base = BaxterPnPEnvConfig.from_dict({"preset": "full"})
+    (cfg,) = get_suites([suite])[0].env_configs(base)
+    env = make_env(cfg, render_mode=None)
+    out = {h: [waiting_expert(env, s, h) for s in seeds] for h in holds}
+    env.close()
+    return out
+
+
+def summary(episodes: list[dict]) -> dict:
+    ok = sum(e["success"] for e in episodes)
+    lo, hi = wilson_interval(ok, len(episodes))
+    steps = [e["steps"] for e in episodes if e["success"]]
+    causes = collections.Counter(e["failure_cause"] for e in episodes if not e["success"])
+    return {"successes": ok, "n": len(episodes), "rate": ok / len(episodes), "wilson95": [lo, hi],
+            "mean_steps_success": float(np.mean(steps)) if steps else None, "failures": dict(causes)}  # fmt: skip
+
+
+def paired(expert: list[dict], planner_dir: Path, suite: str) -> dict:
+    """Per training seed: the planner's and the waiting expert's outcomes on the seeds both ran."""
+    by_seed = {e["seed"]: e["success"] for e in expert}
+    out = {}
+    for record in sorted(planner_dir.glob(f"*/{suite}.json")):
+        planner = {e["seed"]: e["success"] for e in json.loads(record.read_text())["episodes"]}
+        common = sorted(set(planner) & set(by_seed))
+        both_fail = sum(not planner[s] and not by_seed[s] for s in common)
+        out[record.parent.name] = {
+            "n": len(common),
+            "planner_successes": sum(planner[s] for s in common),
+            "expert_successes": sum(by_seed[s] for s in common),
+            "both_fail": both_fail,
+            "planner_only_fails": sum(not planner[s] and by_seed[s] for s in common),
+            "expert_only_fails": sum(planner[s] and not by_seed[s] for s in common),
+        }
+    return out
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--suite", default="heldout_latency_2")
+    p.add_argument("--holds", type=int, nargs="+", default=[0, 1, 2])
+    p.add_argument("--episodes", type=int, default=200, help="per eval-seed block")
+    p.add_argument("--seed_blocks", type=int, nargs="+", default=[100_000, 10_000_000],
+                   help="first eval seeds: the study's and the held-out protocol script's")  # fmt: skip
+    p.add_argument("--planner", type=Path, help="a study's evals/recovering folder to pair with (seed block 1)")
+    p.add_argument("--out", type=Path)
+    args = p.parse_args()
+    result: dict = {"suite": args.suite, "what": __doc__.split("\n\n")[1].replace("\n", " "), "holds": {}}
+    for hold in args.holds:
+        result["holds"][hold] = {}
+    for block in args.seed_blocks:
+        episodes = run(args.suite, args.holds, list(range(block, block + args.episodes)))
+        for hold, eps in episodes.items():
+            result["holds"][hold][str(block)] = summary(eps)
+            if args.planner and block == args.seed_blocks[0]:
+                result["holds"][hold]["paired_with_planner"] = paired(eps, args.planner, args.suite)
+    for hold, blocks in result["holds"].items():
+        pooled = [b for k, b in blocks.items() if k.isdigit()]
+        ok, n = sum(b["successes"] for b in pooled), sum(b["n"] for b in pooled)
+        blocks["pooled"] = {"successes": ok, "n": n, "rate": ok / n, "wilson95": list(wilson_interval(ok, n))}
+        lo, hi = blocks["pooled"]["wilson95"]
+        print(f"hold {hold}: {ok}/{n} = {100 * ok / n:.1f} % [{100 * lo:.1f}, {100 * hi:.1f}]", flush=True)
+    if args.out:
+        args.out.write_text(json.dumps(result, indent=1) + "\n")
+        print(f"wrote {args.out}")
+
+
+if __name__ == "__main__":
+    main()
