@@ -56,7 +56,7 @@ def test_the_command_line_takes_a_rule_and_refuses_a_bad_one_in_one_line(capsys,
     err = capsys.readouterr().err.strip()
     assert "episodes_rule.block must be a positive multiple" in err and len(err.splitlines()) == 1
     assert not (tmp_path / "never").exists()
-    assert StudyConfig(preset="heldout").episodes_rule.fixed_methods == ("expert", "recovering")
+    assert StudyConfig(preset="heldout").episodes_rule.fixed_methods == ("expert", "lookup_table", "recovering")
     assert StudyConfig(preset="heldout", fixed_episodes=True).episodes_rule is None  # off
     assert StudyConfig(preset="full").episodes_rule is None and StudyConfig(preset="demo").episodes_rule is None
 
@@ -114,3 +114,19 @@ def test_a_truncated_fixed_record_is_exactly_a_fresh_adaptive_evaluation(tmp_pat
     assert [x.changed for x in left] == [("episodes_rule",)]  # another rule: not reused
     _, _, left = _job(StudyConfig(**study, report_only=True), layout)
     assert [x.changed for x in left] == [("episodes_rule",)]  # nor as a fixed-n record
+
+
+def test_a_method_stopped_early_is_compared_with_the_lookup_table_on_the_seeds_both_ran():
+    from lerobot_pnp.evaluation.records import EpisodeRecord
+    from lerobot_pnp.report.results import compare
+
+    def runs(outcomes):
+        return [
+            EpisodeRecord(100_000 + i, ok, "" if ok else "dropped", 0, "", 1, 0.5, 0.3) for i, ok in enumerate(outcomes)
+        ]
+
+    planner = [True] * 200  # fixed at n
+    lookup = [False] * 50  # stopped after one block
+    results = {"recovering": {"1000": {"nominal": runs(planner)}}, "lookup_table": {"-": {"nominal": runs(lookup)}}}
+    (paired,) = compare(results, "recovering", "nominal")
+    assert paired.n == 50 and paired.a_only == 50 and paired.b_only == 0 and paired.difference == 1.0
