@@ -14,6 +14,11 @@ and without the rule: single-core seconds (every stage summed: the two dataset r
 line because a reused dataset records no time, the trainings' ``study_train_time.json`` and the evaluations),
 and the wall clock of the study's job pool on 2 cores (jobs in the study's order, each to the first free
 process, as ``run._run_jobs`` does; the dense recording counted at half its single-worker time).
+
+``--verify METHOD/TAG/SUITE`` checks the premise of reusing a fixed-n record by truncation on a real trained
+policy: the stage evaluated again with the current code, once as the fixed run (one call of n episodes) and once
+block by block (one call per eval batch, as an adaptive evaluation that never stops), episode by episode, and both
+against the stored record.
 """
 
 from __future__ import annotations
@@ -53,6 +58,46 @@ def stage_row(record: Path, rule, batch: int, fixed: bool) -> dict:
         "share_episodes": keep / n,
         "share_steps": share_of_time(episodes, keep),
         "share_batch_longest": sum(longest[:kept_batches]) / sum(longest),
+    }
+
+
+def verify(cfg: StudyConfig, layout: StudyLayout, what: str) -> dict:
+    """The fixed run and the block-by-block run of one finished stage, compared episode by episode."""
+    from dataclasses import asdict
+
+    from lerobot_pnp.evaluation.suites import get_suites
+    from lerobot_pnp.report.config import EpisodeRule
+    from lerobot_pnp.report.methods import keyed_train, train_stage
+    from lerobot_pnp.report.run import Job, _context, _evaluate
+
+    name, tag, suite_name = what.split("/")
+    (method,) = get_methods([name])
+    roots = {r: layout.dataset(r) for r in dict.fromkeys(["keyframe", method.data])}
+    keys = {r: json.loads((root / "stage.json").read_text())["key"] for r, root in roots.items()}
+    ctx = _context(Job(name, tag, None), method, cfg, layout, roots, keys)
+    if method.learned and not train_stage(method, ctx).done():
+        raise SystemExit(f"--verify {what}: its training is not finished in {layout.out}")
+    artifact, _ = keyed_train(method, ctx)  # the finished training's artefact (nothing is trained)
+    (suite,) = get_suites([suite_name])
+    base = BaxterPnPEnvConfig.from_dict(read_recorded(roots["keyframe"]) or {})
+    stored = json.loads(layout.eval_record(name, tag, suite_name).read_text())
+    n = stored["parts"]["n_episodes"]
+    every_block = EpisodeRule(half_width=1e-9, block=cfg.eval_batch_size, fixed_methods=())  # never decided
+    runs = {
+        k: _evaluate(method, artifact, ctx, suite, n, base, cfg, r)
+        for k, r in (("fixed", None), ("blocks", every_block))
+    }
+    episodes = {k: d["episodes"] for k, d in runs.items()}
+    episodes["stored"] = sorted(stored["episodes"], key=lambda e: e["seed"])
+    return {
+        "stage": what,
+        "n": n,
+        "batch": cfg.eval_batch_size,
+        "successes": {k: sum(e["success"] for e in v) for k, v in episodes.items()},
+        "blocks_equal_fixed": episodes["blocks"] == episodes["fixed"],
+        "fixed_equal_stored": episodes["fixed"] == episodes["stored"],
+        "wall_s": {k: d["wall_s"] for k, d in runs.items()},
+        "rule": asdict(every_block),
     }
 
 
@@ -149,8 +194,12 @@ def main() -> None:
     ap.add_argument("--dataset_s", type=float, default=174.0, help="keyframe dataset, wall s (heldout_study_batch64)")
     ap.add_argument("--dense_s", type=float, default=630.0, help="dense recording, 1 worker (heldout_study_act)")
     ap.add_argument("--json", default=None, help="write the per-stage rows and the estimates here")
+    ap.add_argument("--verify", default=None, help="METHOD/TAG/SUITE: fixed vs block-by-block run of that stage")
     args = ap.parse_args()
     cfg = StudyConfig(preset=args.preset, output_dir=args.output_dir)
+    if args.verify:
+        print(json.dumps(verify(cfg, StudyLayout(Path(args.output_dir)), args.verify)))
+        return
     rows, train = collect(cfg, StudyLayout(Path(args.output_dir)))
     times, methods = estimate(rows, train, args.dataset_s, args.dense_s), per_method(rows)
     rule = cfg.episodes_rule
