@@ -43,6 +43,10 @@ def test_a_cell_near_0_stops_after_one_block_and_one_near_half_goes_on():
         ({"half_width": 10}, "got 10"),
         ({"block": 30}, "episodes_rule.block must be a positive multiple of eval_batch_size (50), got 30"),
         ({"fixed_methods": ["expert", "bogus"]}, "episodes_rule.fixed_methods: unknown method(s) ['bogus']; valid:"),
+        (
+            {"halfwidth": 0.1},
+            "episodes_rule: unknown field(s) ['halfwidth']; valid: ['block', 'fixed_methods', 'half_width']",
+        ),
     ],
 )
 def test_a_bad_rule_is_a_config_error_naming_the_value(rule, message):
@@ -130,3 +134,12 @@ def test_a_method_stopped_early_is_compared_with_the_lookup_table_on_the_seeds_b
     results = {"recovering": {"1000": {"nominal": runs(planner)}}, "lookup_table": {"-": {"nominal": runs(lookup)}}}
     (paired,) = compare(results, "recovering", "nominal")
     assert paired.n == 50 and paired.a_only == 50 and paired.b_only == 0 and paired.difference == 1.0
+
+
+def test_the_report_states_the_rule_under_intervals_and_nothing_when_it_is_off():
+    from lerobot_pnp.report.markdown import _episodes_rule_sentence
+
+    text = _episodes_rule_sentence(StudyConfig(preset="heldout"))
+    assert "expert (FSM), lookup table, recovering LSTM run every suite's n" in text
+    assert "blocks of 50 seeds" in text and "+-10 pts" in text and "the common prefix" in text
+    assert _episodes_rule_sentence(StudyConfig(preset="quick")) == ""

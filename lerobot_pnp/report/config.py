@@ -247,6 +247,10 @@ class StudyConfig:
         if self.fixed_episodes:
             self.episodes_rule = None
         if isinstance(self.episodes_rule, dict):
+            valid = EpisodeRule.__dataclass_fields__
+            unknown = sorted(set(self.episodes_rule) - set(valid))
+            if unknown:
+                raise ConfigError(f"episodes_rule: unknown field(s) {unknown}; valid: {sorted(valid)}")
             self.episodes_rule = EpisodeRule(**self.episodes_rule)
         if self.episodes_rule is None:
             return
