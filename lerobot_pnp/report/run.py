@@ -8,8 +8,8 @@ evaluate every suite (same eval seeds for every method), run side by side in a p
 ``methods.train_stage``; ``lerobot_pnp.cache``): a dataset by its generation settings, a training by its
 method, data key, seed and epochs, an evaluation by the training's key, the suite as defined now, its
 episodes and seeds, and the episode rule when one chooses its count (``config.EpisodeRule``; a fixed-n
-record is then reused cut to where the rule stops, when exact) (the key is stored in its JSON, written atomically). Rerunning the same command only does
-what is missing; a changed flag re-runs what depends on it, so the report states the config of its results.
+record is then reused cut to where the rule stops, when exact); the key is stored in its JSON, written
+atomically. Rerunning the same command only does what is missing; a changed flag re-runs what depends on it, so the report states the config of its results.
 The output folder is locked for the run; ``--fresh`` deletes only the entries of its manifest.
 
 The config and its presets: ``report.config``; every path under the output folder: ``report.layout``.
