@@ -13,15 +13,68 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from lerobot_pnp.errors import ConfigError
+from lerobot_pnp.evaluation.stats import wilson_interval
 from lerobot_pnp.evaluation.suites import HELD_OUT_AXES, get_suites
 from lerobot_pnp.presets import PRESETS as TASK_PRESETS
-from lerobot_pnp.report.methods import DATA_EFFICIENCY_METHODS, get_methods
+from lerobot_pnp.report.methods import DATA_EFFICIENCY_METHODS, METHODS, get_methods
 
 
 @dataclass
 class SuiteSpec:
     name: str  # a suite of suites.SUITES, or a sweep group ("nudge")
     n_episodes: int = 200
+
+
+@dataclass(frozen=True)
+class EpisodeRule:
+    """Episode counts chosen from the interval width a cell needs (``StudyConfig.episodes_rule``).
+
+    An evaluation of a method not in ``fixed_methods`` runs its suite's seeds in blocks of ``block`` episodes
+    (a multiple of the eval batch size, so each block is exactly batches a fixed-n run makes: its first blocks
+    are that run's first episodes, episode by episode) and stops after the first block where the 95 % Wilson
+    interval of what it has so far is at most ``half_width`` either side, or at the suite's n. Each evaluation
+    decides alone (no coordination between stages, so the job pool runs them side by side)."""
+
+    half_width: float = 0.1  # target 95 % Wilson half-width (a fraction: 0.1 = +-10 pts)
+    block: int = 50  # episodes between two looks at the interval; a multiple of StudyConfig.eval_batch_size
+    # methods whose evaluations always run the suite's whole n: the claims' methods, and the lookup table, every
+    # paired comparison's baseline (a comparison pairs on the seeds both ran: at the baseline's n, the method's)
+    fixed_methods: tuple[str, ...] = ("expert", "lookup_table", "recovering")
+
+    def check(self, eval_batch_size: int) -> None:
+        """A clear ConfigError naming the bad value; methods are checked by ``StudyConfig``."""
+        if not 0 < self.half_width < 0.5:
+            raise ConfigError(f"episodes_rule.half_width must be in (0, 0.5) (a fraction), got {self.half_width!r}")
+        if self.block < 1 or self.block % eval_batch_size:
+            raise ConfigError(
+                f"episodes_rule.block must be a positive multiple of eval_batch_size ({eval_batch_size}), "
+                f"got {self.block!r}"
+            )
+
+    def key(self) -> dict:
+        """What an adaptive evaluation's stage key records of the rule (``fixed_methods`` decides only whether a
+        method's evaluation is adaptive, not what it produces)."""
+        return {"half_width": self.half_width, "block": self.block}
+
+    def stops(self, n_episodes: int, batch_size: int) -> list[int]:
+        """Where an evaluation of at most ``n_episodes`` may stop: after each block, and at n. A block end that
+        leaves fewer than a batch of episodes to n is skipped: that last short run would be a smaller batch than
+        the fixed-n run's last one (the episodes of a learned policy can depend on the batch)."""
+        return [k for k in range(self.block, n_episodes, self.block) if n_episodes - k >= batch_size] + [n_episodes]
+
+    def stop_at(self, outcomes: list[bool], n_episodes: int, batch_size: int) -> int | None:
+        """Episodes the rule keeps of ``outcomes`` (the first seeds' successes, in seed order): the first stop
+        whose prefix is decided (half-width <= ``half_width``), n when none is; None if ``outcomes`` ends first."""
+        for stop in self.stops(n_episodes, batch_size):
+            if stop > len(outcomes):
+                return None
+            if stop == n_episodes or self.decided(sum(map(bool, outcomes[:stop])), stop):
+                return stop
+        return None  # pragma: no cover - the last stop is n
+
+    def decided(self, successes: int, n: int) -> bool:
+        lo, hi = wilson_interval(successes, n)
+        return (hi - lo) / 2 <= self.half_width
 
 
 # Every suite of the held-out protocol's axes, each once, in axis order
@@ -32,6 +85,10 @@ PROTOCOL_SUITES = tuple(dict.fromkeys(n for axis in HELD_OUT_AXES for n in axis.
 # method pools 3 training seeds (3 n episodes). The demo's headline gets 500 per seed. The full study gives
 # 300 to nominal and 100 to each other suite: enough to separate 50 % from 80 %, or 100 % from 90 %, on the
 # paired test. Its stage timings from scratch: ``timings_s`` in docs/results/report_full_summary.json.
+# ``heldout`` chooses its baselines' counts from the interval widths they need (``EpisodeRule``): the claims'
+# methods (expert, recovering planner) and the paired baseline (lookup table) run all 200; the others stop once
+# +-10 pts is reached (after 50 episodes near 0 %, at most 100 near 50 %): docs/results/episode_rule.txt
+# estimates what that saves. ``full`` keeps fixed counts: its claims read nearly every method (docs/notes_adaptive.md).
 PRESETS: dict[str, dict] = {
     "demo": {
         "num_episodes": 1400,
@@ -103,6 +160,7 @@ PRESETS: dict[str, dict] = {
         ],
         "data_efficiency": [],
         "cli_check_episodes": 100,
+        "episodes_rule": EpisodeRule(half_width=0.1, block=50, fixed_methods=("expert", "lookup_table", "recovering")),
     },
     # make demo's second half, the recovery headline: the `heldout` study cut to one training seed and four
     # suites (nominal; a drop in every episode, as trained; drops twice as far, and observations two steps old,
@@ -153,6 +211,10 @@ class StudyConfig:
     cli_check_episodes: int | None = None
     eval_seed: int = 100_000  # first evaluation seed (disjoint from the dataset's seeds 0..)
     eval_batch_size: int = 50  # sub-envs of the SyncVectorEnv
+    # episode counts chosen from the interval widths (EpisodeRule), e.g. '{"half_width": 0.1, "block": 50,
+    # "fixed_methods": ["expert", "recovering"]}'; None = the preset's (heldout: on; others: off, every suite's n)
+    episodes_rule: EpisodeRule | None = None
+    fixed_episodes: bool = False  # every evaluation runs its suite's whole n (turns the preset's episodes_rule off)
     act_steps: int | None = None  # ACT training steps per seed (None = act_baseline.ActBudget's default)
     fresh: bool = False  # delete output_dir first
     report_only: bool = False  # write the report from the finished evaluations only (train/evaluate nothing)
@@ -177,8 +239,28 @@ class StudyConfig:
         if any(s.n_episodes < 1 for s in self.suites):
             raise ConfigError("every suite needs n_episodes >= 1")
         get_methods(self.methods)  # unknown names fail now, not after an hour
+        self._check_rule()
         get_suites([s.name for s in self.suites])
         self._check_task()
+
+    def _check_rule(self) -> None:
+        if self.fixed_episodes:
+            self.episodes_rule = None
+        if isinstance(self.episodes_rule, dict):
+            valid = EpisodeRule.__dataclass_fields__
+            unknown = sorted(set(self.episodes_rule) - set(valid))
+            if unknown:
+                raise ConfigError(f"episodes_rule: unknown field(s) {unknown}; valid: {sorted(valid)}")
+            self.episodes_rule = EpisodeRule(**self.episodes_rule)
+        if self.episodes_rule is None:
+            return
+        rule = self.episodes_rule = EpisodeRule(  # a list from the command line, a tuple in the key
+            self.episodes_rule.half_width, self.episodes_rule.block, tuple(self.episodes_rule.fixed_methods)
+        )
+        rule.check(self.eval_batch_size)
+        unknown = [m for m in rule.fixed_methods if m not in METHODS]
+        if unknown:
+            raise ConfigError(f"episodes_rule.fixed_methods: unknown method(s) {unknown}; valid: {sorted(METHODS)}")
 
     def _check_task(self) -> None:
         """A method that cannot train on the task's demonstrations fails now, in one line, not after an hour."""

@@ -13,6 +13,7 @@ from lerobot_pnp.evaluation.records import summarize
 from lerobot_pnp.evaluation.suites import RECOVERY_BUDGET, SUITES
 from lerobot_pnp.report import coverage
 from lerobot_pnp.report.claims import render_claims
+from lerobot_pnp.report.methods import METHODS
 from lerobot_pnp.report.results import ALPHA, TARGET, Pooled, held_out_axes, main_records
 
 
@@ -78,13 +79,30 @@ def _header(layout, cfg, methods, summary, left=()) -> list[str]:
         + (" (dense-control methods: their budget is under Methods)" if any(m.data == "dense" for m in methods) else "")
         + "; their rate pools the seeds.",
         *_cli_lines(summary.get("lerobot_eval_cli_check")),
-        "Intervals: 95 % Wilson. Pooling seeds treats them as one sample; the per-seed range is shown beside it.",
+        "Intervals: 95 % Wilson. Pooling seeds treats them as one sample; the per-seed range is shown beside it."
+        + _episodes_rule_sentence(cfg),
         "",
         "## Methods",
         "",
         *_method_lines(methods, t, _parameter_counts(layout, methods, cfg), left),
         "",
     ]
+
+
+def _episodes_rule_sentence(cfg) -> str:
+    """The episode rule in one sentence (``config.EpisodeRule``), or "" when every evaluation runs its n."""
+    rule = getattr(cfg, "episodes_rule", None)
+    if rule is None:
+        return ""
+    fixed = ", ".join(METHODS[m].label for m in rule.fixed_methods if m in METHODS) or "no method"
+    return (
+        f" Episode counts are chosen from the interval widths they need: {fixed} run every suite's n; every other "
+        f"method's evaluation runs blocks of {rule.block} seeds from the first and stops after the first block "
+        f"whose 95 % Wilson interval is at most +-{100 * rule.half_width:g} pts, or at the suite's n (each cell "
+        "shows its n). Every method runs the same first seeds, so a paired comparison pairs two methods on the "
+        "seeds both ran (the common prefix). An evaluation reused by cutting an earlier fixed-n one to the rule's "
+        "stop (exactly the episodes a fresh run makes) shows its share of the original time, estimated by steps."
+    )
 
 
 def _success_table(methods, suite_names, table, marks: dict, aliases: dict) -> list[str]:

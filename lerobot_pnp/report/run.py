@@ -7,8 +7,9 @@ evaluate every suite (same eval seeds for every method), run side by side in a p
 (``report.md``, figures, ``summary.json``). Every stage is keyed by what determines it (``stages.py``,
 ``methods.train_stage``; ``lerobot_pnp.cache``): a dataset by its generation settings, a training by its
 method, data key, seed and epochs, an evaluation by the training's key, the suite as defined now, its
-episodes and seeds (the key is stored in its JSON, written atomically). Rerunning the same command only does
-what is missing; a changed flag re-runs what depends on it, so the report states the config of its results.
+episodes and seeds, and the episode rule when one chooses its count (``config.EpisodeRule``; a fixed-n
+record is then reused cut to where the rule stops, when exact); the key is stored in its JSON, written
+atomically. Rerunning the same command only does what is missing; a changed flag re-runs what depends on it, so the report states the config of its results.
 The output folder is locked for the run; ``--fresh`` deletes only the entries of its manifest.
 
 The config and its presets: ``report.config``; every path under the output folder: ``report.layout``.
@@ -34,7 +35,14 @@ from lerobot_pnp.report.config import StudyConfig, SuiteSpec
 from lerobot_pnp.report.layout import StudyLayout
 from lerobot_pnp.report.methods import DATA_EFFICIENCY_METHODS, TrainContext, get_methods, keyed_train, train_stage
 from lerobot_pnp.report.provenance import command, machine
-from lerobot_pnp.report.stages import EVAL_BATCH_SIZE_BEFORE, dataset_stage, eval_stage, written_by_the_study
+from lerobot_pnp.report.stages import (
+    EVAL_BATCH_SIZE_BEFORE,
+    dataset_stage,
+    episode_rule,
+    eval_stage,
+    truncated_record,
+    written_by_the_study,
+)
 
 # The recordings a method can train on besides the keyframe dataset (``Method.data``): what they are and the
 # env-config changes they are generated with (the same seeds, so the same demonstrations).
@@ -220,10 +228,16 @@ def run_job(job: Job, cfg: StudyConfig, layout: StudyLayout, roots: dict[str, Pa
     for suite, n_episodes in [(s, n) for s, n in pairs if aliases[s.name] == s.name]:
         env_parts = [method.env_config(c, ctx).to_dict() for c in suite.env_configs(base_env)]
         names = [a for a, of in aliases.items() if of == suite.name]  # this suite and its aliases
-        stages = [eval_stage(layout.eval_record(method.name, job.tag, a), method, ctx, n_episodes, env_parts, cfg)
-                  for a in names]  # fmt: skip
+        rule = episode_rule(cfg, method, suite, job.n_demos)  # None: the suite's whole n
+        stages = [eval_stage(layout.eval_record(method.name, job.tag, a), method, ctx, n_episodes, env_parts, cfg,
+                             rule) for a in names]  # fmt: skip
         stage = next((st for st in stages if st.changes() == []), stages[0])  # any alias' finished record
-        if stage.done("" if cfg.report_only else f"evaluation {method.name} {job.tag} {suite.name}"):
+        cut = None if rule is None or stage.changes() == [] else _first_cut(stages, rule, n_episodes, cfg)
+        if cut is not None:  # a fixed-n record holding exactly what this evaluation would run
+            data = cut
+            print(f"  evaluation {method.name} {job.tag} {suite.name}: reused, the first {len(cut['episodes'])} "
+                  f"of its {cut['truncated_from']} episodes (episodes_rule)", flush=True)  # fmt: skip
+        elif stage.done("" if cfg.report_only else f"evaluation {method.name} {job.tag} {suite.name}"):
             data = stage.stored()  # finished earlier, with these settings and this trained artefact
         elif cfg.report_only:
             train = train_stage(method, ctx) if method.learned else None
@@ -237,7 +251,7 @@ def run_job(job: Job, cfg: StudyConfig, layout: StudyLayout, roots: dict[str, Pa
                 if fresh:  # trained now, not found from an earlier run
                     _write_json(ctx.train_dir / TRAIN_TIME, {"wall_s": time.perf_counter() - t})
                     print(f"  trained {method.name} seed {job.tag}: {time.perf_counter() - t:.0f} s", flush=True)
-            data = _evaluate(method, artifact, ctx, suite, n_episodes, base_env, cfg)
+            data = _evaluate(method, artifact, ctx, suite, n_episodes, base_env, cfg, rule)
             stage.commit(**data)  # the record and the episodes in one atomic write
             ok = sum(e["success"] for e in data["episodes"])
             print(
@@ -251,14 +265,26 @@ def run_job(job: Job, cfg: StudyConfig, layout: StudyLayout, roots: dict[str, Pa
     return records, timings, left
 
 
-def _evaluate(method, artifact, ctx, suite, n_episodes: int, base_env, cfg: StudyConfig) -> dict:
-    """One suite (all its parts, consecutive seed blocks from ``cfg.eval_seed``) for one trained method."""
+def _first_cut(stages, rule, n_episodes: int, cfg: StudyConfig) -> dict | None:
+    """The first of ``stages`` (a suite and its aliases) whose fixed-n record the rule can reuse, truncated."""
+    return next((cut for st in stages if (cut := truncated_record(st, rule, n_episodes, cfg)) is not None), None)
+
+
+def _evaluate(method, artifact, ctx, suite, n_episodes: int, base_env, cfg: StudyConfig, rule=None) -> dict:
+    """One suite (all its parts, consecutive seed blocks from ``cfg.eval_seed``) for one trained method. Under
+    an episode ``rule`` (a one-part suite): block after block from the first seed until the rule stops, each
+    block whole batches of the fixed run, so its episodes are that run's first ones."""
     t = time.perf_counter()
-    records, start = [], cfg.eval_seed
+    records, start, batch = [], cfg.eval_seed, cfg.eval_batch_size
     env_cfgs = [method.env_config(c, ctx) for c in suite.env_configs(base_env)]
     for env_cfg, n in zip(env_cfgs, suite.part_episodes(n_episodes), strict=True):
-        if n:
-            records += method.evaluate(artifact, ctx, env_cfg, n, start, cfg.eval_batch_size)
+        done = 0
+        for stop in [n] if rule is None else rule.stops(n, batch):
+            if stop > done:
+                records += method.evaluate(artifact, ctx, env_cfg, stop - done, start + done, batch)
+            done = stop
+            if rule is not None and rule.stop_at([r.success for r in records], n, batch) is not None:
+                break
         start += n
     data = records_to_json(records, time.perf_counter() - t)
     data["env_parts"] = [c.to_dict() for c in env_cfgs]

@@ -1,7 +1,8 @@
 """The study's stage keys (``lerobot_pnp.cache``): its datasets and evaluations, and what a study wrote.
 
 A dataset is keyed by its generation settings; a training by ``methods.train_stage``; an evaluation by the
-trained artefact's key (or the data's), the effective env configs of its suite, its episode count and seeds.
+trained artefact's key (or the data's), the effective env configs of its suite, its episode count and seeds,
+and, for an evaluation whose count the episode rule chooses (``config.EpisodeRule``), the rule's parameters.
 """
 
 from __future__ import annotations
@@ -74,7 +75,7 @@ def dataset_stage(out: Path, name: str, cfg, changes: dict | None = None) -> tup
     return summary, stage.key
 
 
-def eval_stage(path: Path, method, ctx, n_episodes: int, env_parts: list, cfg) -> Stage:
+def eval_stage(path: Path, method, ctx, n_episodes: int, env_parts: list, cfg, rule=None) -> Stage:
     """An evaluation's key: the trained artefact's (or the data's), the effective env config of each part of
     its suite (the suite's changes built on the task, as the method runs them), its episodes and seeds; not
     the suite's name, so suites of the same conditions are one evaluation (``coverage.suite_aliases``). The
@@ -91,5 +92,48 @@ def eval_stage(path: Path, method, ctx, n_episodes: int, env_parts: list, cfg) -
         "eval_seed": cfg.eval_seed,
         "eval_batch_size": cfg.eval_batch_size,
         "versions": code_versions(),
+        **({"episodes_rule": rule.key()} if rule is not None else {}),
     }
     return Stage(path, parts, compare={"env_parts": same_env_configs}, dropped=("suite",), added=EVAL_BATCH_SIZE_BEFORE)
+
+
+def episode_rule(cfg, method, suite, n_demos: int | None):
+    """The episode rule an evaluation runs under (``config.EpisodeRule``), or None for the suite's whole n: the
+    rule off, a method of its ``fixed_methods``, a data-efficiency run (its curve compares equal counts), or a
+    suite of several parts (``Suite.part_episodes`` lays out each part's seeds from n, so a shorter run would
+    not be the first episodes of the fixed one: such suites stay at their n)."""
+    rule = cfg.episodes_rule
+    if rule is None or method.name in rule.fixed_methods or n_demos is not None or len(suite.parts) != 1:
+        return None
+    return rule
+
+
+def truncated_record(stage: Stage, rule, n_episodes: int, cfg) -> dict | None:
+    """A fixed-n record at ``stage``'s path, cut to the rule's stopping block, when that is exactly what a fresh
+    run under ``rule`` would produce; else None. Exact when the record's key is ``stage``'s but for the rule
+    and its ``n_episodes`` (same artefact, conditions, seeds and batch size), its seeds are the consecutive ones
+    from ``eval_seed``, it holds the episodes up to where the rule stops, and its batch is the one a fresh run's
+    would be (smaller than the eval batch only when both are n). The record itself stays as it is (valid for a
+    fixed evaluation); the cut is made again on every reuse, with its wall time estimated (``share_of_time``)."""
+    stored = stage.stored()
+    if stored is None or "episodes_rule" in stored["parts"] or not isinstance(stored.get("episodes"), list):
+        return None
+    n_stored = stored["parts"].get("n_episodes")
+    parts = {k: v for k, v in stage.parts.items() if k != "episodes_rule"} | {"n_episodes": n_stored}
+    fixed = Stage(stage.record, parts, compare=stage.compare, dropped=stage.dropped, added=stage.added)
+    episodes = sorted(stored["episodes"], key=lambda e: e["seed"])
+    if fixed.changes() != [] or [e["seed"] for e in episodes] != list(range(cfg.eval_seed, cfg.eval_seed + n_stored)):
+        return None
+    keep = rule.stop_at([e["success"] for e in episodes], n_episodes, cfg.eval_batch_size)
+    if keep is None or min(cfg.eval_batch_size, n_stored) != min(cfg.eval_batch_size, keep):
+        return None
+    wall_s = stored.get("wall_s", 0.0) * share_of_time(episodes, keep)
+    extra = {k: v for k, v in stored.items() if k not in ("key", "parts", "episodes", "wall_s")}
+    return {**extra, "wall_s": wall_s, "episodes": episodes[:keep], "truncated_from": n_stored}
+
+
+def share_of_time(episodes: list[dict], keep: int) -> float:
+    """The share of an evaluation's wall time its first ``keep`` episodes took, estimated by their simulated
+    steps (a batch costs the sum of its episodes' lengths: ``episodes.EpisodeRecorder``)."""
+    total = sum(e["steps"] for e in episodes)
+    return sum(e["steps"] for e in episodes[:keep]) / total if total else keep / max(1, len(episodes))
