@@ -196,3 +196,19 @@ def test_every_axis_names_train_and_held_out_suites_of_the_catalogue():
                 SUITES[name].env_configs(BaxterPnPEnvConfig(preset=base))  # valid on both training tasks
     late, train = (SUITES[n].env_configs(BaxterPnPEnvConfig())[0] for n in ("heldout_late_drop", "train_drop"))
     assert train.drop_window == FULL_TASK["drop_window"] and late.drop_window[0] >= train.drop_window[1]
+
+
+def test_a_displacements_moment_in_its_window_is_not_observable_so_no_late_displacement_suite():
+    """Why the timing axis has no displacement suite: the object is moved at another height of the place
+    retract, and the keyframe observations, the episode and its outcome are still the same, because the retract
+    is one step (in dense control the pending displacement fires at the first successful step). If the env ever
+    makes the moment observable, this fails and a ``heldout_late_displace`` suite becomes meaningful."""
+    early = SUITES["train_displace"].env_configs(BaxterPnPEnvConfig(preset="full"))[0]
+    late = early.with_changes(displace_window=(0.5, 1.0))
+    for seed in (100_001, 100_002):  # displaced at another height of the retract, the same episode
+        a, b = (run_expert_episode(make_env(cfg, render_mode=None), seed=seed) for cfg in (early, late))
+        assert "displace" in a.info["perturbations"] and "displace" in b.info["perturbations"]
+        assert a.keyframe_states.shape == b.keyframe_states.shape
+        np.testing.assert_allclose(a.keyframe_states, b.keyframe_states, atol=1e-6)  # float noise of the physics
+    assert "heldout_late_displace" not in SUITES
+    assert not any("displace" in n for axis in HELD_OUT_AXES if axis.name == "timing" for n in axis.held_out)

@@ -211,6 +211,12 @@ def _kind(kind: str, **changes) -> dict[str, Any]:
 
 
 _LATE = (0.5, 1.0)  # the second half of each window (training: the first half)
+# Kinds whose moment within the window a policy can tell apart. A displacement's window is the rise of the
+# place retract, and the episode ends at the first successful step: in keyframe control the retract is one step,
+# so the next observation is the same whenever in it the object moved; in dense control the pending displacement
+# fires at the first successful step, whatever its window. A "late displacement" suite gave every method the
+# same episodes as ``train_displace``, so it is not a held-out condition and is not in the catalogue.
+_TIMED_KINDS = ("grasp_miss", "drop")
 _TRAIN_LATENCY = {"obs_latency": 0, "obs_latency_max": 1, "obs_latency_jitter": 0.0}  # the recovering recipe's
 
 
@@ -223,7 +229,7 @@ def _held_out_protocol() -> list[Suite]:
             f"{k} in the second half of its window (trained: the first)",
             (_kind(k, **{f"{k}_window": _LATE}),),
         )
-        for k in KINDS
+        for k in _TIMED_KINDS
     ]
     suites += [
         Suite(
@@ -285,8 +291,8 @@ HELD_OUT_AXES: tuple[Axis, ...] = (
     Axis(
         "timing",
         "when the disturbance happens within its window",
-        _TRAIN_KINDS,
-        tuple(f"heldout_late_{k}" for k in KINDS),
+        tuple(f"train_{k}" for k in _TIMED_KINDS),
+        tuple(f"heldout_late_{k}" for k in _TIMED_KINDS),
     ),
     Axis(
         "magnitude",
