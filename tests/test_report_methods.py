@@ -20,7 +20,7 @@ def study(tmp_path_factory):
         num_episodes=N,
         workers=1,
         epochs=2,
-        methods=["phase_told_mlp", "recovering_dagger"],
+        methods=["phase_told_mlp", "recovering_dagger", "recovering_dart"],
         train_seeds=[1000],
         suites=[SuiteSpec("nominal", 2), SuiteSpec("grasp_miss", 2)],
     )
@@ -57,6 +57,17 @@ def test_dagger_continues_the_recovering_run_of_the_same_seed(study):
     assert recorded["keyframe_budget"] == 20  # room to recover in the rollouts
     for suite in ("nominal", "grasp_miss"):
         assert len(json.loads((out / f"evals/recovering_dagger/seed1000/{suite}.json").read_text())["episodes"]) == 2
+
+
+def test_dart_continues_the_same_run_with_noisy_expert_demonstrations_of_the_undisturbed_task(study):
+    out, _, _ = study
+    rollouts = json.loads((out / "train/recovering_dart/seed1000/round_01/rollouts.json").read_text())
+    assert rollouts["episodes"] == 3 and rollouts["beta"] == 1.0  # the expert acts at every step
+    assert rollouts["dart"]["sigma"] == methods.DART_SIGMA
+    assert not (out / "train/recovering_dart/seed1000/round_00/train").exists()  # the recovering run of the seed
+    recorded = read_recorded(out / "train/recovering_dart/seed1000/round_01/rollouts")
+    assert recorded["grasp_miss_prob"] == recorded["drop_prob"] == recorded["displace_prob"] == 0.0  # undisturbed
+    assert len(json.loads((out / "evals/recovering_dart/seed1000/grasp_miss.json").read_text())["episodes"]) == 2
 
 
 def test_finished_evaluations_are_reused_unless_their_suite_changed(study):

@@ -16,6 +16,9 @@ is evaluated. New methods (the recovering planner, DAgger rounds, ACT) plug in b
   rollouts of that policy under nominal, missed-grasp, drop, nudge and displacement conditions, every visited
   state labelled by the expert, aggregated with the demonstrations, retrained from scratch. Extra data the
   others do not get (interactive expert labels): it shows what the teacher adds, not a like-for-like method.
+* ``recovering_dart``: ``recovering`` of the same seed plus one DART round at the same budget: 300 noisy
+  expert demonstrations of the undisturbed task (``DART_SIGMA`` rad on the joint targets it executes, clean
+  labels). Its data never shows a disturbance, only the off-path states the noise makes (docs/results/dart.md).
 * ``memoryless_mlp``: the capacity-matched memoryless control: ``recovering`` with an MLP trunk of about the
   LSTM trunk's parameter count instead of the LSTM (same data, inputs, loss and budget).
 * ``phase_told_mlp``: the same MLP told the phase: trained and run with ``observe_phase`` (a one-hot of the
@@ -173,17 +176,25 @@ PHASE_TOLD_MLP = {**RECOVERING, "recurrent": False, "latency_augment_prob": 0.0}
 DAGGER_ROLLOUTS = 300  # policy episodes of the one DAgger round, cycled over the rollout suites
 
 
-def _dagger_train(ctx: TrainContext) -> Path:
-    """One DAgger round on top of the ``recovering`` run of the same seed (trained first if missing)."""
+DART_SIGMA = (
+    0.02  # rad on each joint target the expert executes (docs/results/dart.md: about twice the grasp clearance)
+)
+
+
+def _dagger_train(ctx: TrainContext, name: str = "recovering_dagger", **schedule) -> Path:
+    """One round of ``lerobot_pnp.dagger`` on top of the ``recovering`` run of the same seed (trained first if
+    missing): DAgger's pure on-policy round (the defaults), or DART's noisy expert demonstrations (``schedule``:
+    ``beta``, ``dart``, ``rollout_suites``)."""
     from lerobot_pnp.dagger import DaggerConfig, run_dagger
     from lerobot_pnp.policy import PnpLstmConfig
 
     if ctx.n_demos is not None:
-        raise ConfigError("method 'recovering_dagger' has no data-efficiency variant")
-    base = METHODS["recovering_dagger"].continues
+        raise ConfigError(f"method {name!r} has no data-efficiency variant")
+    base = METHODS[name].continues
     round0, _ = keyed_train(METHODS[base], _continued(ctx, base))
     summary = run_dagger(
         DaggerConfig(
+            **schedule,
             output_dir=str(ctx.train_dir),
             base_root=str(ctx.dataset_root),
             base_repo_id=f"local/{ctx.dataset_root.name}",
@@ -201,6 +212,15 @@ def _dagger_train(ctx: TrainContext) -> Path:
         )
     )
     return Path(summary["final_checkpoint"])
+
+
+def _dart_train(ctx: TrainContext) -> Path:
+    """DART (Laskey et al., 2017) at DAgger's budget: one round of ``DAGGER_ROLLOUTS`` expert demonstrations of
+    the undisturbed task with Gaussian noise on the joint targets the expert executes, each frame labelled with
+    its clean command; no disturbance is ever in the data."""
+    from lerobot_pnp.dagger.dart import DartNoise
+
+    return _dagger_train(ctx, "recovering_dart", beta=1.0, dart=DartNoise(sigma=DART_SIGMA), rollout_suites=["nominal"])
 
 
 def _observe_phase(env_cfg: BaxterPnPEnvConfig, ctx: TrainContext) -> BaxterPnPEnvConfig:
@@ -306,6 +326,23 @@ METHODS: dict[str, Method] = {
             tasks=("paper",),
             tasks_why="the study's DAgger round is set up for the paper task (its rollouts run at a "
             f"{RECOVERY_BUDGET}-keyframe budget, below the full task's); DAgger on full: `lerobot-pnp dagger`",
+        ),
+        Method(
+            "recovering_dart",
+            "recovering LSTM + DART",
+            f"`recovering` of the same seed + one DART round at DAgger's budget: {DAGGER_ROLLOUTS} expert "
+            f"demonstrations of the undisturbed task with {DART_SIGMA} rad of Gaussian noise on each joint target "
+            "it executes, labelled with its clean commands, aggregated with the demonstrations, retrained from "
+            "scratch (no disturbance in its data)",
+            True,
+            _dart_train,
+            _checkpoint_eval,
+            RECOVERING,
+            continues="recovering",
+            batch_size=RECOVERING_BATCH_SIZE,
+            tasks=("paper",),
+            tasks_why="the study's DART round is set up for the paper task, as its DAgger round; DART on full: "
+            "`lerobot-pnp dagger --config_path configs/dart_full.json`",
         ),
         Method(
             "act",
