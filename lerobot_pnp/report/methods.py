@@ -176,9 +176,8 @@ PHASE_TOLD_MLP = {**RECOVERING, "recurrent": False, "latency_augment_prob": 0.0}
 DAGGER_ROLLOUTS = 300  # policy episodes of the one DAgger round, cycled over the rollout suites
 
 
-DART_SIGMA = (
-    0.02  # rad on each joint target the expert executes (docs/results/dart.md: about twice the grasp clearance)
-)
+# rad of noise on each joint target the expert executes (docs/results/dart.md: about twice the grasp clearance)
+DART_SIGMA = 0.02
 
 
 def _dagger_train(ctx: TrainContext, name: str = "recovering_dagger", **schedule) -> Path:
