@@ -18,21 +18,21 @@ fails, and the other way round.
 from __future__ import annotations
 
 import argparse
-import collections
 import json
 from pathlib import Path
 
 import numpy as np
 
 from lerobot_pnp.env_config import BaxterPnPEnvConfig, make_env
-from lerobot_pnp.evaluation.stats import wilson_interval
+from lerobot_pnp.evaluation.records import EpisodeRecord, summarize
+from lerobot_pnp.evaluation.stats import Rate, paired_comparison
 from lerobot_pnp.evaluation.suites import get_suites
 from lerobot_pnp.expert import FSMExpert
 
 MOVE_TOL = 1e-3  # a keyframe that changes the command by less (a hold keyframe) is not waited for
 
 
-def waiting_expert(env, seed: int, hold: int) -> dict:
+def waiting_expert(env, seed: int, hold: int) -> EpisodeRecord:
     """One episode of the expert holding each moving keyframe ``hold`` extra steps; the env's budget applies."""
     env.reset(seed=seed)
     expert = FSMExpert(env)
@@ -45,12 +45,10 @@ def waiting_expert(env, seed: int, hold: int) -> dict:
             _, _, terminated, truncated, info = env.step(command)
             steps += 1
             if terminated or truncated:
-                success = bool(info["is_success"])  # terminated means success (env.step)
-                return {"seed": seed, "success": success, "steps": steps,
-                        "failure_cause": None if success else info.get("failure_cause") or "truncated"}  # fmt: skip
+                return EpisodeRecord.from_info(seed, info, steps, (np.nan, np.nan))
 
 
-def run(suite: str, holds: list[int], seeds: list[int]) -> dict[int, list[dict]]:
+def run(suite: str, holds: list[int], seeds: list[int]) -> dict[int, list[EpisodeRecord]]:
     base = BaxterPnPEnvConfig.from_dict({"preset": "full"})
     (cfg,) = get_suites([suite])[0].env_configs(base)
     env = make_env(cfg, render_mode=None)
@@ -59,30 +57,28 @@ def run(suite: str, holds: list[int], seeds: list[int]) -> dict[int, list[dict]]
     return out
 
 
-def summary(episodes: list[dict]) -> dict:
-    ok = sum(e["success"] for e in episodes)
-    lo, hi = wilson_interval(ok, len(episodes))
-    steps = [e["steps"] for e in episodes if e["success"]]
-    causes = collections.Counter(e["failure_cause"] for e in episodes if not e["success"])
-    return {"successes": ok, "n": len(episodes), "rate": ok / len(episodes), "wilson95": [lo, hi],
-            "mean_steps_success": float(np.mean(steps)) if steps else None, "failures": dict(causes)}  # fmt: skip
+def summary(episodes: list[EpisodeRecord]) -> dict:
+    rate, counts = Rate.of([e.success for e in episodes]), summarize(episodes)
+    steps = [e.steps for e in episodes if e.success]
+    return {"successes": rate.successes, "n": rate.n, "rate": rate.rate, "wilson95": list(rate.interval),
+            "mean_steps_success": float(np.mean(steps)) if steps else None, "failures": counts["by_cause"]}  # fmt: skip
 
 
-def paired(expert: list[dict], planner_dir: Path, suite: str) -> dict:
+def paired(expert: list[EpisodeRecord], planner_dir: Path, suite: str) -> dict:
     """Per training seed: the planner's and the waiting expert's outcomes on the seeds both ran."""
-    by_seed = {e["seed"]: e["success"] for e in expert}
+    by_seed = {e.seed: e.success for e in expert}
     out = {}
     for record in sorted(planner_dir.glob(f"*/{suite}.json")):
         planner = {e["seed"]: e["success"] for e in json.loads(record.read_text())["episodes"]}
-        common = sorted(set(planner) & set(by_seed))
-        both_fail = sum(not planner[s] and not by_seed[s] for s in common)
+        both = paired_comparison(planner, by_seed)  # a: the planner, b: the waiting expert
+        planner_successes = sum(planner[s] for s in planner if s in by_seed)
         out[record.parent.name] = {
-            "n": len(common),
-            "planner_successes": sum(planner[s] for s in common),
-            "expert_successes": sum(by_seed[s] for s in common),
-            "both_fail": both_fail,
-            "planner_only_fails": sum(not planner[s] and by_seed[s] for s in common),
-            "expert_only_fails": sum(planner[s] and not by_seed[s] for s in common),
+            "n": both.n,
+            "planner_successes": planner_successes,
+            "expert_successes": planner_successes - both.a_only + both.b_only,
+            "both_fail": both.n - planner_successes - both.b_only,
+            "planner_only_fails": both.b_only,
+            "expert_only_fails": both.a_only,
         }
     return out
 
@@ -108,10 +104,14 @@ def main() -> None:
                 result["holds"][hold]["paired_with_planner"] = paired(eps, args.planner, args.suite)
     for hold, blocks in result["holds"].items():
         pooled = [b for k, b in blocks.items() if k.isdigit()]
-        ok, n = sum(b["successes"] for b in pooled), sum(b["n"] for b in pooled)
-        blocks["pooled"] = {"successes": ok, "n": n, "rate": ok / n, "wilson95": list(wilson_interval(ok, n))}
-        lo, hi = blocks["pooled"]["wilson95"]
-        print(f"hold {hold}: {ok}/{n} = {100 * ok / n:.1f} % [{100 * lo:.1f}, {100 * hi:.1f}]", flush=True)
+        rate = Rate(sum(b["successes"] for b in pooled), sum(b["n"] for b in pooled))
+        blocks["pooled"] = {
+            "successes": rate.successes,
+            "n": rate.n,
+            "rate": rate.rate,
+            "wilson95": list(rate.interval),
+        }
+        print(f"hold {hold}: {rate.successes}/{rate.n} = {rate}", flush=True)
     if args.out:
         args.out.write_text(json.dumps(result, indent=1) + "\n")
         print(f"wrote {args.out}")
