@@ -231,8 +231,9 @@ def run_job(job: Job, cfg: StudyConfig, layout: StudyLayout, roots: dict[str, Pa
         rule = episode_rule(cfg, method, suite, job.n_demos)  # None: the suite's whole n
         stages = [eval_stage(layout.eval_record(method.name, job.tag, a), method, ctx, n_episodes, env_parts, cfg,
                              rule) for a in names]  # fmt: skip
-        stage = next((st for st in stages if st.changes() == []), stages[0])  # any alias' finished record
-        cut = None if rule is None or stage.changes() == [] else _first_cut(stages, rule, n_episodes, cfg)
+        finished = next((st for st in stages if st.changes() == []), None)  # any alias' finished record
+        stage = stages[0] if finished is None else finished
+        cut = None if rule is None or finished is not None else _first_cut(stages, rule, n_episodes, cfg)
         if cut is not None:  # a fixed-n record holding exactly what this evaluation would run
             data = cut
             print(f"  evaluation {method.name} {job.tag} {suite.name}: reused, the first {len(cut['episodes'])} "
