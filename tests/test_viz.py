@@ -407,12 +407,15 @@ def test_rollout_task_from_task_source(policy_dir, custom_dataset, tmp_path):
         VizConfig(policy_path=str(policy_dir), env_changes={"drop_probability": 1.0})
 
 
-def test_run_episode_is_deterministic(policy_dir):
-    """evaluation.episodes.run_episode follows LeRobot's eval pipeline; the same seed gives the same episode."""
+def test_run_episode_is_deterministic(policy_dir, capsys):
+    """evaluation.episodes.run_episode follows LeRobot's eval pipeline; the same seed gives the same episode.
+    Loading prints nothing (LeRobot's per-load "Loading weights" line would flood a study's log)."""
     from lerobot_pnp.evaluation.checkpoints import load_policy
     from lerobot_pnp.evaluation.episodes import run_episode
 
+    capsys.readouterr()
     loaded = load_policy(policy_dir)
+    assert capsys.readouterr().out == ""
     assert loaded.type == "pnp_lstm"
     a = run_episode(make_env(None, render_mode=None), loaded, seed=5)
     b = run_episode(make_env(None, render_mode=None), loaded, seed=5)

@@ -12,6 +12,8 @@ DAgger's path). ``policy_action`` is one step of it; ``lerobot_pnp.evaluation.ep
 
 from __future__ import annotations
 
+import contextlib
+import io
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -155,10 +157,13 @@ def load_policy(path: str | Path, device: str = "cpu", env_cfg: Any = None) -> L
     config.device = device
     overrides = {"preprocessor_overrides": {"device_processor": {"device": device}}}
     try:
-        if env_cfg is not None:
-            policy = make_policy(cfg=config, env_cfg=env_cfg)
-        else:
-            policy = get_policy_class(config.type).from_pretrained(ckpt, config=config)
+        # LeRobot's from_pretrained prints "Loading weights from local directory" on every load: a study or a
+        # DAgger run loads a checkpoint per evaluation, and the line would double the length of its log
+        with contextlib.redirect_stdout(io.StringIO()):
+            if env_cfg is not None:
+                policy = make_policy(cfg=config, env_cfg=env_cfg)
+            else:
+                policy = get_policy_class(config.type).from_pretrained(ckpt, config=config)
             overrides["postprocessor_overrides"] = {"device_processor": {"device": "cpu"}}
         preprocessor, postprocessor = make_pre_post_processors(config, pretrained_path=str(ckpt), **overrides)
     except Exception as err:
