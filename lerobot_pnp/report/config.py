@@ -113,7 +113,8 @@ PRESETS: dict[str, dict] = {
         "epochs": 300,
         "train_seeds": [1000, 1001, 1002],
         # the costliest: act (its dense recording once, then training and dense evaluation per seed) and
-        # recovering_dagger (rollouts and retraining per seed); timings in docs/results/report_full_summary.json
+        # recovering_dagger / recovering_dart (rollouts and retraining per seed); timings in
+        # docs/results/report_full_summary.json
         "methods": [
             "expert",
             "lookup_table",
@@ -124,6 +125,7 @@ PRESETS: dict[str, dict] = {
             "phase_told_mlp",
             "recovering",
             "recovering_dagger",
+            "recovering_dart",
             "act",
         ],
         "suites": [
