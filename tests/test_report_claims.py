@@ -151,6 +151,17 @@ def test_what_the_teacher_adds():
     assert _render("what the teacher adds", {("recovering", "nominal"): 50}) == []
 
 
+def test_what_dart_adds_and_dart_corrects_itself():
+    rates = {("recovering", "drop"): 0, ("recovering_dart", "drop"): 85, ("recovering", "random_yaw"): 100}
+    (line,) = _render("what DART adds", {**rates, ("recovering_dart", "random_yaw"): 25})
+    assert line.startswith("- *What the teacher adds (DART, one round)*")
+    assert "better on `drop` 0.0% [0.0, 3.7] -> 85.0%" in line and "worse on `random_yaw` 100.0%" in line
+    lines = _render("planner corrects itself", rates)
+    assert "(recovering LSTM + DART): `drop` 85.0%" in lines[-1] and lines[-1].endswith(
+        "holds on `drop` (95 % interval above 50 %)."
+    )
+
+
 TESTED = {
     "generalisation",
     "learned planner needed",
@@ -161,6 +172,7 @@ TESTED = {
     "memory tracks the phase",
     "planner corrects itself",
     "what the teacher adds",
+    "what DART adds",
     *(f"generalises along {a}" for a in ("timing", "magnitude", "count", "latency", "combination")),
 }
 

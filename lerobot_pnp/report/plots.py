@@ -21,6 +21,19 @@ from lerobot_pnp.evaluation.stats import Rate
 PANELS_PER_ROW = 4  # heat maps and failure panels wrap after this many methods
 
 
+def series_colors(n: int) -> list:
+    """``n`` distinct colours, one per method: matplotlib's default cycle (``C0``..``C9``) up to 10, else tab20
+    (its dark shades, then its light ones). The default cycle repeats after 10, which gave the study's eleventh
+    method the colour of its first."""
+    if n <= 10:
+        return [f"C{i}" for i in range(n)]
+    tab20 = plt.get_cmap("tab20").colors
+    order = [*tab20[0::2], *tab20[1::2]]
+    if n > len(order):
+        raise ValueError(f"at most {len(order)} series can be told apart by colour, got {n}")
+    return list(order[:n])
+
+
 def _finish(fig, path: Path, provenance: str) -> Path:
     fig.text(0.01, 0.005, provenance, fontsize=6, color="0.35", ha="left", va="bottom", wrap=True)
     fig.tight_layout(rect=(0, 0.04, 1, 1))
@@ -98,6 +111,7 @@ def rate_curves(
     fig, ax = plt.subplots(figsize=(6.4, 4.2))
     xs = [p[0] for pts in curves.values() for p in pts]
     dodge = 0.012 * (max(xs) - min(xs)) if xs and not logx else 0.0  # overlapping methods stay visible
+    colors = series_colors(len(curves))
     for i, (name, points) in enumerate(curves.items()):
         points = sorted(points)
         x = np.array([p[0] for p in points]) + (i - (len(curves) - 1) / 2) * dodge
@@ -106,7 +120,7 @@ def rate_curves(
         r = np.array([100 * p[1].rate for p in points])
         lo = np.array([100 * p[1].interval[0] for p in points])
         hi = np.array([100 * p[1].interval[1] for p in points])
-        ax.errorbar(x, r, yerr=[r - lo, hi - r], marker="o", ms=4, capsize=3, color=f"C{i}", label=name)
+        ax.errorbar(x, r, yerr=[r - lo, hi - r], marker="o", ms=4, capsize=3, color=colors[i], label=name)
     if logx:
         ax.set_xscale("log")
     ax.set_ylim(-3, 103)
@@ -134,12 +148,13 @@ def rate_bars(rates: dict[str, dict[str, Rate]], path: Path, provenance: str, ti
     k = max(len(rates), 1)
     width = 0.8 / k
     fig, ax = plt.subplots(figsize=(min(12.0, max(6.4, 0.25 * len(suites) * k + 2.5)), 4.6))
+    colors = series_colors(len(rates))
     for i, (name, per) in enumerate(rates.items()):
         xs = [j + (i - (k - 1) / 2) * width for j, s in enumerate(suites) if s in per]
         r = np.array([100 * per[s].rate for s in suites if s in per])
         lo = np.array([100 * per[s].interval[0] for s in suites if s in per])
         hi = np.array([100 * per[s].interval[1] for s in suites if s in per])
-        ax.bar(xs, r, width, color=f"C{i}", label=name)
+        ax.bar(xs, r, width, color=colors[i], label=name)
         ax.errorbar(xs, r, yerr=np.vstack([r - lo, hi - r]), fmt="none", capsize=2, ecolor="0.25", lw=0.8)
     ax.set_xticks(range(len(suites)), suites)
     ax.set_ylim(0, 103)
