@@ -205,7 +205,9 @@ def test_the_quick_preset_renders_its_three_claims_in_order():
         "A learned planner is needed for unseen positions",
         "Feedback at every step corrects a disturbed object",
     ]
-    assert claims.render_claims({}, {}) == ["- (no suite with the clocked LSTM was evaluated)"]
+    assert claims.render_claims({}, {}) == [
+        "- (none: no claim has the methods and suites it reads among this study's evaluations)"
+    ]
 
 
 # ---------------------------------------------------------------------------------- held-out axes (issue 19)

@@ -311,4 +311,4 @@ check_claims()
 def render_claims(table: dict, comparisons: dict, claims=CLAIMS) -> list[str]:
     """The "## Claims" lines: each claim whose inputs were evaluated, in the order of ``CLAIMS``."""
     out = [line for c in claims for line in c.render(table, comparisons)]
-    return out or ["- (no suite with the clocked LSTM was evaluated)"]
+    return out or ["- (none: no claim has the methods and suites it reads among this study's evaluations)"]
