@@ -164,7 +164,7 @@ def load_policy(path: str | Path, device: str = "cpu", env_cfg: Any = None) -> L
                 policy = make_policy(cfg=config, env_cfg=env_cfg)
             else:
                 policy = get_policy_class(config.type).from_pretrained(ckpt, config=config)
-            overrides["postprocessor_overrides"] = {"device_processor": {"device": "cpu"}}
+                overrides["postprocessor_overrides"] = {"device_processor": {"device": "cpu"}}
         preprocessor, postprocessor = make_pre_post_processors(config, pretrained_path=str(ckpt), **overrides)
     except Exception as err:
         raise PolicyLoadError(f"cannot load the policy from {ckpt}: {err}") from err

@@ -277,7 +277,7 @@ CLAIMS: tuple[Claim, ...] = (
     ),
     Claim(
         "planner corrects itself",
-        tuple(n for n, _ in CORRECTING[:-1]),
+        ("clocked_lstm", "recovering", "recovering_dagger"),
         RECOVERY_SUITES,
         _corrects_itself,
         optional=("recovering_dart",),
