@@ -59,7 +59,7 @@ def test_gym_make_and_env_checker():
     assert env.unwrapped._max_episode_steps == 10
     check_env(env.unwrapped, skip_render_check=True)
     dense = make_env(control_mode="dense")
-    assert dense.unwrapped.control_mode == "dense" and dense.unwrapped._max_episode_steps == 600
+    assert dense.unwrapped.control_mode == "dense" and dense.unwrapped._max_episode_steps == 200
     check_env(dense.unwrapped, skip_render_check=True)
 
 
@@ -258,7 +258,7 @@ def test_lerobot_env_config_builds_vector_envs():
     assert envs.call("_max_episode_steps")[0] == 10
     envs.close()
     dense = BaxterPnPEnvConfig(control_mode="dense", cameras=["front"])
-    assert dense.fps == 20 and dense.episode_length == 600
+    assert dense.fps == 20 and dense.episode_length == 200
     assert dense.features_map["pixels/front"] == "observation.images.front"
     with pytest.raises(ConfigError, match="control_mode"):
         BaxterPnPEnvConfig(control_mode="bogus")

@@ -49,9 +49,9 @@ def test_act_trains_saves_loads_and_runs_dense_episodes(study):
         nominal = json.loads((out / "evals" / "act" / f"seed{seed}" / "nominal.json").read_text())
         assert [e["seed"] for e in nominal["episodes"]] == [100_000, 100_001, 100_002]
         assert [p["control_mode"] for p in nominal["env_parts"]] == ["dense"]
-        assert nominal["env_parts"][0]["fps"] == 20 and nominal["env_parts"][0]["episode_length"] == 600
-        # an episode ends on success or at the 600-step truncation, never in between without success
-        assert all(e["success"] or e["steps"] == 600 for e in nominal["episodes"])
+        assert nominal["env_parts"][0]["fps"] == 20 and nominal["env_parts"][0]["episode_length"] == 200
+        # an episode ends on success or at the 200-step truncation, never in between without success
+        assert all(e["success"] or e["steps"] == 200 for e in nominal["episodes"])
         nudge = json.loads((out / "evals" / "act" / f"seed{seed}" / "nudge_0.03.json").read_text())
         assert nudge["env_parts"][0]["nudge_at_step"] == act_baseline.dense_nudge_step(out / "dataset_dense") > 1
 
@@ -91,7 +91,7 @@ def test_dense_env_keeps_the_suite_and_times_the_nudge(study):
     out, _, _ = study
     base = BaxterPnPEnvConfig(preset="paper", keyframe_budget=20, nudge_max=0.02, obs_latency=1)
     dense = act_baseline.dense_env(base, out / "dataset_dense")
-    assert (dense.control_mode, dense.fps, dense.episode_length) == ("dense", 20, 1200)
+    assert (dense.control_mode, dense.fps, dense.episode_length) == ("dense", 20, 400)
     assert dense.nudge_max == 0.02 and dense.obs_latency == 1 and dense.object_low == base.object_low
     assert dense.nudge_at_step == act_baseline.dense_nudge_step(out / "dataset_dense")
     with pytest.raises(DatasetError, match="needs the dense dataset"):

@@ -104,3 +104,16 @@ def test_parallel_jobs_run_dagger_after_the_recovering_run_it_continues(tmp_path
     start = {p.name: [float(v) for v in p.read_text().split()] for p in tmp_path.iterdir()}
     assert start["recovering_dagger_1"][0] >= start["recovering_1"][1]  # waited for its round 0
     assert start["clocked_lstm_1"][0] < start["recovering_1"][1]  # the other job ran beside it
+
+
+def test_a_pool_takes_the_likely_longest_jobs_first():
+    """Dense-control (ACT) jobs, then the runs DAgger/DART continue, then trainings, then evaluation-only jobs:
+    in the listed order (ACT last) two workers would leave the last ACT job running alone on one core."""
+    from lerobot_pnp.report.run import Job, longest_first
+
+    jobs = [Job("expert", "-", None), Job("lookup_table", "-", None), Job("clocked_lstm", "1", None),
+            Job("recovering_dagger", "1", None), Job("recovering", "1", None), Job("act", "1", None),
+            Job("act", "2", None), Job("clocked_lstm", "n10", 10)]  # fmt: skip
+    order = [(j.method, j.tag) for j in longest_first(jobs)]
+    assert order == [("act", "1"), ("act", "2"), ("recovering", "1"), ("clocked_lstm", "1"),
+                     ("recovering_dagger", "1"), ("clocked_lstm", "n10"), ("expert", "-"), ("lookup_table", "-")]  # fmt: skip

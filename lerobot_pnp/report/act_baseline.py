@@ -280,8 +280,8 @@ def dense_nudge_step(dataset_root: Path) -> int:
 def dense_env(env_cfg, dense_root: Path | None):
     """A suite's env config (the keyframe task with the suite's changes) in dense control mode.
 
-    fps and episode length become the dense defaults (20 fps, 3 s per keyframe of the suite's budget: 600
-    steps for the paper's 10 keyframes, 2400 for the full task's 40). A nudge fires when the expert would have
+    fps and episode length become the dense defaults (20 fps, 1 s per keyframe of the suite's budget: 200
+    steps for the paper's 10 keyframes, 800 for the full task's 40). A nudge fires when the expert would have
     reached its first keyframe (``dense_nudge_step``). Observation latency counts env steps (50 ms here, one
     whole keyframe move in keyframe mode): the latency suites are not comparable across control modes.
     """

@@ -336,9 +336,10 @@ def _dense_notes(methods) -> list[str]:
     if not any(m.data == "dense" for m in methods):
         return []
     return [
-        "- Dense-control methods (ACT) run each suite's task at 20 fps with 3 s of control per keyframe of the "
-        "suite's budget (600 steps for the paper task's 10 keyframes, 1200 for its recovery suites' 20, 2400 for "
-        "the full task's 40). A nudge fires at the dense step where the expert reaches its first keyframe (median "
+        "- Dense-control methods (ACT) run each suite's task at 20 fps with 1 s of control per keyframe of the "
+        "suite's budget (200 steps for the paper task's 10 keyframes, 400 for its recovery suites' 20, 800 for "
+        "the full task's 40): the keyframe methods' budget at the dense expert's pace (16-18 steps per keyframe) "
+        "with a few steps to spare. A nudge fires at the dense step where the expert reaches its first keyframe (median "
         "over the training demonstrations), the keyframe suites' 'after the first keyframe'. Observation latency "
         "counts env steps: one is 50 ms in dense mode against one whole keyframe move in keyframe mode, so the "
         "latency suites do not compare the two control modes.",

@@ -169,6 +169,26 @@ def _job_processes(cfg: StudyConfig, n_jobs: int) -> int:
     return max(1, min(n_jobs, cfg.workers or cores))
 
 
+def longest_first(jobs: list[Job]) -> list[Job]:
+    """The order a pool takes jobs in: the likely longest first, so that the last job to finish is a short one
+    and no core idles while one long job runs on alone (longest-processing-time scheduling). A job's class:
+    a dense-control method's (every evaluation episode runs at the control rate, failures to the budget's end),
+    then one that another continues (DAgger's and DART's rounds wait on it), then other trainings, then
+    evaluation-only jobs; the given order within a class."""
+    methods = {m.name: m for m in get_methods(list(dict.fromkeys(j.method for j in jobs)))}
+    continued = {m.continues for m in methods.values() if m.continues}
+
+    def cost_class(job: Job) -> int:
+        method = methods[job.method]
+        if method.data == "dense":
+            return 0
+        if job.method in continued:
+            return 1
+        return 2 if method.learned else 3
+
+    return sorted(jobs, key=cost_class)
+
+
 def _run_jobs(jobs: list[Job], context: tuple, processes: int, fn=None):
     """Yield ``(job, fn(job, *context))`` for every job (``fn``: ``run_job``, a module-level function). One process: in order, in this process. Several: a
     spawned process pool (each job is single-threaded: torch and MuJoCo on one core), a job starting once the
@@ -183,7 +203,7 @@ def _run_jobs(jobs: list[Job], context: tuple, processes: int, fn=None):
 
     names = {(j.method, j.tag) for j in jobs}
     done: set[tuple[str, str]] = set()
-    pending, running = list(jobs), {}
+    pending, running = longest_first(jobs), {}
     from lerobot_pnp.dataset.executors import die_with_parent
 
     # a worker dies with this process (kill -9 included), as the generation's do: none writes on alone
