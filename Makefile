@@ -2,6 +2,8 @@
 #   make demo   the end-to-end job: generate expert data, train the LSTM planner, evaluate it closed loop; then
 #               the recovering planner on the full task, on a recovery suite and two held-out ones
 #   make test   the test suite (what CI runs)
+#   make study  the whole study behind docs/results.md: the paper task, then the held-out-disturbance protocol
+#               on the full task (every method, 3 training seeds; about 2 h on 2 cores, resumable)
 # Python 3.12 comes from pyenv when present (LeRobot 0.6 needs >= 3.12), else python3.12 on PATH.
 PYTHON ?= $(shell p=$$(pyenv prefix 3.12.1 2>/dev/null) && echo $$p/bin/python || command -v python3.12)
 VENV := .venv
@@ -10,7 +12,7 @@ export OMP_NUM_THREADS ?= 1
 export MUJOCO_GL ?= egl
 export HF_HUB_OFFLINE ?= 1
 
-.PHONY: demo test install clean
+.PHONY: demo test study install clean
 
 $(STAMP): pyproject.toml
 	@test -n "$(PYTHON)" || { echo "Python 3.12 not found (pyenv install 3.12.1, or set PYTHON=...)"; exit 1; }
@@ -26,6 +28,10 @@ install: $(STAMP)
 demo: $(STAMP)
 	$(VENV)/bin/lerobot-pnp demo --config_path configs/demo.json
 	$(VENV)/bin/lerobot-pnp demo --config_path configs/demo_recovery.json
+
+study: $(STAMP)
+	$(VENV)/bin/lerobot-pnp report --config_path configs/report_full.json
+	$(VENV)/bin/lerobot-pnp report --config_path configs/report_heldout.json
 
 test: $(STAMP)
 	$(VENV)/bin/ruff check .

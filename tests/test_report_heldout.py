@@ -65,6 +65,24 @@ def test_make_demo_runs_the_paper_demo_then_the_recovery_headline():
     assert set(names[1:]) & held_out == {"heldout_far_drop", "heldout_latency_2"}
 
 
+def test_make_study_runs_both_tasks_with_every_method_and_three_seeds():
+    """make study: the paper-task study, then the held-out protocol on the full task, each in its own folder."""
+    import json
+    from pathlib import Path
+
+    repo = Path(__file__).resolve().parents[1]
+    make = (repo / "Makefile").read_text()
+    assert "report --config_path configs/report_full.json" in make
+    assert "report --config_path configs/report_heldout.json" in make
+    paper, heldout = (json.loads((repo / "configs" / f).read_text()) for f in ("report_full.json", "report_heldout.json"))
+    assert paper["output_dir"] != heldout["output_dir"]
+    paper, heldout = StudyConfig(**paper), StudyConfig(**heldout)
+    assert (paper.task_preset, heldout.task_preset) == ("paper", "full")
+    assert len(paper.train_seeds) == len(heldout.train_seeds) == 3
+    assert {"recovering", "memoryless_mlp", "act", "lookup_table", "expert"} <= set(heldout.methods)
+    assert {s.name for s in heldout.suites} >= {s for a in HELD_OUT_AXES for s in a.held_out}
+
+
 @pytest.mark.parametrize(
     ("changes", "message"),
     [
