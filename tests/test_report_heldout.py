@@ -74,7 +74,9 @@ def test_make_study_runs_both_tasks_with_every_method_and_three_seeds():
     make = (repo / "Makefile").read_text()
     assert "report --config_path configs/report_full.json" in make
     assert "report --config_path configs/report_heldout.json" in make
-    paper, heldout = (json.loads((repo / "configs" / f).read_text()) for f in ("report_full.json", "report_heldout.json"))
+    paper, heldout = (
+        json.loads((repo / "configs" / f).read_text()) for f in ("report_full.json", "report_heldout.json")
+    )
     assert paper["output_dir"] != heldout["output_dir"]
     paper, heldout = StudyConfig(**paper), StudyConfig(**heldout)
     assert (paper.task_preset, heldout.task_preset) == ("paper", "full")
