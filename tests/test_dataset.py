@@ -306,6 +306,7 @@ def test_push_without_token_or_network_fails_fast_and_touches_nothing(kf, tmp_pa
     t0 = time.time()
     res = _cli("push", f"--repo_id={REPO}", f"--root={root}", env=_cli_env(HF_HOME=str(home)))
     assert res.returncode == 2 and "no Hugging Face token" in res.stderr, res.stderr
+    t1 = time.time()
     res = _cli(
         "push",
         f"--repo_id={REPO}",
@@ -314,7 +315,9 @@ def test_push_without_token_or_network_fails_fast_and_touches_nothing(kf, tmp_pa
         env=_cli_env(HF_HOME=str(home), HF_TOKEN="hf_not_a_real_token"),
     )
     assert res.returncode == 2 and "cannot push" in res.stderr, res.stderr
-    assert time.time() - t0 < 60
+    # fast: the network attempt costs about its connect timeout beyond the same CLI's start-up and checks (the
+    # token-less call above), not the Hub client's retries; relative, so a loaded machine does not fail it
+    assert time.time() - t1 < 2 * (t1 - t0) + 30
     res = _cli("push", f"--repo_id={REPO}", f"--root={root}", env=_cli_env(HF_HUB_OFFLINE="1", HF_TOKEN="hf_x"))
     assert res.returncode == 2 and "HF_HUB_OFFLINE" in res.stderr
     assert _snapshot(root) == before
