@@ -51,7 +51,7 @@ MAX_EPISODE_LENGTH = 100_000  # env steps: every episode's arrays are held in me
 KEYFRAME_FPS = robot.KEYFRAME_FPS
 DENSE_FPS = 20
 # Dense episodes: 1 s of control (20 steps) per keyframe of the budget, the keyframe methods' budget at the pace
-# of the dense expert (about 16-18 steps per keyframe, docs/results/dense_budget.md) with a margin of a few steps.
+# of the dense expert (15-18 steps per keyframe, docs/results/dense_budget.md) with a margin of a few steps.
 # It was 3 s: three times the keyframe methods' budget, spent almost wholly by failing episodes.
 DENSE_SECONDS_PER_KEYFRAME = 1
 _PAIRS = (

@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 
 from lerobot_pnp.dataset.splits import train_count
+from lerobot_pnp.env_config import DENSE_FPS, DENSE_SECONDS_PER_KEYFRAME
 from lerobot_pnp.evaluation.records import summarize
 from lerobot_pnp.evaluation.suites import RECOVERY_BUDGET, SUITES
 from lerobot_pnp.report import coverage
@@ -335,11 +336,17 @@ def _method_lines(methods, timings: dict, params: dict[str, int], left=()) -> li
 def _dense_notes(methods) -> list[str]:
     if not any(m.data == "dense" for m in methods):
         return []
+
+    def steps(keyframes: int) -> int:  # the env config's own rule for a dense episode's length
+        return DENSE_SECONDS_PER_KEYFRAME * keyframes * DENSE_FPS
+
     return [
-        "- Dense-control methods (ACT) run each suite's task at 20 fps with 1 s of control per keyframe of the "
-        "suite's budget (200 steps for the paper task's 10 keyframes, 400 for its recovery suites' 20, 800 for "
-        "the full task's 40): the keyframe methods' budget at the dense expert's pace (16-18 steps per keyframe) "
-        "with a few steps to spare. A nudge fires at the dense step where the expert reaches its first keyframe (median "
+        f"- Dense-control methods (ACT) run each suite's task at {DENSE_FPS} fps with {DENSE_SECONDS_PER_KEYFRAME} s "
+        f"of control per keyframe of the suite's budget ({steps(10)} steps for the paper task's 10 keyframes, "
+        f"{steps(RECOVERY_BUDGET)} for its recovery suites' {RECOVERY_BUDGET}, {steps(40)} for the full task's 40): "
+        "the keyframe methods' budget at the dense expert's pace (15-18 steps per keyframe, "
+        "`benchmarks/dense_pace.py`) with a few steps to spare. A nudge fires at the dense step where the expert "
+        "reaches its first keyframe (median "
         "over the training demonstrations), the keyframe suites' 'after the first keyframe'. Observation latency "
         "counts env steps: one is 50 ms in dense mode against one whole keyframe move in keyframe mode, so the "
         "latency suites do not compare the two control modes.",
