@@ -7,8 +7,6 @@ continuous (the arm is redundant: 7 joints for a 6-D pose).
 
 from __future__ import annotations
 
-import functools
-
 import mujoco
 import numpy as np
 
@@ -109,15 +107,3 @@ class ArmIK:
             f"residual {np.linalg.norm(err_p) * 1000:.1f} mm / {np.linalg.norm(err_r):.3f} rad "
             "(outside reach or blocked by joint limits)"
         )
-
-
-@functools.cache
-def _kinematics() -> ArmIK:
-    return ArmIK(mujoco.MjModel.from_xml_path(str(robot.scene_path())))
-
-
-def hand_positions(q: np.ndarray) -> np.ndarray:
-    """``(B, 7)`` arm joints -> ``(B, 3)`` the gripper site's position in the base frame (forward kinematics of the
-    scene's model, one shared instance): the efference copy's hand (``policy.observation_gate``)."""
-    arm = _kinematics()
-    return np.stack([arm.forward(np.asarray(row, dtype=float))[0] for row in np.atleast_2d(q)])

@@ -10,7 +10,7 @@ torch.set_num_threads(1)
 from lerobot.configs import FeatureType, PolicyFeature  # noqa: E402
 from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_STATE  # noqa: E402
 
-from lerobot_pnp.errors import ConfigError, DatasetError, PolicyError  # noqa: E402
+from lerobot_pnp.errors import ConfigError, DatasetError  # noqa: E402
 from lerobot_pnp.policy import PnpLstmConfig, PnpLstmPolicy  # noqa: E402
 from lerobot_pnp.policy.modeling_pnp_lstm import PHASE_KEY, SUBTASK_KEY  # noqa: E402
 from lerobot_pnp.policy.recovering import lstm_trunk_params  # noqa: E402
@@ -357,51 +357,6 @@ def test_observation_gate_lets_the_planner_run_ahead_by_its_trained_latency():
     late = _decisions(_run_plant(gated, [2] * 24, 24))
     for a, b in zip(at1, late[:12], strict=True):
         torch.testing.assert_close(a, b)
-
-
-def _run_arm(policy: PnpLstmPolicy, latency: int, steps: int) -> list:
-    """A plant whose joints reach each command's targets within the step and whose gripper reads open: what the
-    efference copy assumes. Observations are ``latency`` steps old. Returns the commands issued."""
-    history = [torch.randn(2, 8, generator=torch.Generator().manual_seed(1))]
-    history[0][:, 7] = 1.0
-    commands, obs = [], history[0]
-    policy.reset()
-    for _ in range(steps):
-        action = policy.select_action({OBS_STATE: obs, OBS_ENV_STATE: torch.zeros(2, ENV_DIM)})
-        commands.append(action)
-        history.append(torch.cat([action[:, :7], torch.ones(2, 1)], dim=1))
-        obs = history[max(0, len(history) - 1 - latency)]
-    return commands
-
-
-@pytest.mark.parametrize("gripper", ["open", "closed"])
-def test_observation_gate_runs_ahead_on_free_moves_only(gripper):
-    """``await_run_ahead``: at latency 2 (one beyond training) a planner whose every move is made with the gripper
-    open never waits; it steps on the joints its own commands reach (the efference copy) and so plans exactly the
-    commands it plans at its trained latency 1, one per step. With the gripper commanded closed (the object may
-    be in the hand) it waits one step per move, as the plain gate does."""
-    from lerobot_pnp.policy.observation_gate import EfferenceCopy
-
-    kw = dict(latency_augment_prob=0.5, await_observation=True, await_state_tol=1e-6, await_action_tol=2e-6)
-    plain, gated, ahead = _policy(**kw), _policy(**kw), _policy(await_run_ahead=True, **kw)
-    shift = torch.zeros(8)
-    shift[7] = 10.0 if gripper == "open" else -10.0  # the raw gripper command: always open, or always closed
-    ahead.model.efference_copy = EfferenceCopy(
-        torch.zeros(8), torch.ones(8), shift, torch.ones(8), torch.zeros(ENV_DIM), torch.ones(ENV_DIM)
-    )
-    at1 = _run_arm(plain, 1, 12)
-    late = _run_arm(ahead, 2, 12 if gripper == "open" else 24)
-    if gripper == "open":
-        assert len(_decisions(late)) == 12  # a new command every step
-        for a, b in zip(at1, late, strict=True):
-            torch.testing.assert_close(a, b)
-    else:
-        for a, b in zip(_run_arm(gated, 2, 24), late, strict=True):
-            torch.testing.assert_close(a, b)
-        assert len(_decisions(late)) < 18  # it waits
-    policy = _policy(await_run_ahead=True, **kw)  # built without statistics: a clear error, not a silent gate
-    with pytest.raises(PolicyError, match="await_run_ahead"):
-        _run_arm(policy, 2, 2)
 
 
 def test_observation_gate_gives_up_on_a_move_it_cannot_see():

@@ -168,14 +168,6 @@ class PnpLstmConfig(PreTrainedConfig):
     await_in_flight: int | None = None
     """With ``await_observation``: the moves that may be unobserved when the next one is planned (0: wait for each;
     None: the trained latency, ``latency_augment_max`` if ``latency_augment_prob > 0`` else 0)."""
-    await_run_ahead: bool = False
-    """With ``await_observation``: where the gate would wait and every unobserved move was made with the gripper
-    open (nothing held, so the move changed only the joints), step at once on the late observation with its joints
-    replaced by the targets commanded ``await_in_flight + 1`` steps ago (an efference copy), instead of waiting;
-    moves with the gripper closed and gripper commands are still waited for (``observation_gate``)."""
-    await_run_ahead_gripper: bool = False
-    """With ``await_run_ahead``: also keep a gripper command (a grasp, a release) planned on the run-ahead view,
-    instead of waiting for the observation that shows every earlier move."""
     await_past_states: int = 2
     """With ``await_observation``: an observation equal to one of this many last observed states is the latency
     growing (the observation going back in time), not a new move."""

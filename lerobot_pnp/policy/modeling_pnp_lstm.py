@@ -28,7 +28,7 @@ from typing import Any
 
 import torch
 from lerobot.policies.pretrained import PreTrainedPolicy
-from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_STATE
+from lerobot.utils.constants import ACTION
 from torch import Tensor, nn
 
 from lerobot_pnp.errors import ConfigError, PolicyError
@@ -36,7 +36,6 @@ from lerobot_pnp.errors import ConfigError, PolicyError
 from .configuration_pnp_lstm import PnpLstmConfig
 from .latency import late_observer
 from .modes import build_planner
-from .observation_gate import EfferenceCopy
 from .planner import PlannerState
 
 # Per-frame labels (FSM subtask and phase) a planner may learn from when a batch carries them (fast path, DAgger).
@@ -82,8 +81,6 @@ class PnpLstmPolicy(PreTrainedPolicy):
                 self.model.check_episode_lengths(lengths)
             config.dataset_fps = int(dataset_meta.fps)
         self.recorded_task = _recorded_task(dataset_meta)
-        if dataset_stats is not None and hasattr(self.model, "efference_copy"):
-            self.model.efference_copy = EfferenceCopy.from_stats(dataset_stats, OBS_STATE, ACTION, OBS_ENV_STATE)
         self.reset()
 
     @property
@@ -143,8 +140,6 @@ class PnpLstmPolicy(PreTrainedPolicy):
         bad = non_finite_weights(policy.state_dict())
         if bad:  # the checkpoint's fault, named here rather than as a NaN action steps later
             raise PolicyError(f"the pnp_lstm checkpoint {path} is corrupt: its weights {bad[:3]} contain NaN/inf")
-        if path.is_dir() and getattr(policy.model, "efference_copy", False) is None:
-            policy.model.efference_copy = _checkpoint_efference_copy(path)
         return policy
 
     @classmethod
@@ -283,23 +278,6 @@ def _check_same_shapes(path: Path, config: PnpLstmConfig, saved: PnpLstmConfig) 
                     f"pnp_lstm checkpoint {path} was trained with {key} of shape {tuple(saved_ft.shape)}, "
                     f"but the env/dataset provides {tuple(ft.shape)}: it belongs to a different robot or task"
                 )
-
-
-def _checkpoint_efference_copy(path: Path) -> EfferenceCopy | None:
-    """The training data's state and action statistics from a checkpoint's saved normaliser (the pre-processor's
-    ``*normalizer_processor.safetensors``), for the gate's run-ahead; None when the checkpoint has none."""
-    from safetensors.torch import load_file
-
-    for file in sorted(path.glob("policy_preprocessor*normalizer_processor.safetensors")):
-        flat = load_file(str(file))
-        stats: dict[str, dict[str, Tensor]] = {}
-        for key, value in flat.items():
-            feature, _, stat = key.rpartition(".")
-            stats.setdefault(feature, {})[stat] = value
-        copy = EfferenceCopy.from_stats(stats, OBS_STATE, ACTION, OBS_ENV_STATE)
-        if copy is not None:
-            return copy
-    return None
 
 
 def _recorded_task(dataset_meta: Any) -> dict | None:

@@ -28,10 +28,10 @@ import torch.nn.functional as F  # noqa: N812
 from lerobot.utils.constants import OBS_STATE
 from torch import Tensor, nn
 
-from lerobot_pnp.errors import DatasetError, PolicyError
+from lerobot_pnp.errors import DatasetError
 
 from .configuration_pnp_lstm import PnpLstmConfig
-from .observation_gate import EfferenceCopy, ObservationGate
+from .observation_gate import ObservationGate
 from .planner import PlannerState
 
 N_PHASES = 10
@@ -74,9 +74,6 @@ class RecoveringPlanner(nn.Module):
         self.subtask_head = nn.Linear(width, N_SUBTASKS)
         self.phase_head = nn.Linear(width, N_PHASES)
         self.action_dim = action_dim
-        # The training data's state and action statistics for the gate's run-ahead (``await_run_ahead``); set by
-        # ``PnpLstmPolicy`` from the dataset's stats or the checkpoint's normaliser, not a weight.
-        self.efference_copy: EfferenceCopy | None = None
 
     def trunk_parameters(self) -> int:
         module = self.lstm if self.recurrent else self.mlp
@@ -111,13 +108,11 @@ class RecoveringPlanner(nn.Module):
         """One trunk step with the state carried since the reset, until the env ends the episode; with the gate,
         an env whose last move is not observed yet keeps its command and its network state."""
         memory = None if state is None else state.memory
-        gate = self._new_gate() if state is None else state.gate
-        if gate is not None:  # which envs step now, and on what (the gate may run ahead on an efference copy)
-            decided, x = gate.decide(x)
         out, new_memory = self.step(x, memory)
         action = out["action"]
+        gate = self._new_gate() if state is None else state.gate
         if gate is not None:  # hold the last command where its move has not been observed yet
-            decided = gate.confirm(decided, action)
+            decided = gate.decide(x)
             old = None if state is None else state.action
             if old is not None and not bool(decided.all()):
                 action = torch.where(decided[:, None], action, old)
@@ -151,11 +146,6 @@ class RecoveringPlanner(nn.Module):
         cfg = self.config
         if not cfg.await_observation:
             return None
-        if cfg.await_run_ahead and self.efference_copy is None:
-            raise PolicyError(
-                "policy.await_run_ahead needs the training data's observation.state and action statistics, which "
-                "this policy was built without (load it from a checkpoint, or build it from a dataset)"
-            )
         return ObservationGate(
             int(cfg.input_features[OBS_STATE].shape[0]),
             cfg.await_state_tol,
@@ -163,8 +153,6 @@ class RecoveringPlanner(nn.Module):
             cfg.await_max_steps,
             cfg.in_flight_moves,
             cfg.await_past_states,
-            self.efference_copy if cfg.await_run_ahead else None,
-            cfg.await_run_ahead_gripper,
         )
 
     # ---- the network ----------------------------------------------------------------------------
