@@ -54,6 +54,14 @@ DENSE_FPS = 20
 # of the dense expert (15-18 steps per keyframe, docs/results/dense_budget.md) with a margin of a few steps.
 # It was 3 s: three times the keyframe methods' budget, spent almost wholly by failing episodes.
 DENSE_SECONDS_PER_KEYFRAME = 1
+
+
+def dense_episode_length(keyframe_budget: int, fps: int = DENSE_FPS) -> int:
+    """Env steps of a dense episode with ``keyframe_budget`` keyframes at ``fps``: ``DENSE_SECONDS_PER_KEYFRAME``
+    of control per keyframe (the default ``episode_length`` in dense control)."""
+    return DENSE_SECONDS_PER_KEYFRAME * keyframe_budget * fps
+
+
 _PAIRS = (
     ("object_low", "object_high"),
     ("object_exclude_low", "object_exclude_high"),
@@ -149,7 +157,7 @@ class BaxterPnPEnvConfig(EnvConfig):
             self.episode_length = (
                 self.keyframe_budget
                 if self.control_mode == "keyframe"
-                else DENSE_SECONDS_PER_KEYFRAME * self.keyframe_budget * self.fps
+                else dense_episode_length(self.keyframe_budget, self.fps)
             )
         if self.episode_length > MAX_EPISODE_LENGTH:  # given, or derived from the budget and the rate
             raise ConfigError(

@@ -9,9 +9,10 @@ from __future__ import annotations
 import math
 
 from lerobot_pnp.dataset.splits import train_count
-from lerobot_pnp.env_config import DENSE_FPS, DENSE_SECONDS_PER_KEYFRAME
+from lerobot_pnp.env_config import DENSE_FPS, DENSE_SECONDS_PER_KEYFRAME, dense_episode_length
 from lerobot_pnp.evaluation.records import summarize
 from lerobot_pnp.evaluation.suites import RECOVERY_BUDGET, SUITES
+from lerobot_pnp.presets import FULL_TASK, PAPER_TASK
 from lerobot_pnp.report import coverage
 from lerobot_pnp.report.claims import render_claims
 from lerobot_pnp.report.methods import METHODS
@@ -337,13 +338,12 @@ def _dense_notes(methods) -> list[str]:
     if not any(m.data == "dense" for m in methods):
         return []
 
-    def steps(keyframes: int) -> int:  # the env config's own rule for a dense episode's length
-        return DENSE_SECONDS_PER_KEYFRAME * keyframes * DENSE_FPS
-
+    paper, full = PAPER_TASK["keyframe_budget"], FULL_TASK["keyframe_budget"]
     return [
         f"- Dense-control methods (ACT) run each suite's task at {DENSE_FPS} fps with {DENSE_SECONDS_PER_KEYFRAME} s "
-        f"of control per keyframe of the suite's budget ({steps(10)} steps for the paper task's 10 keyframes, "
-        f"{steps(RECOVERY_BUDGET)} for its recovery suites' {RECOVERY_BUDGET}, {steps(40)} for the full task's 40): "
+        f"of control per keyframe of the suite's budget ({dense_episode_length(paper)} steps for the paper task's "
+        f"{paper} keyframes, {dense_episode_length(RECOVERY_BUDGET)} for its recovery suites' {RECOVERY_BUDGET}, "
+        f"{dense_episode_length(full)} for the full task's {full}): "
         "the keyframe methods' budget at the dense expert's pace (15-18 steps per keyframe, "
         "`benchmarks/dense_pace.py`) with a few steps to spare. A nudge fires at the dense step where the expert "
         "reaches its first keyframe (median "
