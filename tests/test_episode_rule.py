@@ -60,7 +60,7 @@ def test_the_command_line_takes_a_rule_and_refuses_a_bad_one_in_one_line(capsys,
     err = capsys.readouterr().err.strip()
     assert "episodes_rule.block must be a positive multiple" in err and len(err.splitlines()) == 1
     assert not (tmp_path / "never").exists()
-    assert StudyConfig(preset="heldout").episodes_rule.fixed_methods == ("expert", "lookup_table", "recovering")
+    assert StudyConfig(preset="heldout").episodes_rule.fixed_methods == ("expert", "recovering")
     assert StudyConfig(preset="heldout", fixed_episodes=True).episodes_rule is None  # off
     assert StudyConfig(preset="full").episodes_rule is None and StudyConfig(preset="demo").episodes_rule is None
 
@@ -140,6 +140,21 @@ def test_the_report_states_the_rule_under_intervals_and_nothing_when_it_is_off()
     from lerobot_pnp.report.markdown import _episodes_rule_sentence
 
     text = _episodes_rule_sentence(StudyConfig(preset="heldout"))
-    assert "expert (FSM), lookup table, recovering LSTM run every suite's n" in text
-    assert "blocks of 50 seeds" in text and "+-10 pts" in text and "the common prefix" in text
+    assert "expert (FSM), recovering LSTM run every suite's n" in text
+    assert "blocks of 50 seeds" in text and "+-17 pts" in text and "the common prefix" in text
+    assert "split over a learned method's 3 training seeds" in text and "1.7x narrower" in text
     assert _episodes_rule_sentence(StudyConfig(preset="quick")) == ""
+
+
+def test_a_split_suite_gives_each_seed_its_share_in_whole_batches_and_an_unseeded_method_all_of_it():
+    from lerobot_pnp.report.run import _suites_for
+
+    heldout, full = StudyConfig(preset="heldout"), StudyConfig(preset="full")
+    expert, recovering = methods.get_methods(["expert", "recovering"])
+    assert {n for _, n in _suites_for(heldout, None, recovering)} == {100}  # 200 / 3 -> 67 -> two batches of 50
+    assert {n for _, n in _suites_for(heldout, None, expert)} == {200}
+    assert {n for _, n in _suites_for(heldout, 30, recovering)} == {200}  # a data-efficiency run: not split
+    off = [(s.name, n) for s, n in _suites_for(full, None, recovering)]
+    assert off == [(s.name, n) for s, n in _suites_for(full, None)] and ("nominal", 300) in off  # off: n per seed
+    assert StudyConfig(preset="heldout", train_seeds=[1, 2, 3, 4, 5]).seed_episodes(200) == 40  # one short batch
+    assert StudyConfig(preset="heldout", split_over_seeds=False).seed_episodes(200) == 200

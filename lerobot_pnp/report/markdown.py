@@ -92,16 +92,25 @@ def _header(layout, cfg, methods, summary, left=()) -> list[str]:
 
 
 def _episodes_rule_sentence(cfg) -> str:
-    """The episode rule in one sentence (``config.EpisodeRule``), or "" when every evaluation runs its n."""
+    """The episode counts' rules in a few sentences (``StudyConfig.split_over_seeds``, ``config.EpisodeRule``),
+    or "" when every evaluation of every seed runs its suite's n."""
+    split = ""
+    if getattr(cfg, "split_over_seeds", False):
+        split = (
+            f" A suite's n is split over a learned method's {len(cfg.train_seeds)} training seeds (n / "
+            f"{len(cfg.train_seeds)} per seed, rounded up to whole batches of {cfg.eval_batch_size}), so that a "
+            "cell, which pools the seeds, holds about n episodes as a method without seeds does."
+        )
     rule = getattr(cfg, "episodes_rule", None)
     if rule is None:
-        return ""
+        return split
     fixed = ", ".join(METHODS[m].label for m in rule.fixed_methods if m in METHODS) or "no method"
-    return (
+    return split + (
         f" Episode counts are chosen from the interval widths they need: {fixed} run every suite's n; every other "
         f"method's evaluation runs blocks of {rule.block} seeds from the first and stops after the first block "
-        f"whose 95 % Wilson interval is at most +-{100 * rule.half_width:g} pts, or at the suite's n (each cell "
-        "shows its n). Every method runs the same first seeds, so a paired comparison pairs two methods on the "
+        f"whose 95 % Wilson interval is at most +-{100 * rule.half_width:g} pts, or at the suite's n (a target "
+        f"per evaluation: a cell pooling {len(cfg.train_seeds)} seeds is about {len(cfg.train_seeds) ** 0.5:.1f}x "
+        "narrower; each cell shows its n). Every method runs the same first seeds, so a paired comparison pairs two methods on the "
         "seeds both ran (the common prefix). An evaluation reused by cutting an earlier fixed-n one to the rule's "
         "stop (exactly the episodes a fresh run makes) shows its share of the original time, estimated by steps."
     )

@@ -363,7 +363,9 @@ def _suites_for(cfg: StudyConfig, n_demos: int | None, method=None):
     """(suite, episodes) pairs evaluated for a job; data-efficiency runs are evaluated on nominal only, a
     method with a ``suites`` list only on those."""
     specs = [SuiteSpec("nominal", 200)] if n_demos is not None else cfg.suites
-    pairs = [(s, spec.n_episodes) for spec in specs for s in get_suites([spec.name])]
+    split = method is not None and method.learned and n_demos is None  # a cell pooling the training seeds
+    pairs = [(s, cfg.seed_episodes(spec.n_episodes) if split else spec.n_episodes)
+             for spec in specs for s in get_suites([spec.name])]  # fmt: skip
     if method is not None and method.suites is not None:
         pairs = [(s, n) for s, n in pairs if s.name in method.suites]
     return pairs
