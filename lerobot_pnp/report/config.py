@@ -221,9 +221,8 @@ class StudyConfig:
     # episode counts chosen from the interval widths (EpisodeRule), e.g. '{"half_width": 0.1, "block": 50,
     # "fixed_methods": ["expert", "recovering"]}'; None = the preset's (heldout: on; others: off, every suite's n)
     episodes_rule: EpisodeRule | None = None
-    # a learned method's evaluations split each suite's n over its training seeds (n / seeds each, rounded up to
-    # whole eval batches), so that its cell, which pools the seeds, holds about n episodes like an unseeded
-    # method's; None = the preset's (heldout: on; others: off, n per seed)
+    # each training seed of a learned method runs n / seeds of a suite's episodes (whole eval batches), so its
+    # pooled cell holds about n; None = the preset's (heldout: on; others: off, n per seed)
     split_over_seeds: bool | None = None
     fixed_episodes: bool = False  # every evaluation runs its suite's whole n (turns the preset's episodes_rule off)
     act_steps: int | None = None  # ACT training steps per seed (None = act_baseline.ActBudget's default)
