@@ -98,6 +98,29 @@ def test_train_fast_reduces_loss_and_writes_outputs(trained):
     assert (out / "train_fast_config.json").is_file()
 
 
+def test_heldout_cadence_changes_the_curve_not_the_weights(dataset_root, tmp_path):
+    """The held-out loss every k epochs (the data-efficiency runs' cadence) is read-only: the same seed trains
+    the same weights and ends at the same losses, with fewer points on the curve (the last epoch always)."""
+    from safetensors.torch import load_file
+
+    from lerobot_pnp.report.adapters import heldout_every_epochs
+
+    runs = {}
+    for every in (1, 4):
+        out = tmp_path / f"every{every}"
+        kw = dict(policy=PnpLstmConfig(device="cpu", hidden_size=16), epochs=10, batch_size=8, seed=3)
+        runs[every] = (train_fast(_cfg(dataset_root, out, eval_every_epochs=every, **kw)), out)
+    (dense, out1), (sparse, out4) = runs[1], runs[4]
+    weights = [load_file(o / "checkpoints" / "last" / "pretrained_model" / "model.safetensors") for o in (out1, out4)]
+    assert weights[0].keys() == weights[1].keys()
+    assert all(torch.equal(weights[0][k], weights[1][k]) for k in weights[0])
+    assert sparse.final_test_mse == dense.final_test_mse and sparse.final_train_mse == dense.final_train_mse
+    assert [h["epoch"] for h in sparse.history] == [0, 4, 8, 10] and len(dense.history) == 11
+    # one held-out loss per epoch of the whole split: 10 demos in batches of 64 make one step per epoch
+    assert heldout_every_epochs(10, 1120) == 18 and heldout_every_epochs(300, 1120) == 4
+    assert heldout_every_epochs(1120, 1120) == 1
+
+
 def test_progress_into_a_log_is_a_few_lines(dataset_root, tmp_path, capsys):
     """Into a pipe or a log (no terminal) the epoch bar is redrawn every 15 s at most (progress.py), not once per
     epoch: a short run writes its first and last state only. On a terminal it is redrawn twice a second."""

@@ -71,7 +71,7 @@ def train_pnp_lstm(
     from lerobot_pnp.policy import PnpLstmConfig
     from lerobot_pnp.train_fast import TrainFastConfig, train_fast
 
-    test_episodes, steps = None, None
+    test_episodes, steps, every = None, None, 1
     if n_demos is not None:
         total = int(read_info(dataset_root)["total_episodes"])
         if not 1 <= n_demos < total:
@@ -80,6 +80,7 @@ def train_pnp_lstm(
         # the same number of optimiser steps as a run on the whole training split (not the same epochs)
         n_full = len(recorded_splits(dataset_root).get("train", range(total)))
         steps = epochs * math.ceil(n_full / batch_size)
+        every = heldout_every_epochs(n_demos, n_full, batch_size)
 
     train_fast(
         TrainFastConfig(
@@ -94,9 +95,18 @@ def train_pnp_lstm(
             test_episodes=test_episodes,
             steps=steps,
             batch_size=batch_size,
+            eval_every_epochs=every,
         )
     )
     return checkpoint_of(output_dir)
+
+
+def heldout_every_epochs(n_demos: int, n_full: int, batch_size: int = BATCH_SIZE) -> int:
+    """Epochs between two held-out losses of a run on ``n_demos`` of ``n_full`` training episodes: about one
+    per epoch of the whole split (the same optimiser-step cadence, so about as many points as a full run). Every
+    epoch would cost more than the training itself on a few demonstrations: the held-out episodes are then
+    nearly the whole dataset, and a run of the same steps has one or two batches per epoch."""
+    return max(1, round(math.ceil(n_full / batch_size) / math.ceil(n_demos / batch_size)))
 
 
 def checkpoint_of(train_dir: Path) -> Path:

@@ -373,6 +373,8 @@ def train_stage(method: Method, ctx: TrainContext) -> Stage:
         "seed": ctx.seed,
         "epochs": ctx.epochs,
         "n_demos": ctx.n_demos,
+        # the loss curve's resolution (an output of the training): one held-out loss per whole-split epoch
+        **({"heldout_every": "whole_split_epoch"} if ctx.n_demos is not None and method.data != "dense" else {}),
         "act_steps": ctx.act_steps if method.data == "dense" else None,
         "continues": train_stage(METHODS[method.continues], _continued(ctx, method.continues)).key
         if method.continues
