@@ -7,12 +7,19 @@ cost alone does, without any learning: the privileged scripted expert (it plans 
 the latency itself cannot hurt it) holds each moving keyframe for ``hold`` extra steps, on a suite's episodes
 and the study's eval seeds. ``hold = 0`` is the expert as the benchmark measures it.
 
+``--variants`` measures where the waits cost the budget (``hold = 1``, both seed blocks): ``every_move`` (the
+gate's cost), ``gripper`` (wait only for a gripper command and for the descent before one: the waits that the
+gate's run-ahead experiments found cannot be skipped), ``after_gripper`` (only for gripper commands), and
+``every_move_no_hold`` (every move waited for, but the keyframe that reaches place/start, which repeats the
+pick retract's command, is not executed: one fewer keyframe per pick).
+
 With ``--planner EVALS_DIR`` (a study's ``evals/recovering``) it pairs the expert's episodes with the planner's
 records of the same suite and seeds (each training seed): the planner's failures that the waiting expert also
 fails, and the other way round.
 
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/latency_step_cost.py --holds 0 1 2 \
         --planner outputs/heldout/evals/recovering --out docs/results/latency_step_cost.json
+    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/latency_step_cost.py --variants --out docs/results/latency_wait_variants.json
 """
 
 from __future__ import annotations
@@ -28,18 +35,35 @@ from lerobot_pnp.evaluation.records import EpisodeRecord, summarize
 from lerobot_pnp.evaluation.stats import Rate, paired_comparison
 from lerobot_pnp.evaluation.suites import get_suites
 from lerobot_pnp.expert import FSMExpert
+from lerobot_pnp.robot import Phase
 
 MOVE_TOL = 1e-3  # a keyframe that changes the command by less (a hold keyframe) is not waited for
 
 
-def waiting_expert(env, seed: int, hold: int) -> EpisodeRecord:
-    """One episode of the expert holding each moving keyframe ``hold`` extra steps; the env's budget applies."""
+WAITS = ("every_move", "gripper", "after_gripper", "every_move_no_hold")
+_BEFORE_GRIPPER = (Phase.PICK_APPROACH, Phase.PLACE_APPROACH)  # leaving these: the descents before a close / open
+
+
+def waiting_expert(env, seed: int, hold: int, wait: str = "every_move") -> EpisodeRecord:
+    """One episode of the expert holding some keyframes ``hold`` extra steps (``wait``: which, see the module's
+    docstring); the env's budget applies."""
     env.reset(seed=seed)
     expert = FSMExpert(env)
     previous, steps = expert.command, 0
     while True:
         command = expert.next_keyframe()
-        repeats = 1 + (hold if np.linalg.norm(command - previous) > MOVE_TOL else 0)
+        moved = np.linalg.norm(command - previous) > MOVE_TOL
+        gripper = command[7] != previous[7]
+        if wait == "every_move_no_hold" and expert.last_phase == Phase.PICK_RETRACT and not moved:
+            previous = command
+            continue
+        waits = {
+            "every_move": moved,
+            "every_move_no_hold": moved,
+            "gripper": gripper or (moved and expert.last_phase in _BEFORE_GRIPPER),
+            "after_gripper": gripper,
+        }[wait]
+        repeats = 1 + (hold if waits else 0)
         previous = command
         for _ in range(repeats):
             _, _, terminated, truncated, info = env.step(command)
@@ -48,12 +72,23 @@ def waiting_expert(env, seed: int, hold: int) -> EpisodeRecord:
                 return EpisodeRecord.from_info(seed, info, steps, (np.nan, np.nan))
 
 
-def run(suite: str, holds: list[int], seeds: list[int]) -> dict[int, list[EpisodeRecord]]:
+def run(suite: str, holds: list[int], seeds: list[int], wait: str = "every_move") -> dict[int, list[EpisodeRecord]]:
     base = BaxterPnPEnvConfig.from_dict({"preset": "full"})
     (cfg,) = get_suites([suite])[0].env_configs(base)
     env = make_env(cfg, render_mode=None)
-    out = {h: [waiting_expert(env, s, h) for s in seeds] for h in holds}
+    out = {h: [waiting_expert(env, s, h, wait) for s in seeds] for h in holds}
     env.close()
+    return out
+
+
+def variants(suite: str, seed_blocks: list[int], episodes: int) -> dict:
+    """``hold = 1`` under each ``WAITS`` rule, pooled over the seed blocks."""
+    out = {}
+    for wait in WAITS:
+        eps = [e for b in seed_blocks for e in run(suite, [1], list(range(b, b + episodes)), wait)[1]]
+        out[wait] = summary(eps)
+        print(f"{wait}: {out[wait]['successes']}/{out[wait]['n']} = {Rate.of([e.success for e in eps])}, "
+              f"{out[wait]['mean_steps_success']:.1f} keyframes per success", flush=True)  # fmt: skip
     return out
 
 
@@ -91,8 +126,16 @@ def main() -> None:
     p.add_argument("--seed_blocks", type=int, nargs="+", default=[100_000, 10_000_000],
                    help="first eval seeds: the study's and the held-out protocol script's")  # fmt: skip
     p.add_argument("--planner", type=Path, help="a study's evals/recovering folder to pair with (seed block 1)")
+    p.add_argument("--variants", action="store_true", help="which waits cost the budget (hold 1, every WAITS rule)")
     p.add_argument("--out", type=Path)
     args = p.parse_args()
+    if args.variants:
+        result = {"suite": args.suite, "what": __doc__.split("\n\n")[2].replace("\n", " "), "seed_blocks": args.seed_blocks,
+                  "episodes_per_block": args.episodes, "hold": 1, "waits": variants(args.suite, args.seed_blocks, args.episodes)}  # fmt: skip
+        if args.out:
+            args.out.write_text(json.dumps(result, indent=1) + "\n")
+            print(f"wrote {args.out}")
+        return
     result: dict = {"suite": args.suite, "what": __doc__.split("\n\n")[1].replace("\n", " "), "holds": {}}
     for hold in args.holds:
         result["holds"][hold] = {}
