@@ -87,7 +87,8 @@ def variants(suite: str, seed_blocks: list[int], episodes: int) -> dict:
     for wait in WAITS:
         eps = [e for b in seed_blocks for e in run(suite, [1], list(range(b, b + episodes)), wait)[1]]
         out[wait] = summary(eps)
-        print(f"{wait}: {out[wait]['successes']}/{out[wait]['n']} = {Rate.of([e.success for e in eps])}, "
+        rate = Rate(out[wait]["successes"], out[wait]["n"])
+        print(f"{wait}: {rate.successes}/{rate.n} = {rate}, "
               f"{out[wait]['mean_steps_success']:.1f} keyframes per success", flush=True)  # fmt: skip
     return out
 
@@ -118,24 +119,8 @@ def paired(expert: list[EpisodeRecord], planner_dir: Path, suite: str) -> dict:
     return out
 
 
-def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--suite", default="heldout_latency_2")
-    p.add_argument("--holds", type=int, nargs="+", default=[0, 1, 2])
-    p.add_argument("--episodes", type=int, default=200, help="per eval-seed block")
-    p.add_argument("--seed_blocks", type=int, nargs="+", default=[100_000, 10_000_000],
-                   help="first eval seeds: the study's and the held-out protocol script's")  # fmt: skip
-    p.add_argument("--planner", type=Path, help="a study's evals/recovering folder to pair with (seed block 1)")
-    p.add_argument("--variants", action="store_true", help="which waits cost the budget (hold 1, every WAITS rule)")
-    p.add_argument("--out", type=Path)
-    args = p.parse_args()
-    if args.variants:
-        result = {"suite": args.suite, "what": __doc__.split("\n\n")[2].replace("\n", " "), "seed_blocks": args.seed_blocks,
-                  "episodes_per_block": args.episodes, "hold": 1, "waits": variants(args.suite, args.seed_blocks, args.episodes)}  # fmt: skip
-        if args.out:
-            args.out.write_text(json.dumps(result, indent=1) + "\n")
-            print(f"wrote {args.out}")
-        return
+def holds(args) -> dict:
+    """Each ``--holds`` value on each seed block, pooled, optionally paired with the planner."""
     result: dict = {"suite": args.suite, "what": __doc__.split("\n\n")[1].replace("\n", " "), "holds": {}}
     for hold in args.holds:
         result["holds"][hold] = {}
@@ -155,6 +140,25 @@ def main() -> None:
             "wilson95": list(rate.interval),
         }
         print(f"hold {hold}: {rate.successes}/{rate.n} = {rate}", flush=True)
+    return result
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--suite", default="heldout_latency_2")
+    p.add_argument("--holds", type=int, nargs="+", default=[0, 1, 2])
+    p.add_argument("--episodes", type=int, default=200, help="per eval-seed block")
+    p.add_argument("--seed_blocks", type=int, nargs="+", default=[100_000, 10_000_000],
+                   help="first eval seeds: the study's and the held-out protocol script's")  # fmt: skip
+    p.add_argument("--planner", type=Path, help="a study's evals/recovering folder to pair with (seed block 1)")
+    p.add_argument("--variants", action="store_true", help="which waits cost the budget (hold 1, every WAITS rule)")
+    p.add_argument("--out", type=Path)
+    args = p.parse_args()
+    if args.variants:
+        result = {"suite": args.suite, "what": __doc__.split("\n\n")[2].replace("\n", " "), "seed_blocks": args.seed_blocks,
+                  "episodes_per_block": args.episodes, "hold": 1, "waits": variants(args.suite, args.seed_blocks, args.episodes)}  # fmt: skip
+    else:
+        result = holds(args)
     if args.out:
         args.out.write_text(json.dumps(result, indent=1) + "\n")
         print(f"wrote {args.out}")
