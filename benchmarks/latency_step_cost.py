@@ -1,17 +1,20 @@
 """What the 40-keyframe budget leaves to a controller that waits to see each of its moves (issue 19, latency).
 
-At ``L`` steps of observation latency a planner trained on observations at most ``k`` steps old waits ``L - k``
-steps per move (``observation_gate``, ``in_flight = k``): at ``heldout_latency_2`` the recovering recipe
-(``k = 1``) spends one extra step per keyframe that moves the arm or gripper. This measures what that step
-cost alone does, without any learning: the privileged scripted expert (it plans from the simulator's state, so
-the latency itself cannot hurt it) holds each moving keyframe for ``hold`` extra steps, on a suite's episodes
-and the study's eval seeds. ``hold = 0`` is the expert as the benchmark measures it.
+The gate lets a planner trained on observations at most ``k`` steps old (``observation_gate``, ``in_flight = k``)
+plan while at most ``k`` of its moves are unobserved. At ``heldout_latency_2`` the recovering recipe (``k = 1``)
+therefore never commands three moves in three consecutive steps: it waits one step after every second move
+(a hold keyframe, which moves nothing, does not count). This measures what a waiting rule alone costs in the
+40-keyframe budget, without any learning: the privileged scripted expert (it plans from the simulator's state,
+so the latency itself cannot hurt it, and it sees every disturbance at once) holds keyframes for ``hold``
+extra steps, on a suite's episodes and the study's eval seeds. ``hold = 0`` is the expert as the benchmark
+measures it; ``--holds`` holds every moving keyframe.
 
-``--variants`` measures where the waits cost the budget (``hold = 1``, both seed blocks): ``every_move`` (the
-gate's cost), ``gripper`` (wait only for a gripper command and for the descent before one: the waits that the
-gate's run-ahead experiments found cannot be skipped), ``after_gripper`` (only for gripper commands), and
-``every_move_no_hold`` (every move waited for, but the keyframe that reaches place/start, which repeats the
-pick retract's command, is not executed: one fewer keyframe per pick).
+``--variants`` measures where the waits cost the budget (``hold = 1``, both seed blocks): ``every_move`` (a wait
+after every move, twice the gate's), ``gripper`` (wait only for a gripper command and for the descent before
+one: the waits that the gate's run-ahead experiments found cannot be skipped), ``after_gripper`` (only for
+gripper commands), ``every_move_no_hold`` (every move waited for, but the keyframe that reaches place/start,
+which repeats the pick retract's command, is not executed: one fewer keyframe per pick) and ``gate`` (the
+gate's own schedule at two steps: a move waits while the last ``1 + hold`` steps both moved).
 
 With ``--planner EVALS_DIR`` (a study's ``evals/recovering``) it pairs the expert's episodes with the planner's
 records of the same suite and seeds (each training seed): the planner's failures that the waiting expert also
@@ -40,7 +43,7 @@ from lerobot_pnp.robot import Phase
 MOVE_TOL = 1e-3  # a keyframe that changes the command by less (a hold keyframe) is not waited for
 
 
-WAITS = ("every_move", "gripper", "after_gripper", "every_move_no_hold")
+WAITS = ("every_move", "gripper", "after_gripper", "every_move_no_hold", "gate")
 _BEFORE_GRIPPER = (Phase.PICK_APPROACH, Phase.PLACE_APPROACH)  # leaving these: the descents before a close / open
 
 
@@ -50,10 +53,20 @@ def waiting_expert(env, seed: int, hold: int, wait: str = "every_move") -> Episo
     env.reset(seed=seed)
     expert = FSMExpert(env)
     previous, steps = expert.command, 0
+    recent: list[bool] = []  # did each executed step move ("gate")
     while True:
         command = expert.next_keyframe()
         moved = np.linalg.norm(command - previous) > MOVE_TOL
         gripper = command[7] != previous[7]
+        # the gate's schedule at latency 1 + hold, for a planner trained on 1: at most one move unseen
+        if wait == "gate":
+            while moved and sum(recent[-(1 + hold) :]) > 1:
+                _, _, terminated, truncated, info = env.step(previous)
+                steps += 1
+                recent.append(False)
+                if terminated or truncated:
+                    return EpisodeRecord.from_info(seed, info, steps, (np.nan, np.nan))
+            recent.append(bool(moved))
         if wait == "every_move_no_hold" and expert.last_phase == Phase.PICK_RETRACT and not moved:
             previous = command
             continue
@@ -62,6 +75,7 @@ def waiting_expert(env, seed: int, hold: int, wait: str = "every_move") -> Episo
             "every_move_no_hold": moved,
             "gripper": gripper or (moved and expert.last_phase in _BEFORE_GRIPPER),
             "after_gripper": gripper,
+            "gate": False,
         }[wait]
         repeats = 1 + (hold if waits else 0)
         previous = command

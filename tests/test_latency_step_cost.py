@@ -38,3 +38,5 @@ def test_each_wait_rule_costs_what_it_waits_for(bench, env):
     assert runs["every_move_no_hold"].steps == 9 + 7 - 1
     assert runs["gripper"].steps == 9 + 4
     assert runs["after_gripper"].steps == 9 + 2
+    # The gate's schedule: no third move in a row. Moves 1-2, wait, 3-4, the place/start hold, 6-7, wait, 8-9.
+    assert runs["gate"].steps == 9 + 2

@@ -18,7 +18,10 @@ Thresholds are Euclidean norms in normalised units (the pre-processor's mean/std
 observation noise. A command counts as a move only when it changes by clearly more than an observation must
 change to count as its arrival (a normalised joint target and a normalised joint angle have about the same
 scale), so that every move counted is seen to arrive; a missed arrival would make the gate wait needlessly
-until ``max_steps``.
+until ``max_steps``. The converse does happen, and is kept: a command below the action threshold is not counted,
+yet its arrival is seen and taken for a counted move's, so a few decisions are planned on a view that misses
+two moves. Waiting exactly (with the simulator's knowledge of which moves are unobserved) spends more of the
+episode's budget than those views lose (``scripts/latency_decisions.py --oracle_gate``).
 
 Everything is per environment of the batch: each env waits for its own move.
 """
