@@ -54,36 +54,40 @@ def waiting_expert(env, seed: int, hold: int, wait: str = "every_move") -> Episo
     expert = FSMExpert(env)
     previous, steps = expert.command, 0
     recent: list[bool] = []  # did each executed step move ("gate")
+
+    def step(command: np.ndarray) -> EpisodeRecord | None:
+        """Execute one step; the episode's record when it ended the episode."""
+        nonlocal steps
+        _, _, terminated, truncated, info = env.step(command)
+        steps += 1
+        return EpisodeRecord.from_info(seed, info, steps, (np.nan, np.nan)) if terminated or truncated else None
+
     while True:
         command = expert.next_keyframe()
         moved = np.linalg.norm(command - previous) > MOVE_TOL
         gripper = command[7] != previous[7]
-        # the gate's schedule at latency 1 + hold, for a planner trained on 1: at most one move unseen
+        # the gate's schedule at latency 1 + hold, for a planner trained on 1: at most one move unseen, so a move
+        # waits (the last command held) before it is executed, where the other rules wait after it
         if wait == "gate":
             while moved and sum(recent[-(1 + hold) :]) > 1:
-                _, _, terminated, truncated, info = env.step(previous)
-                steps += 1
+                if record := step(previous):
+                    return record
                 recent.append(False)
-                if terminated or truncated:
-                    return EpisodeRecord.from_info(seed, info, steps, (np.nan, np.nan))
             recent.append(bool(moved))
         if wait == "every_move_no_hold" and expert.last_phase == Phase.PICK_RETRACT and not moved:
             previous = command
             continue
-        waits = {
+        waits_after = {
             "every_move": moved,
             "every_move_no_hold": moved,
             "gripper": gripper or (moved and expert.last_phase in _BEFORE_GRIPPER),
             "after_gripper": gripper,
             "gate": False,
         }[wait]
-        repeats = 1 + (hold if waits else 0)
         previous = command
-        for _ in range(repeats):
-            _, _, terminated, truncated, info = env.step(command)
-            steps += 1
-            if terminated or truncated:
-                return EpisodeRecord.from_info(seed, info, steps, (np.nan, np.nan))
+        for _ in range(1 + (hold if waits_after else 0)):
+            if record := step(command):
+                return record
 
 
 def run(suite: str, holds: list[int], seeds: list[int], wait: str = "every_move") -> dict[int, list[EpisodeRecord]]:

@@ -70,14 +70,11 @@ class Counting:
             return out
 
         def counted_update(gate, decided, new_action, old_action):
-            moves = (
-                torch.ones_like(decided)
-                if old_action is None
-                else (new_action - old_action).norm(dim=-1) > gate.action_tol
-            )
-            for key, value in (("decisions", decided), ("moves", decided & moves), ("waits", ~decided)):
-                counter.episode[key] = counter.episode.get(key, 0) + int(value.sum())
+            unseen = gate._unseen.clone()
             update(gate, decided, new_action, old_action)
+            moves = gate._unseen - unseen  # the gate's own count of the moves decided now
+            for key, value in (("decisions", decided), ("moves", moves), ("waits", ~decided)):
+                counter.episode[key] = counter.episode.get(key, 0) + int(value.sum())
 
         observation_gate.ObservationGate.decide = counted_decide
         observation_gate.ObservationGate.update = counted_update
