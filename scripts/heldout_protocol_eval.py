@@ -19,6 +19,8 @@ import time
 from collections import Counter
 from pathlib import Path
 
+import protocol_runs  # scripts/: the protocol runs on disk
+
 from lerobot_pnp.cache import CHECKPOINT_FILES, digest_files
 from lerobot_pnp.dagger.config import RECOVERING_RECIPE
 from lerobot_pnp.env_config import BaxterPnPEnvConfig
@@ -29,7 +31,7 @@ from lerobot_pnp.evaluation.stats import wilson_interval
 from lerobot_pnp.evaluation.suites import HELD_OUT_AXES, SUITES
 from lerobot_pnp.policy.configuration_pnp_lstm import PnpLstmConfig
 
-root, out = Path("outputs/ds_full"), Path("outputs") / sys.argv[2]
+root, out = protocol_runs.TASK_ROOT, protocol_runs.run_dir(sys.argv[2])
 if data := [a for a in sys.argv if a.startswith("data=")]:  # another dataset of the full task (train only)
     sys.argv.remove(data[0])
     root = Path(data[0].split("=", 1)[1])
@@ -75,7 +77,7 @@ if stage == "train":
         )
     )
 else:
-    ckpt = Path(json.loads((out / "train_done.json").read_text())["checkpoint"])
+    ckpt = protocol_runs.checkpoint(sys.argv[2])
     n = int(sys.argv[3])
     names = ["nominal"] + list(dict.fromkeys(x for a in HELD_OUT_AXES for x in (*a.in_distribution, *a.held_out)))
     if len(sys.argv) > 4 and sys.argv[4] != "all":

@@ -28,6 +28,7 @@ from collections import Counter
 from pathlib import Path
 
 import numpy as np
+import protocol_runs  # scripts/: the protocol runs on disk
 import torch
 
 from lerobot_pnp.env_config import BaxterPnPEnvConfig, make_env
@@ -85,7 +86,7 @@ class Counting:
 
 
 def run(checkpoint: Path, latency: int, seeds: list[int], oracle: bool) -> dict[int, dict]:
-    cfg = SUITES["heldout_latency_2"].env_configs(BaxterPnPEnvConfig(task_source="outputs/ds_full"))[0]
+    cfg = SUITES["heldout_latency_2"].env_configs(BaxterPnPEnvConfig(task_source=str(protocol_runs.TASK_ROOT)))[0]
     cfg.obs_latency = latency
     loaded = load_policy(checkpoint, env_cfg=cfg)
     env = make_env(cfg, render_mode=None)
@@ -160,7 +161,7 @@ def main() -> None:
     seeds = list(range(args.seed, args.seed + args.episodes))
     result: dict = {"suite": "heldout_latency_2", "first_seed": args.seed, "episodes": args.episodes, "runs": {}}
     for name in args.runs:
-        checkpoint = Path(json.loads((Path("outputs") / name / "train_done.json").read_text())["checkpoint"])
+        checkpoint = protocol_runs.checkpoint(name)
         one, two = run(checkpoint, 1, seeds, False), run(checkpoint, 2, seeds, False)
         entry = {"latency_1": summary(one), "latency_2": summary(two), "paired": paired(one, two)}
         if args.oracle_gate:

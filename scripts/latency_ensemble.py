@@ -13,9 +13,8 @@ logs). The first checkpoint's observation gate holds the mean command. The study
 from __future__ import annotations
 
 import argparse
-import json
-from pathlib import Path
 
+import protocol_runs  # scripts/: the protocol runs on disk
 import torch
 
 from lerobot_pnp.env_config import BaxterPnPEnvConfig
@@ -50,9 +49,9 @@ def main() -> None:
     p.add_argument("--episodes", type=int, default=200)
     args = p.parse_args()
     runs = args.runs.split(",")
-    checkpoints = [Path(json.loads((Path("outputs") / r / "train_done.json").read_text())["checkpoint"]) for r in runs]
+    checkpoints = [protocol_runs.checkpoint(r) for r in runs]
     for suite in args.suites.split(","):
-        cfg = SUITES[suite].env_configs(BaxterPnPEnvConfig(task_source="outputs/ds_full"))[0]
+        cfg = SUITES[suite].env_configs(BaxterPnPEnvConfig(task_source=str(protocol_runs.TASK_ROOT)))[0]
         loaded = [load_policy(c, env_cfg=cfg) for c in checkpoints]
         host = loaded[0]
         host.policy.model.step = averaged([lp.policy.model for lp in loaded])

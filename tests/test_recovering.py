@@ -12,6 +12,7 @@ from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_STATE  # noqa: E4
 
 from lerobot_pnp.errors import ConfigError, DatasetError  # noqa: E402
 from lerobot_pnp.policy import PnpLstmConfig, PnpLstmPolicy  # noqa: E402
+from lerobot_pnp.policy.configuration_pnp_lstm import STILL_ARM_PHASES  # noqa: E402
 from lerobot_pnp.policy.modeling_pnp_lstm import PHASE_KEY, SUBTASK_KEY  # noqa: E402
 from lerobot_pnp.policy.recovering import lstm_trunk_params  # noqa: E402
 
@@ -380,3 +381,58 @@ def test_observation_gate_gives_up_on_a_move_it_cannot_see():
 def test_observation_gate_settings_are_checked(field, value):
     with pytest.raises(ConfigError, match=field):
         PnpLstmConfig(mode="recovering", **{field: value})
+
+
+def _force_phase(policy: PnpLstmPolicy, phase: int) -> None:
+    """Make the phase classifier predict ``phase`` whatever it sees."""
+    head = policy.model.phase_head
+    with torch.no_grad():
+        head.weight.zero_()
+        head.bias.copy_(torch.nn.functional.one_hot(torch.tensor(phase), head.bias.numel()).float())
+
+
+@pytest.mark.parametrize("phase, still", [(2, True), (4, True), (7, True), (9, True), (1, False), (6, False)])
+def test_still_arm_phases_keep_the_arm_where_the_phase_says_the_fsm_does(phase, still):
+    """``still_arm_phases``: on a keyframe the phase classifier labels with one of them (a close, a hold, an
+    open), the arm command is the last one and only the gripper comes from the network; other keyframes are the
+    network's."""
+    policy = _policy(still_arm_phases=list(STILL_ARM_PHASES))
+    plain = _policy()
+    _force_phase(policy, phase)
+    _force_phase(plain, phase)
+    g = torch.Generator().manual_seed(1)
+    obs = [
+        {OBS_STATE: torch.randn(2, 8, generator=g), OBS_ENV_STATE: torch.randn(2, ENV_DIM, generator=g)}
+        for _ in range(5)
+    ]
+    policy.reset()
+    plain.reset()
+    got = [policy.select_action(o) for o in obs]
+    net = [plain.select_action(o) for o in obs]
+    torch.testing.assert_close(got[0], net[0])  # nothing commanded before the first keyframe
+    for k in range(1, 5):
+        torch.testing.assert_close(got[k][:, -1], net[k][:, -1])  # the gripper is always the network's
+        arm = got[k - 1][:, :-1] if still else net[k][:, :-1]
+        torch.testing.assert_close(got[k][:, :-1], arm)
+    assert not torch.allclose(net[1][:, :-1], net[0][:, :-1])  # the network itself would have moved the arm
+
+
+def test_still_arm_phases_are_the_demonstrations_still_keyframes(full_root):
+    """The valid ``still_arm_phases`` are exactly the phases whose demonstrated keyframe repeats the last arm
+    command (the expert's FSM); every other phase moves the arm, and is refused."""
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    ds = LeRobotDataset("local/t_full", root=full_root).hf_dataset
+    action = torch.stack(list(ds["action"]))
+    phase = torch.tensor([int(p) for p in ds["phase.index"]])
+    episode = torch.tensor([int(e) for e in ds["episode_index"]])
+    same = episode[1:] == episode[:-1]
+    still = (action[1:, :-1] - action[:-1, :-1]).abs().amax(dim=-1) < 1e-6
+    for p in range(10):
+        at = same & (phase[1:] == p)
+        if p in STILL_ARM_PHASES:
+            assert bool(at.any()) and bool(still[at].all()), p
+        elif bool(at.any()):
+            assert not bool(still[at].any()), p
+    with pytest.raises(ConfigError, match=r"still_arm_phases must be among .*\[2, 4, 7, 9\], got \[3\]"):
+        PnpLstmConfig(mode="recovering", still_arm_phases=[3])

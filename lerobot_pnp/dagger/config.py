@@ -66,6 +66,7 @@ RECOVERING_RECIPE: dict[str, Any] = {
     "latency_augment_stretch": True,
     "binary_gripper": True,
     "await_observation": True,
+    "still_arm_phases": [7],  # the place's open keeps the arm (Phase.PLACE_DESCEND)
 }
 RECOVERING_BATCH_SIZE = 32  # episodes per batch of the recipe (DAgger's default, the held-out protocol's)
 

@@ -38,7 +38,7 @@ class PlannerState:
     subtask_prob: Tensor | None = None
     """Recovering planner: ``(B,)`` P(place) of the last step, for viewers and logs (never used to act)."""
     phase: Tensor | None = None
-    """Recovering planner: ``(B,)`` its auxiliary phase classifier's last prediction (diagnostics only)."""
+    """Recovering planner: ``(B,)`` its auxiliary phase classifier's last prediction (diagnostics, ``still_arm_phases``)."""
 
     @property
     def batch_size(self) -> int:

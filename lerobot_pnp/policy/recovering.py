@@ -11,7 +11,8 @@ task from what it observes and remembers:
   with ``p = P(place | history)``; the classifier is trained with cross-entropy on ``phase.subtask`` when the
   batch carries per-frame labels (the fast path, DAgger), and through the action loss alone otherwise;
 * an auxiliary phase classifier (``phase.index``, 10 classes) that shapes the trunk's state to track the FSM
-  phase; its prediction is exposed for diagnostics, never used to act.
+  phase; its prediction is exposed for diagnostics, and with ``still_arm_phases`` it says which keyframes keep
+  the last arm command (the FSM's open at the place, in the recipe).
 
 The episode ends when the env says so (success or its step budget), not after 10 steps. With
 ``await_observation`` an observation gate (``observation_gate``) holds a commanded move until the observations
@@ -110,6 +111,11 @@ class RecoveringPlanner(nn.Module):
         memory = None if state is None else state.memory
         out, new_memory = self.step(x, memory)
         action = out["action"]
+        phase = out["phase_logits"].argmax(dim=-1)
+        if self.config.still_arm_phases and state is not None:  # keyframes the FSM sends without moving the arm
+            still = torch.isin(phase, torch.tensor(self.config.still_arm_phases, device=phase.device))
+            arm = torch.where(still[:, None], state.action[:, :-1], action[:, :-1])
+            action = torch.cat([arm, action[:, -1:]], dim=-1)
         gate = self._new_gate() if state is None else state.gate
         if gate is not None:  # hold the last command where its move has not been observed yet
             decided = gate.decide(x)
@@ -127,7 +133,7 @@ class RecoveringPlanner(nn.Module):
             memory=new_memory,
             gate=gate,
             subtask_prob=out["subtask_logits"].softmax(dim=-1)[:, 1],
-            phase=out["phase_logits"].argmax(dim=-1),
+            phase=phase,
         )
 
     def check_episode_lengths(self, lengths: list[int]) -> None:
