@@ -306,7 +306,7 @@ METHODS: dict[str, Method] = {
             "recovering",
             "recovering LSTM",
             "one LSTM over the whole episode, no clock, learned subtask switch; the recipe of `configs/dagger.json` "
-            "(hidden 256, late episodes, binary gripper, the observation gate); recoveries only as the task "
+            "(hidden 256, late episodes, binary gripper, the observation gate, the arm held on the place's open); recoveries only as the task "
             "demonstrates them (none on `paper`, every disturbance on `full`)",
             **RECOVERING,
         ),
