@@ -30,7 +30,6 @@ from lerobot.optim.schedulers import CosineAnnealingWithWarmupSchedulerConfig, L
 from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_STATE
 
 from lerobot_pnp.errors import ConfigError, PolicyError
-from lerobot_pnp.robot import Phase
 
 logger = logging.getLogger(__name__)
 
@@ -38,9 +37,7 @@ LR_SCHEDULERS = ("none", "cosine")
 MODES = ("clocked", "recovering")
 # The FSM states the expert leaves without moving the arm (``expert.FSMExpert.next_keyframe``: close, hold before
 # the place, open, hold after the retract), the valid ``still_arm_phases``.
-STILL_ARM_PHASES = tuple(
-    int(p) for p in (Phase.PICK_GRASP, Phase.PICK_RETRACT, Phase.PLACE_DESCEND, Phase.PLACE_RETRACT)
-)
+STILL_ARM_PHASES = (2, 4, 7, 9)
 
 
 @PreTrainedConfig.register_subclass("pnp_lstm")
