@@ -161,6 +161,9 @@ def _os_error_line(err: OSError, name: str) -> str:
 
 
 def _sigterm_as_interrupt(signum, frame):
+    """The first SIGTERM unwinds like Ctrl-C (one line, exit 2, finished work kept); a second one while that
+    unwinding joins worker processes terminates at once, instead of a traceback from the interpreter's exit hooks."""
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
     raise KeyboardInterrupt
 
 

@@ -65,6 +65,19 @@ def test_interrupt_is_one_line_and_exit_2(sig, tmp_path):
     assert "interrupted" in err and "Traceback" not in err, err
 
 
+def test_a_second_sigterm_terminates_instead_of_interrupting_the_unwinding():
+    """The first SIGTERM becomes KeyboardInterrupt; a second one (a process-group kill repeated while the first
+    unwinds and joins worker processes) must not raise again inside the interpreter's exit hooks (a traceback)."""
+    previous = signal.getsignal(signal.SIGTERM)
+    try:
+        signal.signal(signal.SIGTERM, cli._sigterm_as_interrupt)
+        with pytest.raises(KeyboardInterrupt):
+            cli._sigterm_as_interrupt(signal.SIGTERM, None)
+        assert signal.getsignal(signal.SIGTERM) == signal.SIG_DFL
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def test_viz_of_a_dataset_with_nan_is_one_line_naming_episode_and_frame(tmp_path, capsys):
     """Issue 9 item 4: the viewer used to exit 0 and print NaN."""
     from keyframe_synth import REPO_ID, make_keyframe_dataset
