@@ -5,7 +5,8 @@ protocol's suites (stock eval_policy in process, the study's evaluator); numbers
         --env.preset full
     python scripts/heldout_protocol_eval.py train RUN 300 [seed=N] [data=ROOT] [field=value ...]  # epochs; PnpLstmConfig overrides
     python scripts/heldout_protocol_eval.py eval RUN 100 [suite,suite,...|all] [field=value ...]
-        # -> outputs/RUN/eval.json, or eval_<field=value...>.json with inference-time policy fields set;
+        # -> outputs/RUN/eval.json, or eval_<field=value...>.json with inference-time policy fields set (_nN when
+        # N is not 200; an unknown field is an error);
         # env.<field>=value sets a task field on top of the suite (e.g. env.keyframe_budget=60, a diagnosis);
         # eval_seed=N starts the eval seeds at N (default 10,000,000; the study uses 100000)
 
@@ -92,8 +93,14 @@ else:
     )
     if eval_seed != 10_000_000:
         result_file = result_file.with_name(f"{result_file.stem}_seed{eval_seed}.json")
+    if n != 200:  # the protocol's count keeps the plain name; another count gets its own file, not an overwrite
+        result_file = result_file.with_name(f"{result_file.stem}_n{n}.json")
+    unknown = sorted(k for k in overrides if not k.startswith("env.") and k not in PnpLstmConfig.__dataclass_fields__)
+    if unknown:  # setattr would take any name and change nothing
+        sys.exit(f"heldout_protocol_eval.py: unknown policy field(s) {unknown}: see PnpLstmConfig")
     # A suite's result is reused only when it was made from this checkpoint's content with this many episodes
-    # (the file name holds the overrides and the eval seed); a result without the checkpoint's digest is redone.
+    # (the file name holds the overrides, the eval seed and a count other than 200); a result without the
+    # checkpoint's digest is redone.
     ckpt_digest = digest_files(ckpt, CHECKPOINT_FILES)
     results = json.loads(result_file.read_text()) if result_file.is_file() else {}
     for name in names:
