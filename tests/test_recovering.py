@@ -417,6 +417,31 @@ def test_still_arm_phases_keep_the_arm_where_the_phase_says_the_fsm_does(phase, 
     assert not torch.allclose(net[1][:, :-1], net[0][:, :-1])  # the network itself would have moved the arm
 
 
+def test_still_arm_tol_holds_only_the_large_arm_moves():
+    """``still_arm_tol``: on a still-labelled keyframe, an env whose network would move the arm by more than the
+    tolerance (normalised) keeps its last arm command; an env whose network moves it less keeps the network's
+    keyframe (a refinement of the pose); the gripper is the network's in both."""
+    plain = _policy()
+    _force_phase(plain, 7)
+    g = torch.Generator().manual_seed(3)
+    x0, x1 = torch.randn(2, 8 + ENV_DIM, generator=g), torch.randn(2, 8 + ENV_DIM, generator=g)
+    first, state = plain.model.act(x0, None)
+    net, _ = plain.model.act(x1, state)
+    move = (net[:, :-1] - first[:, :-1]).norm(dim=-1)
+    assert float((move[0] - move[1]).abs()) > 1e-3  # the two envs' moves differ: a tolerance between them splits
+    tol = float(move.mean())
+    policy = _policy(still_arm_phases=[7], still_arm_tol=tol)
+    _force_phase(policy, 7)
+    _, state = policy.model.act(x0, None)
+    got, _ = policy.model.act(x1, state)
+    held = move > tol
+    torch.testing.assert_close(got[:, -1], net[:, -1])
+    torch.testing.assert_close(got[held, :-1], first[held, :-1])
+    torch.testing.assert_close(got[~held, :-1], net[~held, :-1])
+    with pytest.raises(ConfigError, match="still_arm_tol must be >= 0"):
+        PnpLstmConfig(mode="recovering", still_arm_tol=-0.1)
+
+
 def test_still_arm_phases_are_the_demonstrations_still_keyframes(full_root):
     """The valid ``still_arm_phases`` are exactly the phases whose demonstrated keyframe repeats the last arm
     command (the expert's FSM); every other phase moves the arm, and is refused."""

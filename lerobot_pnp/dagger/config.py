@@ -66,7 +66,8 @@ RECOVERING_RECIPE: dict[str, Any] = {
     "latency_augment_stretch": True,
     "binary_gripper": True,
     "await_observation": True,
-    "still_arm_phases": [7],  # the place's open keeps the arm (Phase.PLACE_DESCEND)
+    "still_arm_phases": [7],  # the place's open keeps the arm (Phase.PLACE_DESCEND) ...
+    "still_arm_tol": 0.05,  # ... where the network would move it by more than a refinement
 }
 RECOVERING_BATCH_SIZE = 32  # episodes per batch of the recipe (DAgger's default, the held-out protocol's)
 

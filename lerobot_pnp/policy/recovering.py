@@ -12,7 +12,8 @@ task from what it observes and remembers:
   batch carries per-frame labels (the fast path, DAgger), and through the action loss alone otherwise;
 * an auxiliary phase classifier (``phase.index``, 10 classes) that shapes the trunk's state to track the FSM
   phase; its prediction is exposed for diagnostics, and with ``still_arm_phases`` it says which keyframes keep
-  the last arm command (the FSM's open at the place, in the recipe).
+  the last arm command where the network would move the arm by more than ``still_arm_tol`` (the FSM's open at
+  the place, in the recipe).
 
 The episode ends when the env says so (success or its step budget), not after 10 steps. With
 ``await_observation`` an observation gate (``observation_gate``) holds a commanded move until the observations
@@ -114,6 +115,7 @@ class RecoveringPlanner(nn.Module):
         phase = out["phase_logits"].argmax(dim=-1)
         if self.config.still_arm_phases and state is not None:  # keyframes the FSM sends without moving the arm
             still = torch.isin(phase, torch.tensor(self.config.still_arm_phases, device=phase.device))
+            still &= (action[:, :-1] - state.action[:, :-1]).norm(dim=-1) > self.config.still_arm_tol
             arm = torch.where(still[:, None], state.action[:, :-1], action[:, :-1])
             action = torch.cat([arm, action[:, -1:]], dim=-1)
         gate = self._new_gate() if state is None else state.gate
