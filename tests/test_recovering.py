@@ -425,15 +425,17 @@ def test_still_arm_tol_holds_only_the_large_arm_moves():
     _force_phase(plain, 7)
     g = torch.Generator().manual_seed(3)
     x0, x1 = torch.randn(2, 8 + ENV_DIM, generator=g), torch.randn(2, 8 + ENV_DIM, generator=g)
-    first, state = plain.model.act(x0, None)
-    net, _ = plain.model.act(x1, state)
+    with torch.no_grad():
+        first, state = plain.model.act(x0, None)
+        net, _ = plain.model.act(x1, state)
     move = (net[:, :-1] - first[:, :-1]).norm(dim=-1)
     assert float((move[0] - move[1]).abs()) > 1e-3  # the two envs' moves differ: a tolerance between them splits
     tol = float(move.mean())
     policy = _policy(still_arm_phases=[7], still_arm_tol=tol)
     _force_phase(policy, 7)
-    _, state = policy.model.act(x0, None)
-    got, _ = policy.model.act(x1, state)
+    with torch.no_grad():
+        _, state = policy.model.act(x0, None)
+        got, _ = policy.model.act(x1, state)
     held = move > tol
     torch.testing.assert_close(got[:, -1], net[:, -1])
     torch.testing.assert_close(got[held, :-1], first[held, :-1])
