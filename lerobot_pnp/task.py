@@ -34,6 +34,7 @@ class PickPlaceTask:
         self.disturbances = Disturbances(config)
         self._bias = np.zeros(3)
         self._history: list[dict] = []
+        self.latest_observation: dict[str, np.ndarray] | None = None
         self._furthest = 0
         self._was_grasped = False
 
@@ -192,6 +193,7 @@ class PickPlaceTask:
         if c.observe_phase:  # privileged: from the true state, never noisy (latency still applies)
             env_state.append(np.eye(robot.N_KEYFRAMES)[self.infer_phase(physics)])
         obs = {"agent_pos": state, "environment_state": np.concatenate(env_state).astype(np.float32)}
+        self.latest_observation = obs  # what an observer without latency sees now (DAgger records it)
         longest = max(c.obs_latency, c.obs_latency_max)
         if longest <= 0:
             return obs

@@ -12,7 +12,7 @@ from lerobot_pnp.dagger import DaggerConfig, labelled_rollout, run_dagger
 from lerobot_pnp.dagger.dart import DartNoise
 from lerobot_pnp.dagger.rollouts import suite_env
 from lerobot_pnp.dagger.writer import aggregate, features_for, write_episodes
-from lerobot_pnp.env_config import BaxterPnPEnvConfig
+from lerobot_pnp.env_config import BaxterPnPEnvConfig, make_env
 from lerobot_pnp.errors import ConfigError
 
 
@@ -50,6 +50,25 @@ def test_labels_of_a_policy_that_follows_them_recover_from_a_drop(full_cfg):
     assert ep.env_states.shape == (len(ep.actions), 7)  # yaw features and goal observed
     np.testing.assert_array_equal(ep.actions, again.actions)  # deterministic per seed
     np.testing.assert_array_equal(ep.env_states, again.env_states)
+
+
+def test_a_rollout_under_latency_records_the_current_state_not_the_late_view(full_cfg):
+    """The policy acts on observations two steps old; the frames hold the state each label is for."""
+    late_views = []
+
+    class _Recorder(_Follower):
+        def act(self, obs):
+            late_views.append(np.asarray(obs["agent_pos"], np.float32))
+            return super().act(obs)
+
+    env = make_env(full_cfg.with_changes(obs_latency=2, obs_noise_joints=0.0, obs_noise_object=0.0))
+    ep = labelled_rollout(env, _Recorder(env), seed=4, suite="nominal")
+    env.close()
+    assert ep.success and len(ep.states) > 4
+    np.testing.assert_allclose(ep.states[-1][:7], env.unwrapped.physics.state_vector()[:7], atol=1e-5)
+    for t in range(2, len(late_views)):  # the policy saw frame t - 2 at step t
+        np.testing.assert_array_equal(late_views[t], ep.states[t - 2])
+    assert not np.array_equal(late_views[3], ep.states[3])
 
 
 def test_a_stuck_policy_is_labelled_with_the_way_forward(full_cfg):

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 import pytest
 import torch
 
@@ -463,3 +466,14 @@ def test_still_arm_phases_are_the_demonstrations_still_keyframes(full_root):
             assert not bool(still[at].any()), p
     with pytest.raises(ConfigError, match=r"still_arm_phases must be among .*\[2, 4, 7, 9\], got \[3\]"):
         PnpLstmConfig(mode="recovering", still_arm_phases=[3])
+
+
+@pytest.mark.parametrize(
+    "name", ["dagger", "dagger_curve_full", "dagger_curve_paper", "dart_full", "dart_paper", "train_pnp_lstm_full"]
+)
+def test_shipped_configs_train_the_recovering_recipe(name):
+    """The configs that say they train the recovering planner hold every field of the recipe the study trains."""
+    from lerobot_pnp.dagger import RECOVERING_RECIPE
+
+    policy = json.loads((Path(__file__).parents[1] / "configs" / f"{name}.json").read_text())["policy"]
+    assert {k: policy.get(k) for k in RECOVERING_RECIPE} == RECOVERING_RECIPE

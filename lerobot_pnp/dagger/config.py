@@ -13,10 +13,9 @@ from lerobot_pnp.presets import TASK_FIELDS
 
 from .dart import DartNoise
 
-# Rollouts under observation latency are left out by default: their recorded observations are already late,
-# and training shows half of all episodes late still (policy.latency_augment_*: as the env draws latency, with
-# each recovery retimed as a late robot performs it; docs/results/heldout_protocol.md). With an earlier recipe
-# that had no late episodes, adding them also cost nominal success in round 1 (docs/results/planner.md).
+# The default rollouts have no observation latency. Rollouts under latency are allowed (a rollout records the
+# current state, and training shows half of all episodes late, policy.latency_augment_*), but with an earlier
+# recipe that had no late episodes, adding them cost nominal success in round 1 (docs/results/planner.md).
 DEFAULT_ROLLOUT_SUITES = ["nominal", "quiet_grasp_miss", "quiet_drop", "quiet_nudge_0.03", "quiet_displace"]
 DEFAULT_EVAL_SUITES = [
     "quiet", "quiet_grasp_miss", "quiet_drop", "quiet_nudge_0.03", "quiet_displace", "quiet_noise_latency",

@@ -93,6 +93,11 @@ def labelled_rollout(
     joint more than ``FOLLOW_TOL`` from it, or the other gripper command), ``info["policy_disagree"]`` those
     where the policy's own action was not: the frames that teach the policy something.
 
+    Each frame records the observation as it is at that step (with the task's noise and bias), also when the
+    env's observations are late (``obs_latency``): the label is the expert's command for the current state, and a
+    planner trained with latency augmentation (``policy.latency_augment_*``) is shown the frames late as the env
+    shows them; a recorded late view would be shown later still.
+
     When the policy has pushed the object where the expert has no IK solution (``UnreachableError``), the
     episode ends there: the states before it keep their labels (``info["stopped"] = "unreachable"``)."""
     policy.reset()
@@ -110,8 +115,9 @@ def labelled_rollout(
                 raise
             stopped, info = "unreachable", {**info, "is_success": False}
             break
-        states.append(np.asarray(obs["agent_pos"], np.float32))
-        env_states.append(np.asarray(obs["environment_state"], np.float32))
+        now = env.unwrapped.pnp_task.latest_observation  # the current state, not the late view the policy got
+        states.append(np.asarray(now["agent_pos"], np.float32))
+        env_states.append(np.asarray(now["environment_state"], np.float32))
         labels.append(keyframe)
         phases.append(phase)
         if done:
