@@ -25,6 +25,7 @@ import protocol_runs  # scripts/: the protocol runs on disk
 from lerobot_pnp.cache import CHECKPOINT_FILES, digest_files
 from lerobot_pnp.dagger.config import RECOVERING_RECIPE
 from lerobot_pnp.env_config import BaxterPnPEnvConfig
+from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.evaluation.checkpoints import load_policy
 from lerobot_pnp.evaluation.episodes import eval_lerobot_policy
 from lerobot_pnp.evaluation.records import summarize
@@ -87,7 +88,10 @@ else:
     overrides = {k: json.loads(v) for k, v in (a.split("=", 1) for a in sys.argv[5:])}
     eval_seed = int(overrides.pop("eval_seed", 10_000_000))  # the first eval seed (the study's: 100000)
     env_changes = {k.removeprefix("env."): v for k, v in overrides.items() if k.startswith("env.")}
-    base = BaxterPnPEnvConfig(task_source=str(root), **env_changes)
+    try:
+        base = BaxterPnPEnvConfig(task_source=str(root), **env_changes)
+    except (TypeError, ConfigError) as e:  # an unknown or invalid task field: one line, not a traceback
+        sys.exit(f"heldout_protocol_eval.py: env overrides {env_changes}: {e}")
     result_file = out / (
         "eval.json" if not overrides else "eval_" + "_".join(f"{k}={v}" for k, v in overrides.items()) + ".json"
     )
