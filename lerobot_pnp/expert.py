@@ -68,6 +68,17 @@ def failure_cause(err: Exception) -> str:
     return getattr(err, "cause", type(err).__name__)
 
 
+# The gripper each keyframe commands, by the FSM state it leaves: open until the close, closed while carrying,
+# open from the place's open on. The FSM's own run always has it so; stating it per state keeps a label
+# planned from an arbitrary state (``label()``, DAgger) the demonstrations' command there, instead of whatever
+# the gripper happens to be (a descent to grasp with the gripper still closed after a miss, a transport with it
+# open), which no demonstration shows.
+_PHASE_GRIPPER = {
+    p: robot.GRIPPER_OPEN if p in (Phase.PICK_START, Phase.PICK_APPROACH) or p >= Phase.PLACE_DESCEND else robot.GRIPPER_CLOSED
+    for p in Phase
+}
+
+
 class FSMExpert:
     """Plans the next keyframe (7 joints + gripper command) from the current physical state.
 
@@ -154,18 +165,18 @@ class FSMExpert:
         """
         physics, cfg, ik = self.physics, self.config, self.physics.ik
         p, grip_override = self._check(self.phase)
-        q_prev, grip = self._cmd[:7], self._cmd[7]
+        q_prev = self._cmd[:7]
         cube, cube_yaw = physics.object_pose()
         ee, _ = physics.ee_pose()
         place = np.array([*self.place_xy(), physics.object_rest_z()])
         if p == 0:  # -> pick/approach: above the object
             self._yaw = grasp_yaw(cube_yaw)
-            q, grip = ik.solve(cube + [0, 0, self.hover], self._yaw, q_prev), robot.GRIPPER_OPEN
+            q = ik.solve(cube + [0, 0, self.hover], self._yaw, q_prev)
         elif p == 1:  # -> pick/grasp: at the object
             self._yaw = grasp_yaw(cube_yaw)
             q = ik.solve(cube - [0, 0, cfg.grasp_depth], self._yaw, q_prev)
         elif p == 2:  # -> pick/close
-            q, grip = q_prev, robot.GRIPPER_CLOSED
+            q = q_prev
         elif p == 3:  # -> pick/retract: back up to z_obj + h
             q = ik.solve(np.array([ee[0], ee[1], robot.CUBE_REST_Z + self.hover]), self._yaw, q_prev)
         elif p == 4:  # -> place/start (= pick/retract): hold
@@ -178,13 +189,12 @@ class FSMExpert:
             offset = ee - cube
             q = ik.solve(place + offset + [0, 0, cfg.place_clearance], self._yaw, q_prev)
         elif p == 7:  # -> place/open
-            q, grip = q_prev, robot.GRIPPER_OPEN
+            q = q_prev
         elif p == 8:  # -> place/retract
             q = ik.solve(np.array([ee[0], ee[1], robot.CUBE_REST_Z + self.hover]), self._yaw, q_prev)
         else:  # after the last state: hold
             q = q_prev
-        if grip_override is not None:
-            grip = grip_override
+        grip = grip_override if grip_override is not None else _PHASE_GRIPPER[p]
         self._cmd = np.append(q, grip)
         self.last_phase = p
         self.phase = self._next_phase if self._next_phase is not None else Phase(min(p + 1, robot.N_KEYFRAMES - 1))

@@ -195,6 +195,20 @@ def test_expert_labels_any_state_and_following_its_labels_succeeds():
         assert terminated, f"seed {seed}: following the labels did not finish the task"
 
 
+def test_a_label_commands_the_demonstrations_gripper_whatever_the_gripper_is_now():
+    """Above the object with the gripper closed (a policy closed it early): the label descends to grasp with it
+    open, as every demonstration does, not with the gripper as it happens to be."""
+    from lerobot_pnp.env_config import make_env
+
+    env = make_env(render_mode=None, nudge_max=0.0, grasp_miss_prob=0.0)
+    env.reset(seed=3)
+    approach = FSMExpert(env).next_keyframe()
+    env.step(np.append(approach[:7], robot.GRIPPER_CLOSED).astype(np.float32))
+    assert env.unwrapped.physics.gripper_opening() < 0.5
+    keyframe, phase = FSMExpert(env).label()
+    assert phase == robot.Phase.PICK_APPROACH and keyframe[-1] == robot.GRIPPER_OPEN
+
+
 @pytest.mark.parametrize("size", [0.045, 0.06])
 def test_object_size_is_simulated_and_handled_by_the_expert(size):
     from lerobot_pnp.env_config import make_env
