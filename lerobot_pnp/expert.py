@@ -74,7 +74,9 @@ def failure_cause(err: Exception) -> str:
 # the gripper happens to be (a descent to grasp with the gripper still closed after a miss, a transport with it
 # open), which no demonstration shows.
 _PHASE_GRIPPER = {
-    p: robot.GRIPPER_OPEN if p in (Phase.PICK_START, Phase.PICK_APPROACH) or p >= Phase.PLACE_DESCEND else robot.GRIPPER_CLOSED
+    p: robot.GRIPPER_OPEN
+    if p in (Phase.PICK_START, Phase.PICK_APPROACH) or p >= Phase.PLACE_DESCEND
+    else robot.GRIPPER_CLOSED
     for p in Phase
 }
 
