@@ -120,7 +120,8 @@ class FSMExpert:
         """Forget the episode's history and plan from the current physical state (DAgger labelling).
 
         The FSM state comes from the task's inferred phase; the last command is the servos' current
-        setpoints with the gripper command matching its measured state (open above half-open).
+        setpoints with the gripper command matching its measured state (open above half-open); the next
+        keyframe commands its own state's gripper (``_PHASE_GRIPPER``), whatever the gripper is now.
         """
         inferred = self.task.infer_phase(self.physics)
         self.phase = self._PLAN_FROM_INFERRED[inferred]
