@@ -6,7 +6,8 @@ only how much to generate and how to run it. The run is a datatrove pipeline (``
 machine (``--workers`` at a time, default one per core) or ``SlurmPipelineExecutor`` on a cluster
 (``--executor slurm``); then ``merge.py`` aggregates, verifies, splits and commits. Interrupted runs
 (kill -9, a failed task, a full disk) finish with ``--resume``: completed ranks are skipped (datatrove's
-completion records, double-checked by shard validation), the others are redone from scratch.
+completion records, double-checked by shard validation; a whole shard whose record the kill caught is adopted),
+the others are redone from scratch.
 """
 
 from __future__ import annotations
@@ -274,16 +275,24 @@ def _norm(v):
 
 
 def _drop_invalid_completions(work: Path, logs: Path, num_episodes: int, tasks: int) -> int:
-    """Keep a completed rank only if its shard validates; return the number of episodes kept."""
+    """Keep a rank's shard only if it validates; return the number of episodes kept.
+
+    A rank marked complete whose shard does not validate loses its mark (it is redone). A whole shard (renamed
+    from ``.tmp``) without a mark is one whose process was killed between the rename and datatrove's
+    completion record: it validates, so it is marked complete and kept instead of being simulated again.
+    """
     done = logs / "completions"
     kept = 0
     for rank in range(tasks):
         mark = done / f"{rank:05d}"
-        if not mark.exists():
+        if not mark.exists() and not shard_dir(work, rank).is_dir():
             continue
         if shard_is_valid(work, rank, num_episodes, tasks):
             kept += len(json.loads((shard_dir(work, rank) / "pnp_shard.json").read_text())["seeds"])
-        else:
+            if not mark.exists():
+                mark.parent.mkdir(parents=True, exist_ok=True)
+                mark.touch()
+        elif mark.exists():
             mark.unlink()
     return kept
 

@@ -5,7 +5,8 @@ The block of rank ``k`` is slots ``[k*N//T, (k+1)*N//T)``; a slot's content depe
 (``episodes.py``), so the merged dataset is the same whatever the executor, number of tasks or workers.
 A shard is written into ``shard-<k>.tmp`` and renamed when finalized: a folder without the suffix is whole.
 Datatrove marks the rank complete (``logs/completions/<k>``) only after ``run`` returns, and a rerun
-skips completed ranks; ``shard_is_valid`` double-checks them before they are reused.
+skips completed ranks; ``shard_is_valid`` double-checks them before they are reused (and lets a resume adopt a
+whole shard whose process was killed before its completion record).
 """
 
 from __future__ import annotations
