@@ -30,3 +30,76 @@ def test_rate_bars_with_eleven_methods_draw_eleven_colours(tmp_path, monkeypatch
     rates = {f"method {i}": {"nominal": Rate(i, 20), "drop": Rate(20 - i, 20)} for i in range(11)}
     out = plots.rate_bars(rates, tmp_path / "bars.png", "test", "title")
     assert out.is_file() and len(drawn) == 11 and len(set(drawn)) == 11
+
+
+# ------------------------------------------------------------------------------ the held-out protocol's figures
+class _Method:
+    def __init__(self, name: str, learned: bool):
+        self.name, self.label, self.learned = name, f"{name} label", learned
+
+
+class _Layout:
+    def __init__(self, root):
+        self.root = root
+
+    def figure(self, name):
+        return self.root / name
+
+
+class _Record:
+    def __init__(self, success: bool):
+        self.success = success
+
+
+def _runs(rates: dict[str, float], n: int = 20) -> dict[str, list]:
+    return {s: [_Record(i < round(r * n)) for i in range(n)] for s, r in rates.items()}
+
+
+_SUITES = ["nominal", "train_drop", "heldout_far_drop", "heldout_latency_2", "train_latency"]
+_RESULTS = {
+    "expert": {"-": _runs(dict.fromkeys(_SUITES, 1.0))},
+    "lookup_table": {"-": _runs(dict.fromkeys(_SUITES, 0.0))},  # fails everything: not the one to explain
+    "recovering": {
+        "1000": _runs(
+            {
+                "nominal": 1.0,
+                "train_drop": 0.95,
+                "heldout_far_drop": 0.9,
+                "heldout_latency_2": 0.6,
+                "train_latency": 1.0,
+            }
+        ),
+        "n50": _runs({"nominal": 0.1, "heldout_far_drop": 0.0}),  # a data-efficiency run: not a main tag
+    },
+}
+_METHODS = [_Method("expert", False), _Method("lookup_table", False), _Method("recovering", True)]
+
+
+def test_failures_are_drawn_where_the_best_learned_method_fails_most():
+    from lerobot_pnp.report.figures import failure_suites
+
+    assert failure_suites(_METHODS, _RESULTS, _SUITES) == ["heldout_latency_2"]
+    # the paper task's suites when they were evaluated; the first suite when nothing learned fails anywhere
+    assert failure_suites(_METHODS, _RESULTS, ["nominal", "grasp_miss", "nudge_0.03"]) == ["nudge_0.03", "grasp_miss"]
+    clean = {**_RESULTS, "recovering": {"1000": _runs(dict.fromkeys(_SUITES, 1.0))}}
+    assert failure_suites(_METHODS, clean, _SUITES) == ["nominal"]
+    assert failure_suites(_METHODS[:2], _RESULTS, _SUITES) == ["nominal"]
+
+
+def test_held_out_figure_puts_each_axis_trained_suites_before_its_held_out_ones(tmp_path, monkeypatch):
+    from lerobot_pnp.report import figures
+
+    drawn = figures._held_out(_Layout(tmp_path), _METHODS, _RESULTS, _SUITES, "test")
+    assert [d[1] for d in drawn] == ["held_out.png"]
+    assert (tmp_path / "held_out.png").stat().st_size > 10_000
+    calls = []
+    monkeypatch.setattr(figures.plots, "axis_panels", lambda panels, rates, *a, **k: calls.append((panels, rates)))
+    figures._held_out(_Layout(tmp_path), _METHODS, _RESULTS, _SUITES, "test")
+    ((panels, rates),) = calls
+    # the axes with a held-out suite evaluated, in the protocol's order, each with only the suites evaluated
+    assert panels == [("magnitude", ["train_drop"], ["heldout_far_drop"]),
+                      ("latency", ["train_latency"], ["heldout_latency_2"])]  # fmt: skip
+    assert rates["recovering label"]["heldout_latency_2"] == Rate(12, 20)  # the main seeds only, not n50
+    assert rates["lookup_table label"]["train_drop"] == Rate(0, 20)
+    # a study without a held-out suite (the paper task) draws no such figure
+    assert figures._held_out(_Layout(tmp_path), _METHODS, _RESULTS, ["nominal", "train_drop"], "test") == []

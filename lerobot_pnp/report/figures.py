@@ -8,10 +8,10 @@ from __future__ import annotations
 
 from lerobot_pnp import robot
 from lerobot_pnp.evaluation.stats import Rate
-from lerobot_pnp.evaluation.suites import SUITES
+from lerobot_pnp.evaluation.suites import HELD_OUT_AXES, SUITES
 from lerobot_pnp.report import adapters, coverage, plots
 from lerobot_pnp.report.methods import DATA_EFFICIENCY_METHODS
-from lerobot_pnp.report.results import main_records, pooled
+from lerobot_pnp.report.results import TARGET, main_records, pooled
 
 RECOVERY_FIGURE_SUITES = ("nominal", "slack", "nudge_0.05", "grasp_miss", "drop", "displace")
 HEATMAP_SUITES = ("nominal", "nudge_0.03")
@@ -32,6 +32,7 @@ def make_figures(layout, cfg, methods, results, suite_names, base_env, prov: str
         *_robustness(layout, methods, results, suite_names, prov),
         *((c, n, ("nominal",), True) for c, n in _data_efficiency(layout, cfg, methods, results, prov)),
         *_recovery(layout, methods, results, suite_names, prov),
+        *_held_out(layout, methods, results, suite_names, prov),
         *_failures(layout, methods, results, suite_names, prov),
     ]
     return [(c + coverage.figure_note(left, suites, labels, efficiency), n) for c, n, suites, efficiency in drawn]
@@ -106,9 +107,47 @@ def _recovery(layout, methods, results, suite_names, prov):
     return [(caption, "recovery.png", tuple(recovery), False)]
 
 
+def _held_out(layout, methods, results, suite_names, prov):
+    """The held-out protocol at a glance: per axis of ``HELD_OUT_AXES`` with a held-out suite evaluated, its
+    training-condition suites and its held-out ones side by side, every method, against the issue's target."""
+    panels = [
+        (a.name, [s for s in a.in_distribution if s in suite_names], [s for s in a.held_out if s in suite_names])
+        for a in HELD_OUT_AXES
+        if any(s in suite_names for s in a.held_out)
+    ]
+    if not panels:
+        return []
+    read = tuple(dict.fromkeys(s for _, inside, held in panels for s in (*inside, *held)))
+    rates = {m.label: {s: p.rate for s in read if (p := pooled(results.get(m.name, {}), s))} for m in methods}
+    name = "held_out.png"
+    title = f"trained vs held-out conditions per disturbance axis (dashed: {100 * TARGET:.0f} %)"
+    plots.axis_panels(panels, rates, layout.figure(name), prov, title, target=TARGET)
+    caption = "Held-out protocol: each axis's training-condition suites, then its held-out ones (all training seeds)"
+    return [(caption, name, read, False)]
+
+
+def failure_suites(methods, results, suite_names) -> list[str]:
+    """The suites whose failures are drawn: the paper task's (``FAILURE_SUITES``) when evaluated; else the suite
+    other than nominal where the learned method best on nominal fails most (on the `full` task's protocol, where
+    the planner's failures are), else the first suite."""
+    paper = [s for s in FAILURE_SUITES if s in suite_names]
+    if paper:
+        return paper
+    learned = [
+        (p.rate.rate, m.name) for m in methods if m.learned and (p := pooled(results.get(m.name, {}), "nominal"))
+    ]
+    others = [s for s in suite_names if s != "nominal"]
+    if learned and others:
+        best = max(learned)[1]
+        fails = {s: p.rate.n - p.rate.successes for s in others if (p := pooled(results.get(best, {}), s))}
+        if fails and max(fails.values()) > 0:
+            return [max(fails, key=fails.get)]
+    return suite_names[:1]
+
+
 def _failures(layout, methods, results, suite_names, prov):
     out = []
-    for fail_suite in [s for s in FAILURE_SUITES if s in suite_names] or suite_names[:1]:
+    for fail_suite in failure_suites(methods, results, suite_names):
         failures = {}
         for m in methods:
             per: dict[str, dict[str, int]] = {}

@@ -1,7 +1,8 @@
 """The study's figures (matplotlib, Agg). Each figure carries the command and config that produced it.
 
 Loss curves (the paper's Fig. 4), success over the workspace, robustness curves with 95 % Wilson intervals,
-the data-efficiency curve, success on the recovery suites and failures by FSM phase and cause. Functions take plain data (no simulator).
+the data-efficiency curve, success on the recovery suites, the held-out protocol's axes (trained vs held-out
+conditions) and failures by FSM phase and cause. Functions take plain data (no simulator).
 """
 
 from __future__ import annotations
@@ -162,6 +163,58 @@ def rate_bars(rates: dict[str, dict[str, Rate]], path: Path, provenance: str, ti
     ax.set_title(title)
     ax.grid(True, axis="y", alpha=0.3)
     _legend(ax, len(rates))
+    return _finish(fig, path, provenance)
+
+
+def axis_panels(
+    panels: list[tuple[str, list[str], list[str]]],
+    rates: dict[str, dict[str, Rate]],
+    path: Path,
+    provenance: str,
+    title: str,
+    target: float | None = None,
+) -> Path:
+    """One panel per disturbance axis: success per suite (group) and method (bar), with 95 % Wilson intervals;
+    the axis's training-condition suites first, then its held-out ones (hatched, behind a dotted line).
+
+    ``panels``: (axis name, in-distribution suites, held-out suites) drawn in that order; ``rates``: method ->
+    {suite: Rate}, a method without a suite has no bar there; ``target``: a success rate (0-1) drawn as a line.
+    """
+    k = max(len(rates), 1)
+    width = 0.8 / k
+    colors = series_colors(len(rates))
+    sizes = [len(inside) + len(held) for _, inside, held in panels]
+    cols = min(len(panels), 3)
+    rows = -(-len(panels) // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(4.6 * cols, 3.9 * rows + 0.4), squeeze=False)
+    for ax, (axis_name, inside, held), n in zip(axes.flat, panels, sizes, strict=False):
+        suites = [*inside, *held]
+        for i, (name, per) in enumerate(rates.items()):
+            js = [j for j, s in enumerate(suites) if s in per]
+            xs = [j + (i - (k - 1) / 2) * width for j in js]
+            r = np.array([100 * per[suites[j]].rate for j in js])
+            lo = np.array([100 * per[suites[j]].interval[0] for j in js])
+            hi = np.array([100 * per[suites[j]].interval[1] for j in js])
+            hatch = ["//" if suites[j] in held else "" for j in js]
+            bars = ax.bar(xs, r, width, color=colors[i], label=name, edgecolor="white", linewidth=0.3)
+            for bar, h in zip(bars, hatch, strict=True):
+                bar.set_hatch(h)
+            ax.errorbar(xs, r, yerr=np.vstack([r - lo, hi - r]), fmt="none", capsize=1.5, ecolor="0.25", lw=0.7)
+        if inside and held:
+            ax.axvline(len(inside) - 0.5, color="0.4", ls=":", lw=1)
+        if target is not None:
+            ax.axhline(100 * target, color="0.5", ls="--", lw=0.8)
+        short = [s.removeprefix("train_").removeprefix("heldout_") for s in suites]
+        ax.set_xticks(range(n), short, rotation=35, ha="right", fontsize=7)
+        ax.set_ylim(0, 103)
+        ax.set_title(f"{axis_name}: trained | held out (hatched)", fontsize=9)
+        ax.grid(True, axis="y", alpha=0.3)
+    for ax in list(axes.flat)[len(panels) :]:
+        ax.set_visible(False)
+    axes.flat[0].set_ylabel("success (%), 95 % Wilson")
+    handles, labels = axes.flat[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="upper right", fontsize=7, ncol=min(k, 5))
+    fig.suptitle(title, fontsize=10, x=0.01, ha="left")
     return _finish(fig, path, provenance)
 
 
