@@ -125,6 +125,16 @@ def test_quick_study_writes_a_report_where_the_planner_beats_the_lookup_table(tm
     nudge = summary["vs_lookup_table"]["clocked_lstm"]["nudge_0.03"]
     assert nudge["difference"] > 0 and nudge["max_p"] < 0.05, nudge
 
+    # A report written again removes a figure the previous report drew and this one does not (its summary says
+    # which), and nothing else in figures/.
+    summary["figures"].append("gone.png")
+    (out / "summary.json").write_text(json.dumps(summary))
+    (out / "figures" / "gone.png").write_bytes(b"old")
+    (out / "figures" / "mine.png").write_bytes(b"a user's")
+    run_study(StudyConfig(output_dir=str(out), quick=True, workers=1, report_only=True))
+    assert not (out / "figures" / "gone.png").exists() and (out / "figures" / "mine.png").read_bytes() == b"a user's"
+    assert all((out / "figures" / n).is_file() for n in summary["figures"][:-1])
+
 
 # ---------------------------------------------------------------------------------------------- command line
 @pytest.mark.parametrize(

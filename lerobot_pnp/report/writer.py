@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 from dataclasses import asdict, dataclass, field
+from pathlib import Path
 
 from lerobot_pnp.report import figures, markdown
 from lerobot_pnp.report.layout import StudyLayout
@@ -34,6 +35,17 @@ class StudyInputs:
     aliases: dict = field(default_factory=dict)
 
 
+def _figures_drawn_before(layout: StudyLayout) -> set[str]:
+    """The figure files the previous report in this folder drew (its ``summary.json``): the only files in
+    ``figures/`` a new report may remove, so that a figure it no longer draws does not linger beside its own,
+    and nothing it did not write is touched."""
+    try:
+        names = json.loads(layout.summary.read_text()).get("figures", [])
+    except (OSError, ValueError, AttributeError):
+        return set()
+    return {n for n in names if isinstance(n, str) and n == Path(n).name and n.endswith(".png")}
+
+
 def write_report(layout: StudyLayout, study: StudyInputs) -> dict:
     """Write the figures, ``summary.json`` and ``report.md``; return the report path and the headline rates."""
     cfg, methods, results = study.cfg, study.methods, study.results
@@ -42,7 +54,10 @@ def write_report(layout: StudyLayout, study: StudyInputs) -> dict:
         f"{study.machine['cores_available']} cores"
     )
     suite_names = evaluated_suites(results)
+    drawn_before = _figures_drawn_before(layout)
     figs = figures.make_figures(layout, cfg, methods, results, suite_names, study.base_env, prov, study.left_out)
+    for stale in drawn_before - {f for _, f in figs}:  # drawn by an earlier report here, not by this one
+        layout.figure(stale).unlink(missing_ok=True)
     suite_names = evaluated_suites(results, [x.suite for x in study.left_out])  # a left-out cell is marked
     table = build_table(results, methods, suite_names)
     comparisons = build_comparisons(results, methods, suite_names)
