@@ -133,6 +133,22 @@ def test_select_action_carries_state_without_a_clock():
     torch.testing.assert_close(policy.predict_sequence(other)[:, :2], seq[:, :2])  # causal
 
 
+def test_two_layer_trunk_steps_as_it_trains():
+    """``num_layers=2`` stacks a second LSTM layer (it used to be ignored in recovering mode): step-by-step
+    inference equals the teacher-forced sequence, and the network differs from the one-layer one."""
+    policy = _policy(num_layers=2, dropout=0.1)
+    assert policy.model.lstm.num_layers == 2
+    batch, _ = _episodes([20, 20])
+    seq = policy.predict_sequence(batch)
+    policy.reset()
+    obs = [{OBS_STATE: batch[OBS_STATE][:, k], OBS_ENV_STATE: batch[OBS_ENV_STATE][:, k]} for k in range(20)]
+    steps = torch.stack([policy.select_action(o) for o in obs], dim=1)
+    torch.testing.assert_close(steps, seq, rtol=1e-5, atol=1e-5)
+    assert policy.model.trunk_parameters() > _policy().model.trunk_parameters()
+    with pytest.raises(ConfigError, match="shared_network and carry_hidden_across_subtasks are the clocked"):
+        PnpLstmConfig(mode="recovering", shared_network=True)
+
+
 def test_memoryless_control_uses_a_matched_budget_and_no_history():
     lstm = _policy(hidden_size=128)
     mlp = _policy(hidden_size=128, recurrent=False)

@@ -139,8 +139,8 @@ class PnpLstmConfig(PreTrainedConfig):
     The classes: ``clocked.ClockedPlanner`` (steps 0-4 PICK net, 5-9 PLACE net), ``recovering.RecoveringPlanner`` (state
     carried across the switch, PICK/PLACE heads mixed by a learned subtask classifier). In recovering mode
     ``recurrent=False`` is the memoryless control with an MLP trunk of about the LSTM trunk's parameter count;
-    ``shared_network``, ``carry_hidden_across_subtasks``, ``num_layers`` and the subtask structure fields are not
-    used."""
+    ``shared_network``, ``carry_hidden_across_subtasks`` and the subtask structure fields are not used (setting the
+    first two is an error there)."""
     max_episode_length: int = 41
     """Recovering mode: the longest episode, in frames, a training window holds (the env's ``keyframe_budget`` + 1,
     the final observed state). Windows are ``-(L-1) .. L-1`` around any frame, so each holds its whole episode;
@@ -239,6 +239,11 @@ class PnpLstmConfig(PreTrainedConfig):
                 f"pnp_lstm keeps its own history in the LSTM state; n_obs_steps must be 1, got {self.n_obs_steps}",
             ),
             (self.mode in MODES, f"mode must be one of {MODES}, got {self.mode!r}"),
+            (
+                self.mode != "recovering" or not (self.shared_network or self.carry_hidden_across_subtasks),
+                "shared_network and carry_hidden_across_subtasks are the clocked planner's (its subtask nets); the "
+                "recovering planner has one trunk over the whole episode: leave them False",
+            ),
             (
                 self.await_state_tol > 0
                 and self.await_action_tol > 0

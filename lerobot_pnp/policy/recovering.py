@@ -57,8 +57,8 @@ class RecoveringPlanner(nn.Module):
     """Trunk (LSTM or matched MLP) + PICK/PLACE action heads + subtask and phase classifiers (``planner.Planner``).
 
     Its weights are ``lstm.*`` (or ``mlp.*``), ``action_heads.*``, ``subtask_head.*`` and ``phase_head.*``
-    (``model.`` in a checkpoint); ``num_layers``, ``shared_network``, ``carry_hidden_across_subtasks`` and the
-    subtask structure fields are not used."""
+    (``model.`` in a checkpoint); ``num_layers`` stacks LSTM layers (the memoryless MLP is matched to one layer);
+    ``shared_network``, ``carry_hidden_across_subtasks`` and the subtask structure fields are not used."""
 
     def __init__(self, config: PnpLstmConfig, input_dim: int, action_dim: int):
         super().__init__()
@@ -66,7 +66,8 @@ class RecoveringPlanner(nn.Module):
         hidden, recurrent, dropout = config.hidden_size, config.recurrent, config.dropout
         self.recurrent = recurrent
         if recurrent:
-            self.lstm = nn.LSTM(input_dim, hidden, num_layers=1, batch_first=True)
+            layers = config.num_layers
+            self.lstm = nn.LSTM(input_dim, hidden, layers, batch_first=True, dropout=dropout if layers > 1 else 0.0)
             width = hidden
         else:
             width = matched_mlp_width(input_dim, hidden)
@@ -170,11 +171,23 @@ class RecoveringPlanner(nn.Module):
         if not self.recurrent:
             return self._heads(self.mlp(x)), None
         lstm = self.lstm
-        if state is None:
-            zeros = x.new_zeros(x.shape[0], lstm.hidden_size)
+        if lstm.num_layers == 1:  # the state is (h, c), each (B, H)
+            if state is None:
+                zeros = x.new_zeros(x.shape[0], lstm.hidden_size)
+                state = (zeros, zeros)
+            h, c = torch.lstm_cell(x, state, lstm.weight_ih_l0, lstm.weight_hh_l0, lstm.bias_ih_l0, lstm.bias_hh_l0)
+            return self._heads(h), (h, c)
+        if state is None:  # (h, c), each (layers, B, H), as nn.LSTM's
+            zeros = x.new_zeros(lstm.num_layers, x.shape[0], lstm.hidden_size)
             state = (zeros, zeros)
-        h, c = torch.lstm_cell(x, state, lstm.weight_ih_l0, lstm.weight_hh_l0, lstm.bias_ih_l0, lstm.bias_hh_l0)
-        return self._heads(h), (h, c)
+        hs, cs, inp = [], [], x
+        for k in range(lstm.num_layers):  # eval mode: no dropout between layers
+            weights = [getattr(lstm, f"{w}_l{k}") for w in ("weight_ih", "weight_hh", "bias_ih", "bias_hh")]
+            h, c = torch.lstm_cell(inp, (state[0][k], state[1][k]), *weights)
+            hs.append(h)
+            cs.append(c)
+            inp = h
+        return self._heads(inp), (torch.stack(hs), torch.stack(cs))
 
 
 def recovering_loss(
