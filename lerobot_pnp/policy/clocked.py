@@ -20,7 +20,7 @@ from torch import Tensor, nn
 from lerobot_pnp.errors import DatasetError
 
 from .configuration_pnp_lstm import PnpLstmConfig
-from .planner import PlannerState
+from .planner import PlannerState, lstm_step
 
 logger = logging.getLogger(__name__)
 
@@ -45,30 +45,9 @@ class SubtaskLSTM(nn.Module):
         return self.head(self.dropout(out)), state
 
     def step(self, x: Tensor, state: tuple[Tensor, Tensor] | None) -> tuple[Tensor, tuple[Tensor, Tensor]]:
-        """One time step ``(B, D) -> (B, A)`` in eval mode, with ``torch.lstm_cell`` on the LSTM's own weights.
-
-        Numerically the LSTM's step, without ``nn.LSTM``'s per-call overhead (which dominates at batch 1).
-        """
-        lstm = self.lstm
-        if state is None:
-            zeros = x.new_zeros(lstm.num_layers, x.shape[0], lstm.hidden_size)
-            state = (zeros, zeros)
-        h_all, c_all = state
-        hs, cs = [], []
-        inp = x
-        for layer in range(lstm.num_layers):
-            h, c = torch.lstm_cell(
-                inp,
-                (h_all[layer], c_all[layer]),
-                getattr(lstm, f"weight_ih_l{layer}"),
-                getattr(lstm, f"weight_hh_l{layer}"),
-                getattr(lstm, f"bias_ih_l{layer}"),
-                getattr(lstm, f"bias_hh_l{layer}"),
-            )
-            hs.append(h)
-            cs.append(c)
-            inp = h
-        return self.head(inp), (torch.stack(hs), torch.stack(cs))
+        """One time step ``(B, D) -> (B, A)`` in eval mode (``planner.lstm_step``)."""
+        h, state = lstm_step(self.lstm, x, state)
+        return self.head(h), state
 
 
 class ClockedPlanner(nn.Module):

@@ -13,7 +13,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
-from torch import Tensor
+import torch
+from torch import Tensor, nn
 
 if TYPE_CHECKING:
     from .observation_gate import ObservationGate
@@ -43,6 +44,25 @@ class PlannerState:
     @property
     def batch_size(self) -> int:
         return int(self.action.shape[0])
+
+
+def lstm_step(lstm: nn.LSTM, x: Tensor, state: tuple[Tensor, Tensor] | None) -> tuple[Tensor, tuple[Tensor, Tensor]]:
+    """One time step of ``lstm`` (any number of layers) in eval mode: ``(B, D)`` and its state ``(h, c)``, each
+    ``(layers, B, H)`` as ``nn.LSTM``'s (``None``: zeros) -> the top layer's output ``(B, H)``, the new state.
+
+    ``torch.lstm_cell`` on the LSTM's own weights: numerically its step, without ``nn.LSTM``'s per-call overhead
+    (which dominates at batch 1). No dropout between layers (inference)."""
+    if state is None:
+        zeros = x.new_zeros(lstm.num_layers, x.shape[0], lstm.hidden_size)
+        state = (zeros, zeros)
+    hs, cs, inp = [], [], x
+    for k in range(lstm.num_layers):
+        weights = [getattr(lstm, f"{w}_l{k}") for w in ("weight_ih", "weight_hh", "bias_ih", "bias_hh")]
+        h, c = torch.lstm_cell(inp, (state[0][k], state[1][k]), *weights)
+        hs.append(h)
+        cs.append(c)
+        inp = h
+    return inp, (torch.stack(hs), torch.stack(cs))
 
 
 @runtime_checkable

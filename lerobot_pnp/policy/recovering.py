@@ -34,7 +34,7 @@ from lerobot_pnp.errors import DatasetError
 
 from .configuration_pnp_lstm import PnpLstmConfig
 from .observation_gate import ObservationGate
-from .planner import PlannerState
+from .planner import PlannerState, lstm_step
 
 N_PHASES = 10
 N_SUBTASKS = 2
@@ -170,24 +170,8 @@ class RecoveringPlanner(nn.Module):
         """One inference step ``(B, D)``; the LSTM state is carried for the whole episode."""
         if not self.recurrent:
             return self._heads(self.mlp(x)), None
-        lstm = self.lstm
-        if lstm.num_layers == 1:  # the state is (h, c), each (B, H)
-            if state is None:
-                zeros = x.new_zeros(x.shape[0], lstm.hidden_size)
-                state = (zeros, zeros)
-            h, c = torch.lstm_cell(x, state, lstm.weight_ih_l0, lstm.weight_hh_l0, lstm.bias_ih_l0, lstm.bias_hh_l0)
-            return self._heads(h), (h, c)
-        if state is None:  # (h, c), each (layers, B, H), as nn.LSTM's
-            zeros = x.new_zeros(lstm.num_layers, x.shape[0], lstm.hidden_size)
-            state = (zeros, zeros)
-        hs, cs, inp = [], [], x
-        for k in range(lstm.num_layers):  # eval mode: no dropout between layers
-            weights = [getattr(lstm, f"{w}_l{k}") for w in ("weight_ih", "weight_hh", "bias_ih", "bias_hh")]
-            h, c = torch.lstm_cell(inp, (state[0][k], state[1][k]), *weights)
-            hs.append(h)
-            cs.append(c)
-            inp = h
-        return self._heads(inp), (torch.stack(hs), torch.stack(cs))
+        h, state = lstm_step(self.lstm, x, state)
+        return self._heads(h), state
 
 
 def recovering_loss(
