@@ -107,21 +107,32 @@ def _recovery(layout, methods, results, suite_names, prov):
     return [(caption, "recovery.png", tuple(recovery), False)]
 
 
-def _held_out(layout, methods, results, suite_names, prov):
-    """The held-out protocol at a glance: per axis of ``HELD_OUT_AXES`` with a held-out suite evaluated, its
-    training-condition suites and its held-out ones side by side, every method, against the issue's target."""
-    panels = [
+def held_out_panels(suite_names) -> list[tuple[str, list[str], list[str]]]:
+    """Per axis of ``HELD_OUT_AXES`` with a held-out suite among ``suite_names``: (axis, its training-condition
+    suites, its held-out suites), each kept to the suites evaluated."""
+    return [
         (a.name, [s for s in a.in_distribution if s in suite_names], [s for s in a.held_out if s in suite_names])
         for a in HELD_OUT_AXES
         if any(s in suite_names for s in a.held_out)
     ]
+
+
+def draw_held_out(panels, rates: dict[str, dict[str, Rate]], path, prov: str):
+    """The held-out figure (``plots.axis_panels``) with its title and the target line."""
+    title = f"trained vs held-out conditions per disturbance axis (dashed: {100 * TARGET:.0f} %)"
+    return plots.axis_panels(panels, rates, path, prov, title, target=TARGET)
+
+
+def _held_out(layout, methods, results, suite_names, prov):
+    """The held-out protocol at a glance: per axis of ``HELD_OUT_AXES`` with a held-out suite evaluated, its
+    training-condition suites and its held-out ones side by side, every method, against the issue's target."""
+    panels = held_out_panels(suite_names)
     if not panels:
         return []
     read = tuple(dict.fromkeys(s for _, inside, held in panels for s in (*inside, *held)))
     rates = {m.label: {s: p.rate for s in read if (p := pooled(results.get(m.name, {}), s))} for m in methods}
     name = "held_out.png"
-    title = f"trained vs held-out conditions per disturbance axis (dashed: {100 * TARGET:.0f} %)"
-    plots.axis_panels(panels, rates, layout.figure(name), prov, title, target=TARGET)
+    draw_held_out(panels, rates, layout.figure(name), prov)
     caption = "Held-out protocol: each axis's training-condition suites, then its held-out ones (all training seeds)"
     return [(caption, name, read, False)]
 
