@@ -85,12 +85,17 @@ def test_finished_evaluations_are_reused_unless_their_suite_changed(study):
 
 
 def _timed_job(job, log_dir):
-    """A stand-in for run_job in a spawned process: records when it ran."""
+    """A stand-in for run_job in a spawned process: records when it ran. The recovering job waits (up to a
+    minute) for the other job's start mark, so a pool that runs them side by side passes however slowly a
+    spawned worker starts under load, and one that runs them one after the other fails."""
     import time
     from pathlib import Path
 
     start = time.time()
-    time.sleep(4.0 if job.method == "recovering" else 0.05)  # long enough for the other worker to start under load
+    Path(log_dir, f"{job.method}_{job.tag}.started").touch()
+    if job.method == "recovering":
+        while not Path(log_dir, "clocked_lstm_1.started").exists() and time.time() - start < 60:
+            time.sleep(0.05)
     Path(log_dir, f"{job.method}_{job.tag}").write_text(f"{start} {time.time()}")
     return job.method
 
@@ -101,7 +106,7 @@ def test_parallel_jobs_run_dagger_after_the_recovering_run_it_continues(tmp_path
     jobs = [Job("recovering_dagger", "1", None), Job("recovering", "1", None), Job("clocked_lstm", "1", None)]
     out = dict(_run_jobs(jobs, (str(tmp_path),), 2, fn=_timed_job))
     assert {j.method for j in out} == {j.method for j in jobs} and all(out[j] == j.method for j in jobs)
-    start = {p.name: [float(v) for v in p.read_text().split()] for p in tmp_path.iterdir()}
+    start = {p.name: [float(v) for v in p.read_text().split()] for p in tmp_path.iterdir() if not p.suffix}
     assert start["recovering_dagger_1"][0] >= start["recovering_1"][1]  # waited for its round 0
     assert start["clocked_lstm_1"][0] < start["recovering_1"][1]  # the other job ran beside it
 
