@@ -149,12 +149,16 @@ def test_two_layer_trunk_steps_as_it_trains():
         PnpLstmConfig(mode="recovering", shared_network=True)
 
 
-def test_memoryless_control_uses_a_matched_budget_and_no_history():
-    lstm = _policy(hidden_size=128)
-    mlp = _policy(hidden_size=128, recurrent=False)
+@pytest.mark.parametrize("layers", [1, 2])
+def test_memoryless_control_uses_a_matched_budget_and_no_history(layers):
+    """The MLP control is matched to the trunk it replaces, a stacked one included (the recipe's is two layers)."""
+    lstm = _policy(hidden_size=128, num_layers=layers)
+    mlp = _policy(hidden_size=128, recurrent=False, num_layers=layers)
     d = 8 + ENV_DIM
-    assert lstm.model.trunk_parameters() == lstm_trunk_params(d, 128)
-    assert abs(mlp.model.trunk_parameters() - lstm_trunk_params(d, 128)) / lstm_trunk_params(d, 128) < 0.02
+    assert lstm.model.trunk_parameters() == lstm_trunk_params(d, 128, layers)
+    assert (
+        abs(mlp.model.trunk_parameters() - lstm_trunk_params(d, 128, layers)) / lstm_trunk_params(d, 128, layers) < 0.02
+    )
     batch, _ = _episodes([20])
     other = {k: v.clone() for k, v in batch.items()}
     other[OBS_ENV_STATE][:, 2] += 1.0

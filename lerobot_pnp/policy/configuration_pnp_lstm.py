@@ -77,7 +77,8 @@ class PnpLstmConfig(PreTrainedConfig):
     hidden_size: int = 128
     """LSTM hidden units."""
     num_layers: int = 1
-    """Stacked LSTM layers (1 or 2)."""
+    """Stacked LSTM layers (1 or 2). The recovering recipe stacks two: the second carries longer observation
+    latency (docs/results/heldout_protocol.md); the memoryless MLP control is then matched to both layers' size."""
     dropout: float = 0.0
     """Dropout between stacked LSTM layers and before the Linear head (training only)."""
     shared_network: bool = False

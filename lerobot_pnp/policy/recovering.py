@@ -40,14 +40,16 @@ N_PHASES = 10
 N_SUBTASKS = 2
 
 
-def lstm_trunk_params(input_dim: int, hidden: int) -> int:
-    """Parameter count of a one-layer LSTM trunk (``nn.LSTM``: two bias vectors)."""
-    return 4 * hidden * (input_dim + hidden) + 8 * hidden
+def lstm_trunk_params(input_dim: int, hidden: int, layers: int = 1) -> int:
+    """Parameter count of an LSTM trunk of ``layers`` stacked layers (``nn.LSTM``: two bias vectors each; a
+    layer above the first reads the one below, ``hidden`` wide)."""
+    return sum(4 * hidden * ((input_dim if k == 0 else hidden) + hidden) + 8 * hidden for k in range(layers))
 
 
-def matched_mlp_width(input_dim: int, hidden: int) -> int:
-    """Width ``w`` of a two-layer MLP trunk (``D -> w -> w``) with about the LSTM trunk's parameter count."""
-    target = lstm_trunk_params(input_dim, hidden)
+def matched_mlp_width(input_dim: int, hidden: int, layers: int = 1) -> int:
+    """Width ``w`` of a two-layer MLP trunk (``D -> w -> w``) with about the parameter count of the LSTM trunk
+    it replaces (``layers`` stacked layers), so the memoryless control differs from it in memory, not size."""
+    target = lstm_trunk_params(input_dim, hidden, layers)
     # w^2 + (D + 2) w - target = 0
     b = input_dim + 2
     return max(1, round((-b + math.sqrt(b * b + 4 * target)) / 2))
@@ -57,7 +59,7 @@ class RecoveringPlanner(nn.Module):
     """Trunk (LSTM or matched MLP) + PICK/PLACE action heads + subtask and phase classifiers (``planner.Planner``).
 
     Its weights are ``lstm.*`` (or ``mlp.*``), ``action_heads.*``, ``subtask_head.*`` and ``phase_head.*``
-    (``model.`` in a checkpoint); ``num_layers`` stacks LSTM layers (the memoryless MLP is matched to one layer);
+    (``model.`` in a checkpoint); ``num_layers`` stacks LSTM layers (the memoryless MLP is matched to the stacked trunk's size);
     ``shared_network``, ``carry_hidden_across_subtasks`` and the subtask structure fields are not used."""
 
     def __init__(self, config: PnpLstmConfig, input_dim: int, action_dim: int):
@@ -70,7 +72,7 @@ class RecoveringPlanner(nn.Module):
             self.lstm = nn.LSTM(input_dim, hidden, layers, batch_first=True, dropout=dropout if layers > 1 else 0.0)
             width = hidden
         else:
-            width = matched_mlp_width(input_dim, hidden)
+            width = matched_mlp_width(input_dim, hidden, config.num_layers)
             self.mlp = nn.Sequential(nn.Linear(input_dim, width), nn.Tanh(), nn.Linear(width, width), nn.Tanh())
         self.drop = nn.Dropout(dropout)
         self.action_heads = nn.Linear(width, N_SUBTASKS * action_dim)  # [pick | place]

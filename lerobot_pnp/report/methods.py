@@ -286,7 +286,7 @@ METHODS: dict[str, Method] = {
         pnp_lstm_method(
             "memoryless_mlp",
             "memoryless MLP (matched)",
-            "the recovering planner's recipe with an MLP trunk of about the LSTM trunk's parameter count (no memory)",
+            "the recovering planner's recipe with an MLP trunk of about its two-layer LSTM trunk's parameter count (no memory)",
             **MEMORYLESS_MLP,
         ),
         Method(
@@ -306,7 +306,7 @@ METHODS: dict[str, Method] = {
             "recovering",
             "recovering LSTM",
             "one LSTM over the whole episode, no clock, learned subtask switch; the recipe of `configs/dagger.json` "
-            "(hidden 256, late episodes, binary gripper, the observation gate, the arm held on the place's open); recoveries only as the task "
+            "(two stacked layers of 256, late episodes, binary gripper, the observation gate, the arm held on the place's open); recoveries only as the task "
             "demonstrates them (none on `paper`, every disturbance on `full`)",
             **RECOVERING,
         ),
