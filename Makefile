@@ -3,8 +3,8 @@
 #               the recovering planner on the full task, on a recovery suite and two held-out ones
 #   make test   the test suite (what CI runs)
 #   make study  the whole study behind docs/results.md: the paper task, then the held-out-disturbance protocol
-#               on the full task (every method, 3 training seeds; resumable; 1 h 58 min on a 2-core AMD EPYC,
-#               README's cost note)
+#               on the full task (every method, 3 training seeds; resumable; over 2 h with the two-layer recipe
+#               on 2 cores: README's cost note)
 # Python 3.12 comes from pyenv when present (LeRobot 0.6 needs >= 3.12), else python3.12 on PATH.
 PYTHON ?= $(shell p=$$(pyenv prefix 3.12.1 2>/dev/null) && echo $$p/bin/python || command -v python3.12)
 VENV := .venv
