@@ -171,7 +171,7 @@ PRESETS: dict[str, dict] = {
     },
     # make demo's second half, the recovery headline: the `heldout` study cut to one training seed and four
     # suites (nominal; a drop in every episode, as trained; drops twice as far, and observations two steps old,
-    # neither ever trained), so that the whole of make demo stays within 15 minutes on 2 cores.
+    # neither ever trained): the smallest run that shows the headline; make demo's time is in the README.
     "recovery_demo": {
         "task_preset": "full",
         "num_episodes": 1000,
