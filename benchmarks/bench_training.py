@@ -54,7 +54,7 @@ def _time_training(method: str, root: Path, workdir: Path, epochs: int, seed: in
         "task_preset": (read_recorded(root) or {}).get("preset"),
         "epochs": epochs,
         "batch_size": m.batch_size or 64,
-        "policy": {k: config.get(k) for k in ("mode", "hidden_size", "max_episode_length", "recurrent")},
+        "policy": {k: config.get(k) for k in ("mode", "hidden_size", "num_layers", "max_episode_length", "recurrent")},
         "policy_overrides": fit_window(m.policy_overrides, ctx),
         "wall_s": round(wall, 1),
     }
