@@ -174,6 +174,8 @@ RECOVERING = {**RECOVERING_RECIPE, "max_episode_length": RECOVERY_BUDGET + 1}
 MEMORYLESS_MLP = {**RECOVERING, "recurrent": False}
 PHASE_TOLD_MLP = {**RECOVERING, "recurrent": False, "latency_augment_prob": 0.0}
 DAGGER_ROLLOUTS = 300  # policy episodes of the one DAgger round, cycled over the rollout suites
+# the recipe's trunk as the method descriptions name it, read from the recipe so that a report cannot name another
+RECOVERING_TRUNK = f"{RECOVERING['num_layers']} x {RECOVERING['hidden_size']} LSTM"
 
 
 # rad of noise on each joint target the expert executes (docs/results/dart.md: about twice the grasp clearance)
@@ -286,7 +288,8 @@ METHODS: dict[str, Method] = {
         pnp_lstm_method(
             "memoryless_mlp",
             "memoryless MLP (matched)",
-            "the recovering planner's recipe with an MLP trunk of about its two-layer LSTM trunk's parameter count (no memory)",
+            f"the recovering planner's recipe with an MLP trunk of about its {RECOVERING_TRUNK} trunk's parameter count "
+            "(no memory)",
             **MEMORYLESS_MLP,
         ),
         Method(
@@ -306,7 +309,7 @@ METHODS: dict[str, Method] = {
             "recovering",
             "recovering LSTM",
             "one LSTM over the whole episode, no clock, learned subtask switch; the recipe of `configs/dagger.json` "
-            "(two stacked layers of 256, late episodes, binary gripper, the observation gate, the arm held on the place's open); recoveries only as the task "
+            f"({RECOVERING_TRUNK} trunk, late episodes, binary gripper, the observation gate, the arm held on the place's open); recoveries only as the task "
             "demonstrates them (none on `paper`, every disturbance on `full`)",
             **RECOVERING,
         ),
