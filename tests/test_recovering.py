@@ -79,6 +79,35 @@ def test_padding_is_masked_out_of_the_loss():
     torch.testing.assert_close(loss, (per_sample * torch.tensor([10.0, 14, 19])).sum() / 43)
 
 
+@pytest.mark.parametrize("recurrent", [True, False])
+def test_trunk_skips_the_frames_after_the_loss_without_changing_it(recurrent):
+    """The loss runs the trunk only up to each episode's last frame in the loss (the LSTM in groups of similar
+    length, the MLP on those frames): the same loss and gradients as one call over the padded batch."""
+    from lerobot_pnp.policy.recovering import recovering_loss
+
+    policy = _policy(num_layers=2, recurrent=recurrent)
+    policy.train()
+    net = policy.model
+    lengths = [10, 10, 11, 12, 14, 17, 19, 23, 24, 3, 10, 21]  # groups worth running apart
+    batch, pad = _episodes(lengths, seed=3)
+    x = torch.cat([batch[OBS_STATE], batch[OBS_ENV_STATE]], dim=-1)
+    valid = ~pad
+    valid[4, 12:] = False  # a late episode's tail out of the loss: the trunk stops at frame 12 there
+    valid[5, 2] = False  # a frame inside the loss window that is out of the loss still feeds the LSTM
+    labels = (batch[SUBTASK_KEY], batch[PHASE_KEY])
+    cfg = net.config
+    params = list(net.parameters())
+    padded = recovering_loss(net(x), batch[ACTION], valid, *labels, cfg.subtask_loss_weight, cfg.phase_loss_weight)
+    grouped = net.loss(x, batch[ACTION], valid, *labels)
+    torch.testing.assert_close(grouped[0], padded[0])
+    for a, b in zip(torch.autograd.grad(grouped[0], params), torch.autograd.grad(padded[0], params), strict=True):
+        torch.testing.assert_close(a, b, rtol=1e-4, atol=1e-6)
+    # the skipped frames really are skipped: garbage there changes nothing
+    x2 = x.clone()
+    x2[4, 12:] = 1e3
+    torch.testing.assert_close(net.loss(x2, batch[ACTION], valid, *labels)[0], grouped[0])
+
+
 def test_labels_are_used_only_when_per_frame():
     policy = _policy()
     batch, _ = _episodes([12, 12])

@@ -111,6 +111,53 @@ def test_parallel_jobs_run_dagger_after_the_recovering_run_it_continues(tmp_path
     assert start["clocked_lstm_1"][0] < start["recovering_1"][1]  # the other job ran beside it
 
 
+def test_a_pool_evaluates_each_suite_once_its_training_is_done(tmp_path):
+    """Split for a pool, a method x seed is its training and one job per suite: the suites wait for the training
+    (and DAgger's training for the run it continues), an untrained method's suites start at once, and two
+    suites of one trained method run side by side."""
+    from lerobot_pnp.report.run import TRAINING, Job, _run_jobs, split_jobs
+
+    whole = [Job("recovering", "1", None), Job("recovering_dagger", "1", None), Job("expert", "-", None)]
+    jobs = split_jobs(whole, {whole[0]: ["nominal", "drop"], whole[1]: ["nominal"], whole[2]: ["nominal"]})
+    assert [j.key for j in jobs] == [
+        ("recovering", "1", TRAINING), ("recovering", "1", "nominal"), ("recovering", "1", "drop"),
+        ("recovering_dagger", "1", TRAINING), ("recovering_dagger", "1", "nominal"), ("expert", "-", "nominal"),
+    ]  # fmt: skip
+    after = {j.key: j.after() for j in jobs}
+    assert after[("recovering", "1", "drop")] == ("recovering", "1", TRAINING)
+    assert after[("recovering_dagger", "1", TRAINING)] == ("recovering", "1", TRAINING)
+    assert after[("recovering", "1", TRAINING)] is None and after[("expert", "-", "nominal")] is None
+
+    out = dict(_run_jobs(jobs, (str(tmp_path),), 2, fn=_logged_job))
+    assert set(out) == set(jobs)
+    span = {p.stem: [float(v) for v in p.read_text().split()] for p in tmp_path.glob("*.log")}
+    trained = span["recovering_1_training"][1]
+    assert span["recovering_1_nominal"][0] >= trained and span["recovering_1_drop"][0] >= trained
+    assert span["recovering_dagger_1_training"][0] >= trained
+    assert span["expert_-_nominal"][0] < trained  # no training to wait for
+    nominal, drop = span["recovering_1_nominal"], span["recovering_1_drop"]
+    assert nominal[0] < drop[1] and drop[0] < nominal[1]  # side by side
+
+
+def _logged_job(job, log_dir):
+    """A stand-in for run_job: records when it ran. Trainings take a while; the suites of the recovering run
+    wait (up to a minute) for each other's start mark, so they pass only if they run side by side."""
+    import time
+    from pathlib import Path
+
+    start = time.time()
+    name = f"{job.method}_{job.tag}_{job.part}"
+    Path(log_dir, f"{name}.started").touch()
+    if job.part == "training":
+        time.sleep(1.0)
+    if job.method == "recovering" and job.part in ("nominal", "drop"):
+        other = "drop" if job.part == "nominal" else "nominal"
+        while not Path(log_dir, f"recovering_1_{other}.started").exists() and time.time() - start < 60:
+            time.sleep(0.05)
+    Path(log_dir, f"{name}.log").write_text(f"{start} {time.time()}")
+    return job.key
+
+
 def test_a_pool_takes_the_likely_longest_jobs_first():
     """Dense-control (ACT) jobs, then the runs DAgger/DART continue, then trainings, then evaluation-only jobs:
     in the listed order (ACT last) two workers would leave the last ACT job running alone on one core."""
@@ -122,3 +169,11 @@ def test_a_pool_takes_the_likely_longest_jobs_first():
     order = [(j.method, j.tag) for j in longest_first(jobs)]
     assert order == [("act", "1"), ("act", "2"), ("recovering", "1"), ("clocked_lstm", "1"),
                      ("recovering_dagger", "1"), ("clocked_lstm", "n10"), ("expert", "-"), ("lookup_table", "-")]  # fmt: skip
+    # split for a pool: the suites of a trained method last (they wait for it), an untrained one's before them
+    parts = [
+        Job("recovering", "1", None, "nominal"),
+        Job("expert", "-", None, "nominal"),
+        Job("act", "1", None, "training"),
+    ]
+    assert [j.key for j in longest_first(parts)] == [("act", "1", "training"), ("expert", "-", "nominal"),
+                                                     ("recovering", "1", "nominal")]  # fmt: skip

@@ -70,6 +70,9 @@ RECOVERING_RECIPE: dict[str, Any] = {
     "still_arm_tol": 0.05,  # ... where the network would move it by more than a refinement
 }
 RECOVERING_BATCH_SIZE = 32  # episodes per batch of the recipe (DAgger's default, the held-out protocol's)
+# epochs between two held-out losses of a recipe training (no figure reads its curve; a pass over the held-out
+# episodes costs about a tenth of an epoch's training)
+RECOVERING_CURVE_EVERY = 10
 
 
 def _recovering_policy() -> PnpLstmConfig:

@@ -44,7 +44,7 @@ from lerobot_pnp.cache import (
 from lerobot_pnp.evaluation.checkpoints import load_policy
 from lerobot_pnp.evaluation.stats import Rate
 
-from .config import DaggerConfig
+from .config import RECOVERING_CURVE_EVERY, DaggerConfig
 from .rollouts import evaluate, labelled_rollout, suite_env
 from .writer import aggregate, write_episodes
 
@@ -200,6 +200,7 @@ def _train(cfg: DaggerConfig, data: tuple[Path, str, str], test: str, out_dir: P
             overwrite=True,
             test_episodes=test,
             progress=cfg.progress,
+            eval_every_epochs=RECOVERING_CURVE_EVERY,
         )
     )
     summary = {k: v for k, v in result.summary().items() if k not in ("checkpoint", "output_dir")}

@@ -68,10 +68,13 @@ def train_pnp_lstm(
     ``n_demos`` trains on the first ``n_demos`` episodes only: the trainer's test-split override holds out
     every later episode (so the held-out loss is measured on more episodes, never on training ones).
     """
+    from lerobot_pnp.dagger.config import RECOVERING_CURVE_EVERY
     from lerobot_pnp.policy import PnpLstmConfig
     from lerobot_pnp.train_fast import TrainFastConfig, train_fast
 
-    test_episodes, steps, every = None, None, 1
+    # the paper's planner: a held-out loss every epoch (its loss-curve figure); the recovering planners less often
+    every = 1 if policy_overrides.get("mode", "clocked") != "recovering" else RECOVERING_CURVE_EVERY
+    test_episodes, steps = None, None
     if n_demos is not None:
         total = int(read_info(dataset_root)["total_episodes"])
         if not 1 <= n_demos < total:

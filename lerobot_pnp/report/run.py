@@ -2,8 +2,9 @@
 
 Stages: 1. dataset (the expert's demonstrations; 1b. the same demonstrations recorded again for a method
 that needs another view of them: at the control rate for ACT, with the phase observed for the phase-told
-control; checked to be the same episodes) -> 2-3. jobs, one per method x training seed: train, then
-evaluate every suite (same eval seeds for every method), run side by side in a process pool -> 4. report
+control; checked to be the same episodes) -> 2-3. per method x training seed: train, then evaluate every
+suite (same eval seeds for every method), in a process pool the training and each suite's evaluation as jobs
+of their own, a suite's starting once its training is done -> 4. report
 (``report.md``, figures, ``summary.json``). Every stage is keyed by what determines it (``stages.py``,
 ``methods.train_stage``; ``lerobot_pnp.cache``): a dataset by its generation settings, a training by its
 method, data key, seed and epochs, an evaluation by the training's key, the suite as defined now, its
@@ -22,6 +23,7 @@ import os
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import Any
 
 from lerobot_pnp.cache import MANIFEST_FILE, STAGE_FILE, Manifest, Stage, code_versions, lock_output, remove
 from lerobot_pnp.env_config import BaxterPnPEnvConfig
@@ -117,10 +119,13 @@ def _run_locked(cfg: StudyConfig, layout: StudyLayout, manifest: Manifest) -> di
     jobs += [Job(m, f"n{n}", n) for n in cfg.data_efficiency for m in DATA_EFFICIENCY_METHODS]
     processes = _job_processes(cfg, len(jobs))
     print(
-        f"evaluation: stock LeRobot eval_policy, in process; the same seeds for every method; {len(jobs)} jobs "
-        f"(method x training seed) in {processes} process{'es' if processes > 1 else ''}",
+        f"evaluation: stock LeRobot eval_policy, in process; the same seeds for every method; {len(jobs)} "
+        f"trainings or evaluation-only methods (method x training seed) in {processes} "
+        f"process{'es' if processes > 1 else ''}",
         flush=True,
     )
+    if processes > 1:  # a trained method's suites spread over the free processes
+        jobs = split_jobs(jobs, {job: job_suites(job, cfg, base_env) for job in jobs})
     finished = dict(_run_jobs(jobs, (cfg, layout, roots, base_env, keys), processes))
     results: dict[str, dict[str, dict[str, list]]] = {}  # method -> tag -> suite -> records, in job order
     left: list[coverage.LeftOut] = []  # what report_only could not show (coverage)
@@ -150,18 +155,49 @@ def _run_locked(cfg: StudyConfig, layout: StudyLayout, manifest: Manifest) -> di
 TRAIN_TIME = "study_train_time.json"  # in a training folder: how long its training took (reported when reused)
 
 
+# ``Job.part``: a method x seed's training and every suite in one job (one process), or the training alone
+ALL, TRAINING = "*", "training"
+
+
 @dataclass(frozen=True)
 class Job:
-    """One trained artefact and its evaluations: a method x training seed (``tag``), or a data-efficiency run."""
+    """Work for one trained artefact: a method x training seed (``tag``), or a data-efficiency run.
+
+    ``part``: ``ALL`` trains it (if one of its evaluations needs it) and evaluates every suite; a pool runs it
+    as ``TRAINING`` (the training alone, when an evaluation needs it) and one job per suite (its evaluation,
+    aliases included), each starting once the training has finished, so that a trained method's suites spread
+    over every free process instead of running one after the other on the process that trained it."""
 
     method: str
     tag: str  # a training seed, "-" (nothing to train) or "n<demos>" (data efficiency)
     n_demos: int | None
+    part: str = ALL  # ALL, TRAINING or a suite name
 
-    def after(self) -> tuple[str, str] | None:
-        """The job that must finish first: the run of the same seed that this method continues (DAgger)."""
-        continues = get_methods([self.method])[0].continues
-        return (continues, self.tag) if continues else None
+    @property
+    def key(self) -> tuple[str, str, str]:
+        return self.method, self.tag, self.part
+
+    def after(self) -> tuple[str, str, str] | None:
+        """The job that must finish first: a suite's evaluation waits for its training; a training waits for the
+        training of the same seed that its method continues (DAgger)."""
+        method = get_methods([self.method])[0]
+        if self.part not in (ALL, TRAINING):
+            return (self.method, self.tag, TRAINING) if method.learned else None
+        if method.continues:
+            return method.continues, self.tag, TRAINING if self.part == TRAINING else ALL
+        return None
+
+
+def split_jobs(jobs: list[Job], suites: dict[Job, list[str]]) -> list[Job]:
+    """Each job as its training (learned methods) and one job per suite it evaluates (``suites[job]``, aliases
+    left out: they are evaluated with the suite they alias)."""
+    learned = {m.name for m in get_methods(list(dict.fromkeys(j.method for j in jobs))) if m.learned}
+    out: list[Job] = []
+    for job in jobs:
+        if job.method in learned:
+            out.append(Job(job.method, job.tag, job.n_demos, TRAINING))
+        out += [Job(job.method, job.tag, job.n_demos, name) for name in suites[job]]
+    return out
 
 
 def _job_processes(cfg: StudyConfig, n_jobs: int) -> int:
@@ -174,12 +210,15 @@ def longest_first(jobs: list[Job]) -> list[Job]:
     and no core idles while one long job runs on alone (longest-processing-time scheduling). A job's class:
     a dense-control method's (every evaluation episode runs at the control rate, failures to the budget's end),
     then one that another continues (DAgger's and DART's rounds wait on it), then other trainings, then
-    evaluation-only jobs; the given order within a class."""
+    evaluations of untrained methods, then those of trained ones (which wait for their training anyway); the
+    given order within a class."""
     methods = {m.name: m for m in get_methods(list(dict.fromkeys(j.method for j in jobs)))}
     continued = {m.continues for m in methods.values() if m.continues}
 
     def cost_class(job: Job) -> int:
         method = methods[job.method]
+        if job.part not in (ALL, TRAINING):
+            return 4 if method.learned else 3  # an evaluation of an untrained method can start at once
         if method.data == "dense":
             return 0
         if job.method in continued:
@@ -201,8 +240,8 @@ def _run_jobs(jobs: list[Job], context: tuple, processes: int, fn=None):
     import multiprocessing as mp
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
-    names = {(j.method, j.tag) for j in jobs}
-    done: set[tuple[str, str]] = set()
+    names = {j.key for j in jobs}
+    done: set[tuple[str, str, str]] = set()
     pending, running = longest_first(jobs), {}
     from lerobot_pnp.dataset.executors import die_with_parent
 
@@ -220,7 +259,7 @@ def _run_jobs(jobs: list[Job], context: tuple, processes: int, fn=None):
             finished, _ = wait(running, return_when=FIRST_COMPLETED)
             for future in finished:
                 job = running.pop(future)
-                done.add((job.method, job.tag))
+                done.add(job.key)
                 yield job, future.result()
 
 
@@ -232,19 +271,28 @@ def _context(job: Job, method, cfg: StudyConfig, layout: StudyLayout, roots: dic
                         roots.get("dense"), cfg.act_steps, dict(keys), budget)  # fmt: skip
 
 
-def run_job(job: Job, cfg: StudyConfig, layout: StudyLayout, roots: dict[str, Path], base_env, keys: dict[str, str]):
-    """Train ``job`` if one of its evaluations is missing or stale, run those evaluations; return the records
-    per suite, the stage timings and what ``report_only`` left out (``coverage.LeftOut``). Suites of the same
-    effective conditions are evaluated once (``coverage.suite_aliases``). Everything it finishes is on disk,
-    so an interrupted study resumes."""
-    import torch
+@dataclass
+class _Evaluation:
+    """One suite's evaluation of a job (with its aliases) and what is on disk for it."""
 
-    torch.set_num_threads(1)
-    (method,) = get_methods([job.method])
-    ctx = _context(job, method, cfg, layout, roots, keys)
-    records, timings, left, artifact, trained = {}, {}, [], None, False
+    suite: Any
+    n_episodes: int
+    names: list[str]  # the suite and its aliases (``coverage.suite_aliases``)
+    stages: list[Stage]
+    rule: Any  # the episode rule, or None: the suite's whole n
+    finished: Stage | None  # an alias' record made with these settings
+    cut: dict | None  # else a fixed-n record holding exactly what the rule would run
+
+    @property
+    def needed(self) -> bool:
+        return self.finished is None and self.cut is None
+
+
+def _evaluations(job: Job, method, ctx: TrainContext, cfg: StudyConfig, layout: StudyLayout, base_env):
+    """Every suite the job's method x seed evaluates (aliases folded into the suite they alias)."""
     pairs = _suites_for(cfg, job.n_demos, method)
     aliases = coverage.suite_aliases(pairs, base_env)
+    out = []
     for suite, n_episodes in [(s, n) for s, n in pairs if aliases[s.name] == s.name]:
         env_parts = [method.env_config(c, ctx).to_dict() for c in suite.env_configs(base_env)]
         names = [a for a, of in aliases.items() if of == suite.name]  # this suite and its aliases
@@ -252,12 +300,53 @@ def run_job(job: Job, cfg: StudyConfig, layout: StudyLayout, roots: dict[str, Pa
         stages = [eval_stage(layout.eval_record(method.name, job.tag, a), method, ctx, n_episodes, env_parts, cfg,
                              rule) for a in names]  # fmt: skip
         finished = next((st for st in stages if st.changes() == []), None)  # any alias' finished record
-        stage = stages[0] if finished is None else finished
         cut = None if rule is None or finished is not None else _first_cut(stages, rule, n_episodes, cfg)
-        if cut is not None:  # a fixed-n record holding exactly what this evaluation would run
-            data = cut
-            print(f"  evaluation {method.name} {job.tag} {suite.name}: reused, the first {len(cut['episodes'])} "
-                  f"of its {cut['truncated_from']} episodes (episodes_rule)", flush=True)  # fmt: skip
+        out.append(_Evaluation(suite, n_episodes, names, stages, rule, finished, cut))
+    return out
+
+
+def job_suites(job: Job, cfg: StudyConfig, base_env) -> list[str]:
+    """The suites a job evaluates, aliases left out (``split_jobs``)."""
+    (method,) = get_methods([job.method])
+    pairs = _suites_for(cfg, job.n_demos, method)
+    aliases = coverage.suite_aliases(pairs, base_env)
+    return [s.name for s, _ in pairs if aliases[s.name] == s.name]
+
+
+def _train(method, ctx: TrainContext, job: Job, timings: dict):
+    """The job's trained artefact (trained now, or found on disk); its training time into ``timings``."""
+    t = time.perf_counter()
+    artifact, fresh = keyed_train(method, ctx)
+    if fresh:  # trained now, not found from an earlier run
+        _write_json(ctx.train_dir / TRAIN_TIME, {"wall_s": time.perf_counter() - t})
+        print(f"  trained {method.name} seed {job.tag}: {time.perf_counter() - t:.0f} s", flush=True)
+    return artifact
+
+
+def run_job(job: Job, cfg: StudyConfig, layout: StudyLayout, roots: dict[str, Path], base_env, keys: dict[str, str]):
+    """Train ``job`` if one of its evaluations is missing or stale, run those evaluations (``job.part``: all of
+    it, the training alone or one suite); return the records per suite, the stage timings and what
+    ``report_only`` left out (``coverage.LeftOut``). Suites of the same effective conditions are evaluated once
+    (``coverage.suite_aliases``). Everything it finishes is on disk, so an interrupted study resumes."""
+    import torch
+
+    torch.set_num_threads(1)
+    (method,) = get_methods([job.method])
+    ctx = _context(job, method, cfg, layout, roots, keys)
+    records, timings, left, artifact = {}, {}, [], None
+    evaluations = _evaluations(job, method, ctx, cfg, layout, base_env)
+    if job.part == TRAINING:
+        if method.learned and not cfg.report_only and any(e.needed for e in evaluations):
+            _train(method, ctx, job, timings)
+        evaluations = []
+    elif job.part != ALL:
+        evaluations = [e for e in evaluations if e.suite.name == job.part]
+    for ev in evaluations:
+        suite, names, stage = ev.suite, ev.names, ev.stages[0] if ev.finished is None else ev.finished
+        if ev.cut is not None:  # a fixed-n record holding exactly what this evaluation would run
+            data = ev.cut
+            print(f"  evaluation {method.name} {job.tag} {suite.name}: reused, the first {len(data['episodes'])} "
+                  f"of its {data['truncated_from']} episodes (episodes_rule)", flush=True)  # fmt: skip
         elif stage.done("" if cfg.report_only else f"evaluation {method.name} {job.tag} {suite.name}"):
             data = stage.stored()  # finished earlier, with these settings and this trained artefact
         elif cfg.report_only:
@@ -266,13 +355,9 @@ def run_job(job: Job, cfg: StudyConfig, layout: StudyLayout, roots: dict[str, Pa
             print(f"  evaluation {method.name} {job.tag} {', '.join(names)}: left out ({left[-1].why()})", flush=True)
             continue
         else:
-            if not trained:
-                t = time.perf_counter()
-                (artifact, fresh), trained = keyed_train(method, ctx), True
-                if fresh:  # trained now, not found from an earlier run
-                    _write_json(ctx.train_dir / TRAIN_TIME, {"wall_s": time.perf_counter() - t})
-                    print(f"  trained {method.name} seed {job.tag}: {time.perf_counter() - t:.0f} s", flush=True)
-            data = _evaluate(method, artifact, ctx, suite, n_episodes, base_env, cfg, rule)
+            if artifact is None:
+                artifact = _train(method, ctx, job, timings)
+            data = _evaluate(method, artifact, ctx, suite, ev.n_episodes, base_env, cfg, ev.rule)
             stage.commit(**data)  # the record and the episodes in one atomic write
             ok = sum(e["success"] for e in data["episodes"])
             print(
