@@ -26,13 +26,12 @@ $(STAMP): pyproject.toml
 
 install: $(STAMP)
 
+# each runs its two studies in one process pool (--alongside): the second's jobs fill the cores the first's leave idle
 demo: $(STAMP)
-	$(VENV)/bin/lerobot-pnp demo --config_path configs/demo.json
-	$(VENV)/bin/lerobot-pnp demo --config_path configs/demo_recovery.json
+	$(VENV)/bin/lerobot-pnp demo --config_path configs/demo.json --alongside configs/demo_recovery.json
 
 study: $(STAMP)
-	$(VENV)/bin/lerobot-pnp report --config_path configs/report_full.json
-	$(VENV)/bin/lerobot-pnp report --config_path configs/report_heldout.json
+	$(VENV)/bin/lerobot-pnp report --config_path configs/report_full.json --alongside configs/report_heldout.json
 
 test: $(STAMP)
 	$(VENV)/bin/ruff check .

@@ -46,14 +46,14 @@ def test_the_heldout_preset_runs_the_protocol_on_the_full_task():
 
 
 def test_make_demo_runs_the_paper_demo_then_the_recovery_headline():
-    """make demo's two configs: the paper study, then the held-out study cut to one seed and four suites (a
+    """make demo's two configs, run in one pool: the paper study and the held-out study cut to one seed and four suites (a
     training condition and two held-out ones), both in their own folders."""
     import json
     from pathlib import Path
 
     repo = Path(__file__).resolve().parents[1]
     make = (repo / "Makefile").read_text()
-    assert "demo --config_path configs/demo.json" in make and "demo --config_path configs/demo_recovery.json" in make
+    assert "demo --config_path configs/demo.json --alongside configs/demo_recovery.json" in make
     paper, recovery = (json.loads((repo / "configs" / f).read_text()) for f in ("demo.json", "demo_recovery.json"))
     assert paper["output_dir"] != recovery["output_dir"]
     cfg = StudyConfig(**recovery)
@@ -66,14 +66,14 @@ def test_make_demo_runs_the_paper_demo_then_the_recovery_headline():
 
 
 def test_make_study_runs_both_tasks_with_every_method_and_three_seeds():
-    """make study: the paper-task study, then the held-out protocol on the full task, each in its own folder."""
+    """make study: the paper-task study and the held-out protocol on the full task in one pool, each in its own
+    folder."""
     import json
     from pathlib import Path
 
     repo = Path(__file__).resolve().parents[1]
     make = (repo / "Makefile").read_text()
-    assert "report --config_path configs/report_full.json" in make
-    assert "report --config_path configs/report_heldout.json" in make
+    assert "report --config_path configs/report_full.json --alongside configs/report_heldout.json" in make
     paper, heldout = (
         json.loads((repo / "configs" / f).read_text()) for f in ("report_full.json", "report_heldout.json")
     )

@@ -4,6 +4,7 @@ import json
 
 import pytest
 
+from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.recorded_task import read_recorded
 from lerobot_pnp.report import methods
 from lerobot_pnp.report.run import StudyConfig, SuiteSpec, run_study
@@ -120,13 +121,13 @@ def test_a_pool_evaluates_each_suite_once_its_training_is_done(tmp_path):
     whole = [Job("recovering", "1", None), Job("recovering_dagger", "1", None), Job("expert", "-", None)]
     jobs = split_jobs(whole, {whole[0]: ["nominal", "drop"], whole[1]: ["nominal"], whole[2]: ["nominal"]})
     assert [j.key for j in jobs] == [
-        ("recovering", "1", TRAINING), ("recovering", "1", "nominal"), ("recovering", "1", "drop"),
-        ("recovering_dagger", "1", TRAINING), ("recovering_dagger", "1", "nominal"), ("expert", "-", "nominal"),
+        ("recovering", "1", TRAINING, 0), ("recovering", "1", "nominal", 0), ("recovering", "1", "drop", 0),
+        ("recovering_dagger", "1", TRAINING, 0), ("recovering_dagger", "1", "nominal", 0), ("expert", "-", "nominal", 0),
     ]  # fmt: skip
     after = {j.key: j.after() for j in jobs}
-    assert after[("recovering", "1", "drop")] == ("recovering", "1", TRAINING)
-    assert after[("recovering_dagger", "1", TRAINING)] == ("recovering", "1", TRAINING)
-    assert after[("recovering", "1", TRAINING)] is None and after[("expert", "-", "nominal")] is None
+    assert after[("recovering", "1", "drop", 0)] == ("recovering", "1", TRAINING, 0)
+    assert after[("recovering_dagger", "1", TRAINING, 0)] == ("recovering", "1", TRAINING, 0)
+    assert after[("recovering", "1", TRAINING, 0)] is None and after[("expert", "-", "nominal", 0)] is None
 
     out = dict(_run_jobs(jobs, (str(tmp_path),), 2, fn=_logged_job))
     assert set(out) == set(jobs)
@@ -159,21 +160,46 @@ def _logged_job(job, log_dir):
 
 
 def test_a_pool_takes_the_likely_longest_jobs_first():
-    """Dense-control (ACT) jobs, then the runs DAgger/DART continue, then trainings, then evaluation-only jobs:
-    in the listed order (ACT last) two workers would leave the last ACT job running alone on one core."""
+    """Dense-control (ACT) jobs, then the runs DAgger/DART continue, then the recovering recipe's trainings,
+    then other trainings, then evaluation-only jobs: in the listed order (ACT last) two workers would leave the
+    last ACT job running alone on one core."""
     from lerobot_pnp.report.run import Job, longest_first
 
     jobs = [Job("expert", "-", None), Job("lookup_table", "-", None), Job("clocked_lstm", "1", None),
             Job("recovering_dagger", "1", None), Job("recovering", "1", None), Job("act", "1", None),
             Job("act", "2", None), Job("clocked_lstm", "n10", 10)]  # fmt: skip
     order = [(j.method, j.tag) for j in longest_first(jobs)]
-    assert order == [("act", "1"), ("act", "2"), ("recovering", "1"), ("clocked_lstm", "1"),
-                     ("recovering_dagger", "1"), ("clocked_lstm", "n10"), ("expert", "-"), ("lookup_table", "-")]  # fmt: skip
+    assert order == [("act", "1"), ("act", "2"), ("recovering", "1"), ("recovering_dagger", "1"),
+                     ("clocked_lstm", "1"), ("clocked_lstm", "n10"), ("expert", "-"), ("lookup_table", "-")]  # fmt: skip
     # split for a pool: the suites of a trained method last (they wait for it), an untrained one's before them
     parts = [
         Job("recovering", "1", None, "nominal"),
         Job("expert", "-", None, "nominal"),
         Job("act", "1", None, "training"),
     ]
-    assert [j.key for j in longest_first(parts)] == [("act", "1", "training"), ("expert", "-", "nominal"),
-                                                     ("recovering", "1", "nominal")]  # fmt: skip
+    assert [j.key for j in longest_first(parts)] == [("act", "1", "training", 0), ("expert", "-", "nominal", 0),
+                                                     ("recovering", "1", "nominal", 0)]  # fmt: skip
+
+
+def test_studies_alongside_share_one_pool_and_keep_their_own_reports(tmp_path):
+    """`alongside`: a second study's jobs run in the first one's pool (two processes, a trained method's suites
+    as jobs of their own); each study writes its own records and report, and running it again redoes nothing."""
+    base = dict(preset="quick", num_episodes=N, epochs=1, train_seeds=[1000], cli_check_episodes=0)
+    other = tmp_path / "other.json"
+    other.write_text(json.dumps({**base, "output_dir": str(tmp_path / "b"), "methods": ["expert", "recovering"],
+                                 "suites": [{"name": "nominal", "n_episodes": 2}, {"name": "drop", "n_episodes": 2}]}))  # fmt: skip
+    cfg = StudyConfig(**base, output_dir=str(tmp_path / "a"), workers=2, methods=["lookup_table", "recovering"],
+                      suites=[SuiteSpec("nominal", 2)], alongside=[str(other)])  # fmt: skip
+    summary = run_study(cfg)
+    assert summary["report"] == str(tmp_path / "a" / "report.md") and len(summary["alongside"]) == 1
+    assert summary["alongside"][0]["report"] == str(tmp_path / "b" / "report.md")
+    a = {p.relative_to(tmp_path / "a").as_posix() for p in (tmp_path / "a" / "evals").rglob("*.json")}
+    b = {p.relative_to(tmp_path / "b").as_posix() for p in (tmp_path / "b" / "evals").rglob("*.json")}
+    assert a == {"evals/lookup_table/seed-/nominal.json", "evals/recovering/seed1000/nominal.json"}
+    assert b == {"evals/expert/seed-/nominal.json", "evals/expert/seed-/drop.json",
+                 "evals/recovering/seed1000/nominal.json", "evals/recovering/seed1000/drop.json"}  # fmt: skip
+    files = {p: p.stat().st_mtime_ns for p in tmp_path.rglob("*.json") if "evals" in p.parts or "train" in p.parts}
+    run_study(cfg)
+    assert {p for p, t in files.items() if p.stat().st_mtime_ns != t} == set()
+    with pytest.raises(ConfigError, match="same output_dir"):
+        run_study(StudyConfig(**{**base, "output_dir": str(tmp_path / "b")}, alongside=[str(other)]))

@@ -11,7 +11,7 @@ preset's value.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.evaluation.stats import wilson_interval
@@ -228,6 +228,10 @@ class StudyConfig:
     act_steps: int | None = None  # ACT training steps per seed (None = act_baseline.ActBudget's default)
     fresh: bool = False  # delete output_dir first
     report_only: bool = False  # write the report from the finished evaluations only (train/evaluate nothing)
+    # config files (relative to the working directory) of other studies run in the same process pool, each
+    # with its own output_dir and report: their trainings and evaluations fill the cores this study's leave
+    # idle (make demo, make study); --fresh and --report_only apply to them too
+    alongside: list[str] = field(default_factory=list)
 
     def __post_init__(self):
         if self.quick and self.full:

@@ -21,7 +21,8 @@ from __future__ import annotations
 import json
 import os
 import time
-from dataclasses import asdict, dataclass
+from contextlib import ExitStack
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -70,21 +71,75 @@ def _stage(text: str) -> None:
 def run_study(cfg: StudyConfig) -> dict:
     """Run every stage that is not finished yet; return a short summary (the report path and headline).
 
-    The output folder is locked for the whole run (a second study on it fails at once); the top-level
-    entries the study writes are listed in its manifest, so ``--fresh`` deletes only those."""
-    out = Path(cfg.output_dir)
-    with lock_output(out, "lerobot-pnp report/demo"):
-        manifest = Manifest(out, "lerobot-pnp report/demo")
-        if not manifest.path.exists() and StudyLayout(out).config.is_file():
-            manifest.claim(*(p.name for p in out.iterdir() if written_by_the_study(p.name)))  # an older study
-        if cfg.fresh:
-            manifest.clear()
-        return _run_locked(cfg, StudyLayout(out), manifest)
+    The studies of ``cfg.alongside`` (config files) run in the same process pool: every study's datasets
+    first, then all their trainings and evaluations side by side, then each study's cross-check and report
+    (``make demo``: the recovery headline beside the paper's study; the summary is the first study's, the others'
+    under ``"alongside"``). Each output folder is locked for the whole run (a second study on it fails at
+    once); the top-level entries a study writes are listed in its manifest, so ``--fresh`` deletes only those."""
+    cfgs = [cfg, *(load_study_config(path) for path in cfg.alongside)]
+    for c in cfgs[1:]:  # how to run (not what to run) is the command line's, for every study
+        c.fresh, c.report_only = c.fresh or cfg.fresh, c.report_only or cfg.report_only
+    outs = [Path(c.output_dir).resolve() for c in cfgs]
+    if len(set(outs)) < len(outs):
+        raise ConfigError(f"alongside: two studies write to the same output_dir ({[c.output_dir for c in cfgs]})")
+    with ExitStack() as stack:
+        runs = []
+        for c in cfgs:
+            out = Path(c.output_dir)
+            stack.enter_context(lock_output(out, "lerobot-pnp report/demo"))
+            manifest = Manifest(out, "lerobot-pnp report/demo")
+            if not manifest.path.exists() and StudyLayout(out).config.is_file():
+                manifest.claim(*(p.name for p in out.iterdir() if written_by_the_study(p.name)))  # an older study
+            if c.fresh:
+                manifest.clear()
+            runs.append(_prepare(c, StudyLayout(out), manifest))
+        summaries = _run_prepared(runs)
+    return summaries[0] if len(summaries) == 1 else {**summaries[0], "alongside": summaries[1:]}
 
 
-def _run_locked(cfg: StudyConfig, layout: StudyLayout, manifest: Manifest) -> dict:
-    from lerobot_pnp.report.writer import StudyInputs, write_report
+def load_study_config(path: str) -> StudyConfig:
+    """A study's config file (``alongside``); one that names studies alongside itself is refused (one level)."""
+    import draccus
 
+    from lerobot_pnp.errors import one_line
+
+    if not Path(path).is_file():
+        raise ConfigError(f"alongside: {path!r}: no such config file")
+    try:
+        cfg = draccus.parse(StudyConfig, config_path=path, args=[])
+    except ConfigError:
+        raise
+    except Exception as err:  # a malformed file or an unknown field
+        raise ConfigError(f"alongside: {path!r} is not a study config ({one_line(err)})") from err
+    if cfg.alongside:
+        raise ConfigError(f"alongside: {path!r} names studies alongside itself; list them all in the first config")
+    return cfg
+
+
+@dataclass
+class _PreparedStudy:
+    """A study whose datasets are ready: its jobs, and what its jobs and its report need."""
+
+    cfg: StudyConfig
+    layout: StudyLayout
+    manifest: Manifest
+    before: set[str]  # the output folder's entries before the run
+    methods: list
+    base_env: BaxterPnPEnvConfig
+    roots: dict[str, Path]
+    keys: dict[str, str]
+    generation: dict
+    timings: dict[str, float]
+    jobs: list[Job]  # one per method x training seed (whole)
+    started: float
+
+    @property
+    def context(self) -> tuple:
+        return self.cfg, self.layout, self.roots, self.base_env, self.keys
+
+
+def _prepare(cfg: StudyConfig, layout: StudyLayout, manifest: Manifest) -> _PreparedStudy:
+    """Stage 1: the study's datasets (made or found), and its jobs."""
     out = layout.out
     before = {p.name for p in out.iterdir()}
     manifest.claim(*layout.stage_names())
@@ -93,7 +148,7 @@ def _run_locked(cfg: StudyConfig, layout: StudyLayout, manifest: Manifest) -> di
     started = time.perf_counter()
     methods = get_methods(cfg.methods)
 
-    _stage(f"1/4 dataset: {cfg.num_episodes} expert demonstrations")
+    _stage(f"1/4 dataset: {cfg.num_episodes} expert demonstrations ({out})")
     t = time.perf_counter()
     root = layout.dataset()
     keys: dict[str, str] = {}  # recording -> its dataset's stage key
@@ -113,20 +168,41 @@ def _run_locked(cfg: StudyConfig, layout: StudyLayout, manifest: Manifest) -> di
         if not cfg.report_only or generation[data].get("status") == "reused":
             check_same_demonstrations(root, roots[data])
         timings[f"dataset_{data}"] = time.perf_counter() - t
-
-    _stage(f"2-3/4 train and evaluate: {', '.join(m.name for m in methods)} (learned: seeds {cfg.train_seeds})")
     jobs = [Job(m.name, str(s), None) for m in methods for s in (cfg.train_seeds if m.learned else ["-"])]
     jobs += [Job(m, f"n{n}", n) for n in cfg.data_efficiency for m in DATA_EFFICIENCY_METHODS]
-    processes = _job_processes(cfg, len(jobs))
+    return _PreparedStudy(cfg, layout, manifest, before, methods, base_env, roots, keys, generation, timings, jobs,
+                          started)  # fmt: skip
+
+
+def _run_prepared(runs: list[_PreparedStudy]) -> list[dict]:
+    """Stages 2-3 of every study in one pool, then each study's cross-check and report (stage 4)."""
+    jobs = [replace(j, study=i) for i, r in enumerate(runs) for j in r.jobs]
+    processes = _job_processes(runs[0].cfg, len(jobs))
+    for r in runs:
+        _stage(f"2-3/4 train and evaluate: {', '.join(m.name for m in r.methods)} (learned: seeds {r.cfg.train_seeds})")
     print(
-        f"evaluation: stock LeRobot eval_policy, in process; the same seeds for every method; {len(jobs)} "
-        f"trainings or evaluation-only methods (method x training seed) in {processes} "
+        f"evaluation: stock LeRobot eval_policy, in process; the same seeds for every method; {len(jobs)} runs "
+        f"(method x training seed{', of every study' if len(runs) > 1 else ''}) in {processes} "
         f"process{'es' if processes > 1 else ''}",
         flush=True,
     )
     if processes > 1:  # a trained method's suites spread over the free processes
-        jobs = split_jobs(jobs, {job: job_suites(job, cfg, base_env) for job in jobs})
-    finished = dict(_run_jobs(jobs, (cfg, layout, roots, base_env, keys), processes))
+        jobs = split_jobs(jobs, {j: job_suites(j, runs[j.study].cfg, runs[j.study].base_env) for j in jobs})
+    contexts = tuple(r.context for r in runs)
+    finished = dict(_run_jobs(jobs, (contexts,), processes, fn=_study_job))
+    return [_finish(r, [j for j in jobs if j.study == i], finished, processes) for i, r in enumerate(runs)]
+
+
+def _study_job(job: Job, contexts: tuple):
+    """``run_job`` in the context of the job's study (a module-level function: the pool pickles it)."""
+    return run_job(job, *contexts[job.study])
+
+
+def _finish(run: _PreparedStudy, jobs: list[Job], finished: dict, processes: int) -> dict:
+    """The study's results from its jobs, the `lerobot-eval` cross-check and the report."""
+    from lerobot_pnp.report.writer import StudyInputs, write_report
+
+    cfg, layout, timings = run.cfg, run.layout, run.timings
     results: dict[str, dict[str, dict[str, list]]] = {}  # method -> tag -> suite -> records, in job order
     left: list[coverage.LeftOut] = []  # what report_only could not show (coverage)
     for job in jobs:
@@ -137,17 +213,17 @@ def _run_locked(cfg: StudyConfig, layout: StudyLayout, manifest: Manifest) -> di
             results.setdefault(job.method, {}).setdefault(job.tag, {})[suite] = recs
     results, left = coverage.withhold(results, left)
 
-    cli_check = _cli_check(cfg, methods, results, (layout, roots, keys), timings)
-    timings["run/wall_clock"] = time.perf_counter() - started  # this invocation, all processes together
+    cli_check = _cli_check(cfg, run.methods, results, (layout, run.roots, run.keys), timings)
+    timings["run/wall_clock"] = time.perf_counter() - run.started  # this invocation, all processes together
     timings["run/processes"] = processes
 
-    _stage("4/4 report")
-    manifest.claim(*layout.report_names())
-    aliases = coverage.suite_aliases(_suites_for(cfg, None), base_env)
-    study = StudyInputs(cfg, methods, results, base_env, generation, timings, machine(), command(), cli_check,
-                        left, {a: of for a, of in aliases.items() if a != of})  # fmt: skip
+    _stage(f"4/4 report ({layout.out})")
+    run.manifest.claim(*layout.report_names())
+    aliases = coverage.suite_aliases(_suites_for(cfg, None), run.base_env)
+    study = StudyInputs(cfg, run.methods, results, run.base_env, run.generation, timings, machine(), command(),
+                        cli_check, left, {a: of for a, of in aliases.items() if a != of})  # fmt: skip
     summary = write_report(layout, study)
-    manifest.claim(*({p.name for p in out.iterdir()} - before - {MANIFEST_FILE}))  # whatever else it wrote
+    run.manifest.claim(*({p.name for p in layout.out.iterdir()} - run.before - {MANIFEST_FILE}))  # what else it wrote
     print(f"\nreport: {layout.report}")
     return summary
 
@@ -172,19 +248,20 @@ class Job:
     tag: str  # a training seed, "-" (nothing to train) or "n<demos>" (data efficiency)
     n_demos: int | None
     part: str = ALL  # ALL, TRAINING or a suite name
+    study: int = 0  # which of the studies run in one pool (``StudyConfig.alongside``)
 
     @property
-    def key(self) -> tuple[str, str, str]:
-        return self.method, self.tag, self.part
+    def key(self) -> tuple[str, str, str, int]:
+        return self.method, self.tag, self.part, self.study
 
-    def after(self) -> tuple[str, str, str] | None:
+    def after(self) -> tuple[str, str, str, int] | None:
         """The job that must finish first: a suite's evaluation waits for its training; a training waits for the
         training of the same seed that its method continues (DAgger)."""
         method = get_methods([self.method])[0]
         if self.part not in (ALL, TRAINING):
-            return (self.method, self.tag, TRAINING) if method.learned else None
+            return (self.method, self.tag, TRAINING, self.study) if method.learned else None
         if method.continues:
-            return method.continues, self.tag, TRAINING if self.part == TRAINING else ALL
+            return method.continues, self.tag, TRAINING if self.part == TRAINING else ALL, self.study
         return None
 
 
@@ -195,8 +272,8 @@ def split_jobs(jobs: list[Job], suites: dict[Job, list[str]]) -> list[Job]:
     out: list[Job] = []
     for job in jobs:
         if job.method in learned:
-            out.append(Job(job.method, job.tag, job.n_demos, TRAINING))
-        out += [Job(job.method, job.tag, job.n_demos, name) for name in suites[job]]
+            out.append(replace(job, part=TRAINING))
+        out += [replace(job, part=name) for name in suites[job]]
     return out
 
 
@@ -209,13 +286,14 @@ def longest_first(jobs: list[Job]) -> list[Job]:
     """The order a pool takes jobs in: the likely longest first, so that the last job to finish is a short one
     and no core idles while one long job runs on alone (longest-processing-time scheduling). A job's class:
     a dense-control method's (every evaluation episode runs at the control rate, failures to the budget's end),
-    then one that another continues (DAgger's and DART's rounds wait on it), then other trainings, then
+    then one that another continues (DAgger's and DART's rounds wait on it), then the recovering recipe's
+    trainings, then other trainings, then
     evaluations of untrained methods, then those of trained ones (which wait for their training anyway); the
     given order within a class."""
     methods = {m.name: m for m in get_methods(list(dict.fromkeys(j.method for j in jobs)))}
     continued = {m.continues for m in methods.values() if m.continues}
 
-    def cost_class(job: Job) -> int:
+    def cost_class(job: Job) -> float:
         method = methods[job.method]
         if job.part not in (ALL, TRAINING):
             return 4 if method.learned else 3  # an evaluation of an untrained method can start at once
@@ -223,7 +301,9 @@ def longest_first(jobs: list[Job]) -> list[Job]:
             return 0
         if job.method in continued:
             return 1
-        return 2 if method.learned else 3
+        if method.policy_overrides.get("mode") == "recovering":
+            return 2  # the recovering recipe: several times a clocked net's training
+        return 2.5 if method.learned else 3
 
     return sorted(jobs, key=cost_class)
 
