@@ -22,7 +22,7 @@ from pathlib import Path
 
 import protocol_runs  # scripts/: the protocol runs on disk
 
-from lerobot_pnp.cache import CHECKPOINT_FILES, digest_files
+from lerobot_pnp.cache import CHECKPOINT_FILES, code_versions, digest_files, key_of
 from lerobot_pnp.dagger.config import RECOVERING_RECIPE
 from lerobot_pnp.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.errors import ConfigError
@@ -102,15 +102,19 @@ else:
     unknown = sorted(k for k in overrides if not k.startswith("env.") and k not in PnpLstmConfig.__dataclass_fields__)
     if unknown:  # setattr would take any name and change nothing
         sys.exit(f"heldout_protocol_eval.py: unknown policy field(s) {unknown}: see PnpLstmConfig")
-    # A suite's result is reused only when it was made from this checkpoint's content with this many episodes
-    # (the file name holds the overrides, the eval seed and a count other than 200); a result without the
-    # checkpoint's digest is redone.
+    # A suite's result is reused only when its key matches: this checkpoint's content, the suite's env config
+    # as the code builds it now, the episode count, the eval seed, the policy overrides, the batch and the
+    # code versions (the file name holds the overrides, the eval seed and a count other than 200 too, so
+    # variants do not overwrite each other); a result without a key (an older one) is redone.
     ckpt_digest = digest_files(ckpt, CHECKPOINT_FILES)
     results = json.loads(result_file.read_text()) if result_file.is_file() else {}
+    batch = 10
     for name in names:
-        if results.get(name, {}).get("checkpoint_digest") == ckpt_digest and results[name].get("n") == n:
-            continue
         cfg = SUITES[name].env_configs(base)[0]
+        key = key_of({"checkpoint": ckpt_digest, "env": cfg.to_dict(), "n": n, "eval_seed": eval_seed,
+                      "overrides": overrides, "batch": batch, "versions": code_versions()})  # fmt: skip
+        if results.get(name, {}).get("key") == key:
+            continue
         lp = load_policy(ckpt, env_cfg=cfg)
         policy, pre, post = lp.policy, lp.preprocessor, lp.postprocessor
         for k, v in overrides.items():
@@ -118,7 +122,7 @@ else:
                 setattr(policy.config, k, v)
         policy.reset()
         t = time.time()
-        recs = eval_lerobot_policy(policy, pre, post, cfg, n, eval_seed, 10)
+        recs = eval_lerobot_policy(policy, pre, post, cfg, n, eval_seed, batch)
         k = sum(r.success for r in recs)
         lo, hi = wilson_interval(k, n)
         causes = summarize(recs)["by_cause"]
@@ -137,6 +141,7 @@ else:
             "mean_steps_success": sum(r.steps for r in recs if r.success) / max(k, 1),
             "wall_s": time.time() - t,
             "checkpoint_digest": ckpt_digest,
+            "key": key,
         }
         print(
             f"{name:<26} {k}/{n} = {100 * k / n:5.1f} % [{100 * lo:5.1f}, {100 * hi:5.1f}] {causes} {time.time() - t:.0f}s",
