@@ -9,6 +9,9 @@ same CPU capability and model) the comparison is ``torch.equal``; elsewhere floa
 so it is a tight ``assert_close`` there, with each closed loop replayed on the frozen run's observations. The file
 in the repository predates the CPU model in the machine kind (an AMD EPYC wrote it; an Intel Xeon with the same
 capability differs in the last bit), so it is compared the second way on every machine.
+Rewritten once on purpose: when the recovering trunk stopped running on the padding after each episode's last
+frame, its random draws (dropout masks) cover fewer frames, so the recurrent planners' training-mode numbers
+(loss, gradients, info) changed; every ``select_action`` output matched the old file.
 """
 
 from __future__ import annotations

@@ -231,9 +231,8 @@ class StudyConfig:
     act_steps: int | None = None  # ACT training steps per seed (None = act_baseline.ActBudget's default)
     fresh: bool = False  # delete output_dir first
     report_only: bool = False  # write the report from the finished evaluations only (train/evaluate nothing)
-    # config files (relative to the working directory) of other studies run in the same process pool, each
-    # with its own output_dir and report: their trainings and evaluations fill the cores this study's leave
-    # idle (make demo, make study); --fresh and --report_only apply to them too
+    # config files of other studies run in the same process pool, each with its own output_dir and report:
+    # their jobs fill the cores this study's leave idle; --fresh and --report_only apply to them too
     alongside: list[str] = field(default_factory=list)
 
     def __post_init__(self):
