@@ -108,11 +108,11 @@ else:
     # variants do not overwrite each other); a result without a key (an older one) is redone.
     ckpt_digest = digest_files(ckpt, CHECKPOINT_FILES)
     results = json.loads(result_file.read_text()) if result_file.is_file() else {}
-    batch = 10
+    batch, versions = 10, code_versions()
     for name in names:
         cfg = SUITES[name].env_configs(base)[0]
         key = key_of({"checkpoint": ckpt_digest, "env": cfg.to_dict(), "n": n, "eval_seed": eval_seed,
-                      "overrides": overrides, "batch": batch, "versions": code_versions()})  # fmt: skip
+                      "overrides": overrides, "batch": batch, "versions": versions})  # fmt: skip
         if results.get(name, {}).get("key") == key:
             continue
         lp = load_policy(ckpt, env_cfg=cfg)

@@ -203,3 +203,21 @@ def test_studies_alongside_share_one_pool_and_keep_their_own_reports(tmp_path):
     assert {p for p, t in files.items() if p.stat().st_mtime_ns != t} == set()
     with pytest.raises(ConfigError, match="same output_dir"):
         run_study(StudyConfig(**{**base, "output_dir": str(tmp_path / "b")}, alongside=[str(other)]))
+
+
+def test_a_held_alongside_folder_stops_the_run_before_any_folder_is_cleared(tmp_path):
+    """Every study's folder is locked before `--fresh` clears any: a study alongside whose folder another command
+    holds stops the run at once, and the first study's files stay as they were."""
+    from lerobot_pnp.cache import lock_output
+    from lerobot_pnp.errors import DatasetError
+
+    first, other = tmp_path / "a", tmp_path / "b"
+    first.mkdir()
+    (first / "study_config.json").write_text("{}")  # a study's file: --fresh would delete it
+    (first / "evals").mkdir()
+    config = tmp_path / "other.json"
+    config.write_text(json.dumps({"preset": "quick", "output_dir": str(other)}))
+    cfg = StudyConfig(preset="quick", output_dir=str(first), fresh=True, alongside=[str(config)])
+    with lock_output(other, "lerobot-pnp report/demo"), pytest.raises(DatasetError, match=f"is using {other}"):
+        run_study(cfg)
+    assert (first / "study_config.json").read_text() == "{}" and (first / "evals").is_dir()

@@ -83,10 +83,11 @@ def run_study(cfg: StudyConfig) -> dict:
     if len(set(outs)) < len(outs):
         raise ConfigError(f"alongside: two studies write to the same output_dir ({[c.output_dir for c in cfgs]})")
     with ExitStack() as stack:
+        for c in cfgs:  # every folder locked before any is cleared or written: a held one stops the run at once
+            stack.enter_context(lock_output(Path(c.output_dir), "lerobot-pnp report/demo"))
         runs = []
         for c in cfgs:
             out = Path(c.output_dir)
-            stack.enter_context(lock_output(out, "lerobot-pnp report/demo"))
             manifest = Manifest(out, "lerobot-pnp report/demo")
             if not manifest.path.exists() and StudyLayout(out).config.is_file():
                 manifest.claim(*(p.name for p in out.iterdir() if written_by_the_study(p.name)))  # an older study
@@ -287,9 +288,8 @@ def longest_first(jobs: list[Job]) -> list[Job]:
     and no core idles while one long job runs on alone (longest-processing-time scheduling). A job's class:
     a dense-control method's (every evaluation episode runs at the control rate, failures to the budget's end),
     then one that another continues (DAgger's and DART's rounds wait on it), then the recovering recipe's
-    trainings, then other trainings, then
-    evaluations of untrained methods, then those of trained ones (which wait for their training anyway); the
-    given order within a class."""
+    trainings, then other trainings, then evaluations of untrained methods, then those of trained ones (which
+    wait for their training anyway); the given order within a class."""
     methods = {m.name: m for m in get_methods(list(dict.fromkeys(j.method for j in jobs)))}
     continued = {m.continues for m in methods.values() if m.continues}
 
@@ -321,7 +321,7 @@ def _run_jobs(jobs: list[Job], context: tuple, processes: int, fn=None):
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
     names = {j.key for j in jobs}
-    done: set[tuple[str, str, str]] = set()
+    done: set[tuple[str, str, str, int]] = set()
     pending, running = longest_first(jobs), {}
     from lerobot_pnp.dataset.executors import die_with_parent
 
