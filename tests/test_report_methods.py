@@ -141,8 +141,9 @@ def test_a_pool_evaluates_each_suite_once_its_training_is_done(tmp_path):
 
 
 def _logged_job(job, log_dir):
-    """A stand-in for run_job: records when it ran. Trainings take a while; the suites of the recovering run
-    wait (up to a minute) for each other's start mark, so they pass only if they run side by side."""
+    """A stand-in for run_job: records when it ran. Trainings take a while, and the recovering training waits (up
+    to a minute) for the expert's start mark; the suites of the recovering run wait for each other's. So the test
+    passes only if those jobs run side by side, however slowly a spawned worker starts under load."""
     import time
     from pathlib import Path
 
@@ -151,6 +152,9 @@ def _logged_job(job, log_dir):
     Path(log_dir, f"{name}.started").touch()
     if job.part == "training":
         time.sleep(1.0)
+    if job.method == "recovering" and job.part == "training":
+        while not Path(log_dir, "expert_-_nominal.started").exists() and time.time() - start < 60:
+            time.sleep(0.05)
     if job.method == "recovering" and job.part in ("nominal", "drop"):
         other = "drop" if job.part == "nominal" else "nominal"
         while not Path(log_dir, f"recovering_1_{other}.started").exists() and time.time() - start < 60:
