@@ -192,12 +192,17 @@ def test_validation_rejects_nan_shapes_and_removed_rows(small, tmp_path):
 
 
 # ---------------------------------------------------------------------------------------------- 6, 10: bad input
-def test_absurd_sizes_are_one_line_from_the_console_script(tmp_path):
+def test_absurd_sizes_are_one_line_from_the_console_script(tmp_path, capsys):
+    """A size that would fill the disk, through the installed console script; a zero rate through its entry point."""
+    from lerobot_pnp.cli import main
+
     root = tmp_path / "bad"
-    for flags, needle in ((["--num_episodes=20000000"], "--allow_huge"), (["--env.fps=0"], "env.fps")):
-        res = _run([PNP, "generate", f"--root={root}", *flags], timeout=120)
-        _one_line_error(res, needle)
-        assert res.returncode == 2 and not root.exists()  # rejected before anything was written
+    res = _run([PNP, "generate", f"--root={root}", "--num_episodes=20000000"], timeout=120)
+    _one_line_error(res, "--allow_huge")
+    assert res.returncode == 2 and not root.exists()  # rejected before anything was written
+    assert main(["generate", f"--root={root}", "--env.fps=0"]) == 2
+    lines = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "env.fps" in lines[0] and not root.exists(), lines
 
 
 @pytest.mark.parametrize(

@@ -139,8 +139,8 @@ def test_act_on_images_stock_train_then_eval_without_camera_flags(tmp_path):
     (ds / "meta" / "baxter_pnp_env.json").unlink()  # the dataset root no longer says which cameras
 
     ev = tmp_path / "eval"
-    cmd = [evaluate, f"--policy.path={ckpt}", "--env.type=baxter_pnp", "--eval.n_episodes=2"]
-    proc = _run([*cmd, "--eval.batch_size=2", "--policy.device=cpu", f"--output_dir={ev}"], tmp_path)
+    cmd = [evaluate, f"--policy.path={ckpt}", "--env.type=baxter_pnp", "--eval.n_episodes=1"]
+    proc = _run([*cmd, "--eval.batch_size=1", "--policy.device=cpu", f"--output_dir={ev}"], tmp_path)
     assert proc.returncode == 0, proc.stderr[-3000:]
     overall = json.loads((ev / "eval_info.json").read_text())["overall"]
-    assert overall["n_episodes"] == 2  # the camera env was built from the checkpoint's own task
+    assert overall["n_episodes"] == 1  # the camera env was built from the checkpoint's own task

@@ -113,10 +113,12 @@ def test_recorder_agrees_with_eval_policy_and_explains_failures():
 # ---------------------------------------------------------------------------------------------- end to end
 @pytest.mark.slow
 def test_quick_study_writes_a_report_where_the_planner_beats_the_lookup_table(tmp_path):
-    from lerobot_pnp.report.run import StudyConfig, run_study
+    from lerobot_pnp.report.run import StudyConfig, SuiteSpec, run_study
 
     out = tmp_path / "study"
-    run_study(StudyConfig(output_dir=str(out), quick=True, workers=1))
+    # the quick preset cut to half its demonstrations and episodes (the nudge gap stays far beyond p = 0.05)
+    small = dict(num_episodes=150, epochs=250, suites=[SuiteSpec("nominal", 50), SuiteSpec("nudge_0.03", 50)])
+    run_study(StudyConfig(output_dir=str(out), quick=True, workers=1, **small))
     report = (out / "report.md").read_text()
     assert "Success by suite" in report and "figures/heatmap_nominal.png" in report
     for name in json.loads((out / "summary.json").read_text())["figures"]:
@@ -131,7 +133,7 @@ def test_quick_study_writes_a_report_where_the_planner_beats_the_lookup_table(tm
     (out / "summary.json").write_text(json.dumps(summary))
     (out / "figures" / "gone.png").write_bytes(b"old")
     (out / "figures" / "mine.png").write_bytes(b"a user's")
-    run_study(StudyConfig(output_dir=str(out), quick=True, workers=1, report_only=True))
+    run_study(StudyConfig(output_dir=str(out), quick=True, workers=1, report_only=True, **small))
     assert not (out / "figures" / "gone.png").exists() and (out / "figures" / "mine.png").read_bytes() == b"a user's"
     assert all((out / "figures" / n).is_file() for n in summary["figures"][:-1])
 
