@@ -175,10 +175,6 @@ class PnpLstmConfig(PreTrainedConfig):
     await_past_states: int = 2
     """With ``await_observation``: an observation equal to one of this many last observed states is the latency
     growing (the observation going back in time), not a new move."""
-    await_fresh_gripper: bool = False
-    """With ``await_observation``, inference only: once the gate has waited in an episode (the observations are
-    later than trained), a command that opens or closes the gripper is held until every earlier move is observed,
-    so that the grasp's close and the place's open are planned on a view that shows where the arm is."""
 
     still_arm_phases: list[int] = field(default_factory=list)
     """Recovering mode, inference only: the FSM states (``robot.Phase``) whose keyframe keeps the arm where the

@@ -45,13 +45,11 @@ class ObservationGate:
     max_steps: int
     in_flight: int  # moves that may be unobserved when the planner plans the next one
     past: int  # how many of the last observed states count as "the past" for a latency that grows
-    fresh_gripper: bool = False  # once it has waited, hold a gripper change until every move is observed
 
     def __post_init__(self) -> None:
         self._seen: Tensor | None = None  # (B, P, S) the last distinct observed robot states, newest first
         self._unseen: Tensor | None = None  # (B,) commanded moves not observed yet
         self._waited: Tensor | None = None  # (B,) steps held since the last decision
-        self._late: Tensor | None = None  # (B,) the gate has waited in this episode: observations later than trained
 
     def decide(self, x: Tensor) -> Tensor:
         """``(B, D)`` normalised inputs -> ``(B,)`` bool: True where the planner steps on this observation."""
@@ -60,24 +58,13 @@ class ObservationGate:
             self._seen = state.unsqueeze(1).repeat(1, self.past, 1)
             self._unseen = torch.zeros(x.shape[0], dtype=torch.long, device=x.device)
             self._waited = torch.zeros(x.shape[0], dtype=torch.long, device=x.device)
-            self._late = torch.zeros(x.shape[0], dtype=torch.bool, device=x.device)
             return torch.ones(x.shape[0], dtype=torch.bool, device=x.device)
         new = ((state.unsqueeze(1) - self._seen).norm(dim=-1) > self.state_tol).all(dim=1)  # a move arrived
         self._seen = torch.where(new[:, None, None], torch.cat([state.unsqueeze(1), self._seen[:, :-1]], 1), self._seen)
         self._unseen = torch.where(new, (self._unseen - 1).clamp(min=0), self._unseen)
         timeout = self._waited >= self.max_steps
         self._unseen = torch.where(timeout, torch.zeros_like(self._unseen), self._unseen)
-        decided = (self._unseen <= self.in_flight) | timeout
-        self._late |= ~decided
-        return decided
-
-    def hold_gripper(self, decided: Tensor, new_action: Tensor, old_action: Tensor | None) -> Tensor:
-        """``decided`` less the envs (``fresh_gripper``, once late) whose new command opens or closes the gripper
-        while a move is still unobserved: they hold their last command and wait for a view that shows the arm."""
-        if not self.fresh_gripper or old_action is None:
-            return decided
-        flips = (new_action[:, -1] - old_action[:, -1]).abs() > self.action_tol
-        return decided & ~(self._late & flips & (self._unseen > 0) & (self._waited < self.max_steps))
+        return (self._unseen <= self.in_flight) | timeout
 
     def update(self, decided: Tensor, new_action: Tensor, old_action: Tensor | None) -> None:
         """Count the decisions of this step whose commands move something (a hold keyframe moves nothing)."""

@@ -168,7 +168,6 @@ class RecoveringPlanner(nn.Module):
         if gate is not None:  # hold the last command where its move has not been observed yet
             decided = gate.decide(x)
             old = None if state is None else state.action
-            decided = gate.hold_gripper(decided, action, old)
             if old is not None and not bool(decided.all()):
                 action = torch.where(decided[:, None], action, old)
                 if new_memory is not None:
@@ -208,7 +207,6 @@ class RecoveringPlanner(nn.Module):
             cfg.await_max_steps,
             cfg.in_flight_moves,
             cfg.await_past_states,
-            cfg.await_fresh_gripper,
         )
 
     # ---- the network ----------------------------------------------------------------------------
