@@ -85,6 +85,15 @@ def test_finished_evaluations_are_reused_unless_their_suite_changed(study):
     assert json.loads(stale.read_text())["env_parts"][0]["grasp_miss_prob"] == 1.0
 
 
+def _wait_for_mark(log_dir, name: str, start: float) -> None:
+    """Wait (up to a minute from ``start``) for another stand-in job's start mark ``name.started``."""
+    import time
+    from pathlib import Path
+
+    while not Path(log_dir, f"{name}.started").exists() and time.time() - start < 60:
+        time.sleep(0.05)
+
+
 def _timed_job(job, log_dir):
     """A stand-in for run_job in a spawned process: records when it ran. The recovering job waits (up to a
     minute) for the other job's start mark, so a pool that runs them side by side passes however slowly a
@@ -95,8 +104,7 @@ def _timed_job(job, log_dir):
     start = time.time()
     Path(log_dir, f"{job.method}_{job.tag}.started").touch()
     if job.method == "recovering":
-        while not Path(log_dir, "clocked_lstm_1.started").exists() and time.time() - start < 60:
-            time.sleep(0.05)
+        _wait_for_mark(log_dir, "clocked_lstm_1", start)
     Path(log_dir, f"{job.method}_{job.tag}").write_text(f"{start} {time.time()}")
     return job.method
 
@@ -153,12 +161,9 @@ def _logged_job(job, log_dir):
     if job.part == "training":
         time.sleep(1.0)
     if job.method == "recovering" and job.part == "training":
-        while not Path(log_dir, "expert_-_nominal.started").exists() and time.time() - start < 60:
-            time.sleep(0.05)
+        _wait_for_mark(log_dir, "expert_-_nominal", start)
     if job.method == "recovering" and job.part in ("nominal", "drop"):
-        other = "drop" if job.part == "nominal" else "nominal"
-        while not Path(log_dir, f"recovering_1_{other}.started").exists() and time.time() - start < 60:
-            time.sleep(0.05)
+        _wait_for_mark(log_dir, f"recovering_1_{'drop' if job.part == 'nominal' else 'nominal'}", start)
     Path(log_dir, f"{name}.log").write_text(f"{start} {time.time()}")
     return job.key
 
