@@ -35,7 +35,7 @@ def _time_training(method: str, root: Path, workdir: Path, epochs: int, seed: in
     """Train ``method`` as the study does on ``root``; its wall time and what it trained."""
     from lerobot_pnp.dataset.layout import read_info
     from lerobot_pnp.recorded_task import read_recorded
-    from lerobot_pnp.report.methods import TrainContext, fit_window, get_methods
+    from lerobot_pnp.report.methods import TrainContext, get_methods, policy_settings
 
     (m,) = get_methods([method])
     train_dir = workdir / method
@@ -55,7 +55,7 @@ def _time_training(method: str, root: Path, workdir: Path, epochs: int, seed: in
         "epochs": epochs,
         "batch_size": m.batch_size or 64,
         "policy": {k: config.get(k) for k in ("mode", "hidden_size", "num_layers", "max_episode_length", "recurrent")},
-        "policy_overrides": fit_window(m.policy_overrides, ctx),
+        "policy_overrides": policy_settings(m.policy_overrides, ctx),
         "wall_s": round(wall, 1),
     }
 

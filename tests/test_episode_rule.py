@@ -62,7 +62,10 @@ def test_the_command_line_takes_a_rule_and_refuses_a_bad_one_in_one_line(capsys,
     assert not (tmp_path / "never").exists()
     assert StudyConfig(preset="heldout").episodes_rule.fixed_methods == ("expert", "recovering")
     assert StudyConfig(preset="heldout", fixed_episodes=True).episodes_rule is None  # off
-    assert StudyConfig(preset="full").episodes_rule is None and StudyConfig(preset="demo").episodes_rule is None
+    full = StudyConfig(preset="full").episodes_rule  # every claim's paired comparison and recovery suites: fixed
+    assert {"expert", "lookup_table", "clocked_lstm", "recovering", "recovering_dagger"} <= set(full.fixed_methods)
+    assert not {"shared_lstm", "memoryless", "memoryless_mlp", "phase_told_mlp", "act"} & set(full.fixed_methods)
+    assert StudyConfig(preset="demo").episodes_rule is None
 
 
 def test_the_rule_is_a_key_part_of_an_adaptive_evaluation_only(tmp_path):

@@ -158,3 +158,47 @@ def test_the_report_notes_only_what_applies_to_the_study():
     assert "inside strip" in paper and "20-keyframe budget" in paper and "spare attempts" not in paper
     full = "\n".join(_notes([], ["nominal", "train_drop", "heldout_far_drop"], "full"))
     assert "inside strip" not in full and "20-keyframe" not in full and "spare attempts" in full
+
+
+def test_the_paper_study_trains_the_recipe_with_its_changes(tmp_path, monkeypatch):
+    """``recipe_changes`` (the paper study: one LSTM layer) reaches every method that takes the recovering recipe,
+    DAgger's round included, changes their training keys, and leaves the clocked planners, a method's own
+    deviations from the recipe, and the held-out study (the shipped recipe) as they were."""
+    from pathlib import Path
+
+    from lerobot_pnp import dagger
+    from lerobot_pnp.report import markdown
+    from lerobot_pnp.report.layout import StudyLayout
+    from lerobot_pnp.report.run import Job, _context
+
+    paper, heldout = StudyConfig(preset="full"), StudyConfig(preset="heldout")
+    assert paper.recipe_changes == {"num_layers": 1} and heldout.recipe_changes == {}
+    ctx = _context(Job("recovering", "1000", None), methods.METHODS["recovering"], paper, StudyLayout(tmp_path),
+                   {"keyframe": tmp_path}, {"keyframe": "k"})  # fmt: skip
+    assert ctx.recipe_changes == {"num_layers": 1}
+    shipped = replace(ctx, recipe_changes={})
+    for name in ("recovering", "memoryless_mlp", "phase_told_mlp", "recovering_dagger"):
+        m = methods.METHODS[name]
+        assert methods.policy_settings(m.policy_overrides, ctx)["num_layers"] == 1
+        assert methods.policy_settings(m.policy_overrides, shipped)["num_layers"] == 2
+        assert methods.train_stage(m, ctx).key != methods.train_stage(m, shipped).key
+    clocked = methods.METHODS["clocked_lstm"]
+    assert methods.train_stage(clocked, ctx).key == methods.train_stage(clocked, shipped).key
+    augmenting = replace(ctx, recipe_changes={"latency_augment_prob": 0.2})  # the told MLP trains without it
+    assert methods.policy_settings(methods.PHASE_TOLD_MLP, augmenting)["latency_augment_prob"] == 0.0
+    assert methods.policy_settings(methods.RECOVERING, augmenting)["latency_augment_prob"] == 0.2
+
+    seen, round0 = {}, tmp_path / "round0"
+    round0.mkdir()
+    (round0 / "config.json").write_text("{}")  # the DAgger config checks it is a checkpoint folder
+    monkeypatch.setattr(methods, "keyed_train", lambda m, c: (round0, False))
+    monkeypatch.setattr(dagger, "run_dagger", lambda cfg: seen.setdefault("cfg", cfg) and {"final_checkpoint": "x"})
+    assert methods._dagger_train(replace(ctx, train_dir=tmp_path / "recovering_dagger" / "1000")) == Path("x")
+    assert seen["cfg"].policy.num_layers == 1
+
+    lines = markdown._recipe_changes_line(paper, methods.get_methods(["clocked_lstm", "recovering"]))
+    assert "`num_layers` = 1" in lines[0] and "recovering LSTM" in lines[0]
+    assert markdown._recipe_changes_line(heldout, methods.get_methods(["recovering"])) == []
+    for bad, named in (({"num_layerz": 1}, "num_layerz"), ({"mode": "clocked"}, "mode")):
+        with pytest.raises(ConfigError, match=named):
+            StudyConfig(preset="full", recipe_changes=bad)

@@ -6,6 +6,7 @@ and ``results.build_comparisons``, so ``summary.json`` and ``report.md`` state t
 
 from __future__ import annotations
 
+import json
 import math
 
 from lerobot_pnp.dataset.splits import train_count
@@ -86,7 +87,23 @@ def _header(layout, cfg, methods, summary, left=()) -> list[str]:
         "",
         "## Methods",
         "",
+        *_recipe_changes_line(cfg, methods),
         *_method_lines(methods, t, _parameter_counts(layout, methods, cfg), left),
+        "",
+    ]
+
+
+def _recipe_changes_line(cfg, methods) -> list[str]:
+    """The study's changes to the recovering recipe (``StudyConfig.recipe_changes``), when a method takes it:
+    the method descriptions below name the shipped recipe."""
+    changes = getattr(cfg, "recipe_changes", None) or {}
+    takers = [m.label for m in methods if m.policy_overrides.get("mode") == "recovering"]
+    if not (changes and takers):
+        return []
+    listed = ", ".join(f"`{k}` = {json.dumps(v)}" for k, v in changes.items())
+    return [
+        f"This study changes the shipped recovering recipe for every method that takes it ({', '.join(takers)}): "
+        f"{listed}. The descriptions below name the shipped recipe; the parameter counts are of what was trained.",
         "",
     ]
 

@@ -63,6 +63,8 @@ class TrainContext:
     act_steps: int | None = None  # ACT's training steps (None = act_baseline.ActBudget's default)
     data_keys: dict[str, str] = field(default_factory=dict)  # recording -> its dataset's stage key
     task_budget: int | None = None  # keyframe budget of the task recorded with the data (None: not known)
+    # the study's changes to the recovering recipe (``StudyConfig.recipe_changes``), for every method that takes it
+    recipe_changes: dict = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -118,14 +120,20 @@ def _lookup_eval(artifact, ctx, env_cfg, n, start_seed, batch_size):
     return eval_lerobot_policy(LookupTablePolicy(episodes), pre, post, env_cfg, n, start_seed, batch_size)
 
 
-def fit_window(overrides: dict, ctx: TrainContext) -> dict:
-    """A method's policy settings for its training data: a recovering-mode window must hold the longest
-    episode the recorded task allows (its keyframe budget + the final state: 41 frames on the ``full`` task,
-    more than the study's recovery budget). The paper's task (10 keyframes) leaves them, and so the training
-    keys of a paper study, unchanged."""
-    if overrides.get("mode") != "recovering" or ctx.task_budget is None:
+def policy_settings(overrides: dict, ctx: TrainContext) -> dict:
+    """A method's policy settings for its study and training data. A method that takes the recovering recipe
+    takes the study's changes to it (``ctx.recipe_changes``: the paper study trains it with one LSTM layer).
+    A recovering-mode window must hold the longest episode the recorded task allows (its keyframe budget + the
+    final state: 41 frames on the ``full`` task, more than the study's recovery budget); the paper's task (10
+    keyframes) leaves it unchanged. A study without recipe changes on the paper task keeps its training keys."""
+    if overrides.get("mode") != "recovering":
         return overrides
-    return {**overrides, "max_episode_length": max(overrides["max_episode_length"], ctx.task_budget + 1)}
+    # a change reaches the settings the method keeps from the recipe (the told MLP keeps its own augmentation)
+    kept = {k: v for k, v in ctx.recipe_changes.items() if overrides.get(k) == RECOVERING.get(k)}
+    settings = {**overrides, **kept}
+    if ctx.task_budget is not None:
+        settings["max_episode_length"] = max(settings["max_episode_length"], ctx.task_budget + 1)
+    return settings
 
 
 def _pnp_lstm_trainer(overrides: dict, batch_size: int | None) -> Callable[[TrainContext], Path]:
@@ -138,7 +146,7 @@ def _pnp_lstm_trainer(overrides: dict, batch_size: int | None) -> Callable[[Trai
             ctx.train_dir,
             ctx.seed,
             ctx.epochs,
-            fit_window(overrides, ctx),
+            policy_settings(overrides, ctx),
             n_demos=ctx.n_demos,
             batch_size=batch_size or adapters.BATCH_SIZE,
         )
@@ -205,7 +213,7 @@ def _dagger_train(ctx: TrainContext, name: str = "recovering_dagger", **schedule
             rounds=1,
             rollouts_per_round=DAGGER_ROLLOUTS,
             eval_episodes=0,  # the study evaluates it like every other method
-            policy=PnpLstmConfig(**RECOVERING),
+            policy=PnpLstmConfig(**policy_settings(RECOVERING, ctx)),
             epochs=ctx.epochs,
             batch_size=RECOVERING_BATCH_SIZE,
             seed=ctx.seed,
@@ -371,7 +379,7 @@ def train_stage(method: Method, ctx: TrainContext) -> Stage:
     parts = {
         "stage": "train",
         "method": method.name,
-        "overrides": fit_window(method.policy_overrides, ctx),
+        "overrides": policy_settings(method.policy_overrides, ctx),
         "data": ctx.data_keys.get(method.data),
         "seed": ctx.seed,
         "epochs": ctx.epochs,

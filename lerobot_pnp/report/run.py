@@ -348,7 +348,7 @@ def _context(job: Job, method, cfg: StudyConfig, layout: StudyLayout, roots: dic
     data_root = roots["keyframe"] if method.data == "dense" else roots[method.data]  # ACT reads ctx.dense_root
     budget = (read_recorded(roots["keyframe"]) or {}).get("keyframe_budget")  # the recorded task's
     return TrainContext(data_root, layout.train(method.name, job.tag), seed, cfg.epochs, job.n_demos,
-                        roots.get("dense"), cfg.act_steps, dict(keys), budget)  # fmt: skip
+                        roots.get("dense"), cfg.act_steps, dict(keys), budget, dict(cfg.recipe_changes))  # fmt: skip
 
 
 @dataclass
