@@ -240,9 +240,8 @@ class StudyConfig:
     split_over_seeds: bool | None = None
     fixed_episodes: bool = False  # every evaluation runs its suite's whole n (turns the preset's episodes_rule off)
     act_steps: int | None = None  # ACT training steps per seed (None = act_baseline.ActBudget's default)
-    # changes to the recovering recipe (``methods.RECOVERING``: PnpLstmConfig fields) for every method that takes
-    # it (the recovering planner, its DAgger and DART rounds, the matched MLPs), e.g. '{"num_layers": 1}'; None =
-    # the preset's (full: one LSTM layer on the paper task; others: none, the shipped recipe)
+    # PnpLstmConfig fields changed in the recovering recipe for every method that takes it (the planner, its
+    # DAgger/DART rounds, the matched MLPs), e.g. '{"num_layers": 1}'; None = the preset's (full: one LSTM layer)
     recipe_changes: dict | None = None
     fresh: bool = False  # delete output_dir first
     report_only: bool = False  # write the report from the finished evaluations only (train/evaluate nothing)
