@@ -199,6 +199,8 @@ def test_the_paper_study_trains_the_recipe_with_its_changes(tmp_path, monkeypatc
     lines = markdown._recipe_changes_line(paper, methods.get_methods(["clocked_lstm", "recovering"]))
     assert "`num_layers` = 1" in lines[0] and "recovering LSTM" in lines[0]
     assert markdown._recipe_changes_line(heldout, methods.get_methods(["recovering"])) == []
-    for bad, named in (({"num_layerz": 1}, "num_layerz"), ({"mode": "clocked"}, "mode")):
+    # an unknown or fixed field, or a value the planner refuses, fails when the study is configured
+    refused = (({"num_layerz": 1}, "num_layerz"), ({"mode": "clocked"}, "mode"), ({"hidden_size": -5}, "hidden_size"))
+    for bad, named in refused:
         with pytest.raises(ConfigError, match=named):
             StudyConfig(preset="full", recipe_changes=bad)

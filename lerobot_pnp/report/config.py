@@ -17,7 +17,7 @@ from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.evaluation.stats import wilson_interval
 from lerobot_pnp.evaluation.suites import HELD_OUT_AXES, get_suites
 from lerobot_pnp.presets import PRESETS as TASK_PRESETS
-from lerobot_pnp.report.methods import DATA_EFFICIENCY_METHODS, METHODS, get_methods
+from lerobot_pnp.report.methods import DATA_EFFICIENCY_METHODS, METHODS, RECOVERING, get_methods
 
 
 @dataclass
@@ -317,6 +317,11 @@ class StudyConfig:
             raise ConfigError(f"recipe_changes: unknown pnp_lstm field(s) {unknown}; valid: {sorted(valid - frozen)}")
         if fixed := sorted(set(self.recipe_changes) & frozen):
             raise ConfigError(f"recipe_changes may not set {fixed}: each method and the task decide them")
+        # a value the planner refuses fails now, in one line, not after the demonstrations were generated
+        try:
+            PnpLstmConfig(**{**RECOVERING, **self.recipe_changes})
+        except (ValueError, TypeError) as e:
+            raise ConfigError(f"recipe_changes {self.recipe_changes}: {e}") from None
 
     def _check_task(self) -> None:
         """A method that cannot train on the task's demonstrations fails now, in one line, not after an hour."""
