@@ -154,7 +154,7 @@ def test_what_the_teacher_adds():
 def test_what_dart_adds_and_dart_corrects_itself():
     rates = {("recovering", "drop"): 0, ("recovering_dart", "drop"): 85, ("recovering", "random_yaw"): 100}
     (line,) = _render("what DART adds", {**rates, ("recovering_dart", "random_yaw"): 25})
-    assert line.startswith("- *What the teacher adds (DART, one round)*")
+    assert line.startswith("- *What the teacher adds (DART, 1 round, 300 labelled episodes)*")
     assert "better on `drop` 0.0% [0.0, 3.7] -> 85.0%" in line and "worse on `random_yaw` 100.0%" in line
     lines = _render("planner corrects itself", rates)
     assert "(recovering LSTM + DART): `drop` 85.0%" in lines[-1] and lines[-1].endswith(

@@ -1,6 +1,7 @@
 """The study's memory controls and the recovering planner before / after DAgger, on a tiny study."""
 
 import json
+from dataclasses import replace
 
 import pytest
 
@@ -25,13 +26,14 @@ def study(tmp_path_factory):
         train_seeds=[1000],
         suites=[SuiteSpec("nominal", 2), SuiteSpec("grasp_miss", 2)],
     )
-    patch = pytest.MonkeyPatch()
-    patch.setattr(methods, "DAGGER_ROLLOUTS", 3)
+    patch = pytest.MonkeyPatch()  # kept for the module's tests: a re-run must find the same schedule
+    for name in ("recovering_dagger", "recovering_dart"):  # 3 rollouts, not the study's 300
+        m = methods.METHODS[name]
+        patch.setitem(methods.METHODS, name, replace(m, schedule={**m.schedule, "rollouts_per_round": 3}))
     try:
-        summary = run_study(StudyConfig(**cfg))
+        yield out, cfg, run_study(StudyConfig(**cfg))
     finally:
         patch.undo()
-    return out, cfg, summary
 
 
 def test_phase_told_control_trains_on_the_same_demonstrations_with_the_phase_observed(study):
@@ -53,8 +55,17 @@ def test_dagger_continues_the_recovering_run_of_the_same_seed(study):
     assert (round0 / "model.safetensors").is_file()  # trained once, as the method `recovering` of the report
     dagger = out / "train/recovering_dagger/seed1000"
     assert not (dagger / "round_00" / "train").exists()  # round 0 was not trained again
+    # Ross et al.'s mixture: the expert executes every step of round 1, half of round 2's
+    betas = [json.loads((dagger / f"round_0{r}" / "rollouts.json").read_text())["beta"] for r in (1, 2)]
+    assert betas == [1.0, 0.5] and methods.DAGGER_ROUNDS == 2
     assert json.loads((dagger / "round_01" / "rollouts.json").read_text())["episodes"] == 3
-    recorded = read_recorded(dagger / "round_01" / "rollouts")
+    # each round continues the previous round's weights (warm start): each round's training is keyed by the checkpoint it starts from
+    warm = [json.loads((dagger / f"round_0{r}" / "train" / "done.json").read_text())["parts"] for r in (1, 2)]
+    assert warm[0]["epochs"] == warm[1]["epochs"] == methods.DAGGER_WARM_START_EPOCHS and all("init" in w for w in warm)
+    # the schedule is part of the method's training key: another mixture would train again
+    stage = json.loads((dagger / "stage.json").read_text())
+    assert stage["parts"]["schedule"]["beta"] == 1.0 and stage["parts"]["schedule"]["rollouts_per_round"] == 3
+    recorded = read_recorded(dagger / "round_02" / "rollouts")
     assert recorded["keyframe_budget"] == 20  # room to recover in the rollouts
     for suite in ("nominal", "grasp_miss"):
         assert len(json.loads((out / f"evals/recovering_dagger/seed1000/{suite}.json").read_text())["episodes"]) == 2

@@ -121,6 +121,24 @@ def test_heldout_cadence_changes_the_curve_not_the_weights(dataset_root, tmp_pat
     assert heldout_every_epochs(1120, 1120) == 1
 
 
+def test_init_from_continues_the_weights_and_their_normalisation(trained, dataset_root, tmp_path):
+    """A warm start (``init_from``, DAgger's ``warm_start_epochs``) begins where the checkpoint ended: its
+    first loss is the checkpoint's final one on the same data (its weights and its statistics, not the
+    dataset's), a fresh run begins far above it; a checkpoint of another architecture is one ConfigError."""
+    result, out = trained
+    ckpt = out / "checkpoints" / "last" / "pretrained_model"
+    kw = dict(policy=PnpLstmConfig(device="cpu", hidden_size=32), epochs=2, batch_size=8, seed=5)
+    warm = train_fast(_cfg(dataset_root, tmp_path / "warm", init_from=str(ckpt), **kw))
+    cold = train_fast(_cfg(dataset_root, tmp_path / "cold", **kw))
+    assert warm.history[0]["train_mse"] == pytest.approx(result.final_train_mse, rel=1e-5)
+    assert cold.history[0]["train_mse"] > 10 * warm.history[0]["train_mse"]
+    with pytest.raises(ConfigError, match="init_from .* do not fit"):
+        small = dict(kw, policy=PnpLstmConfig(device="cpu", hidden_size=16))
+        train_fast(_cfg(dataset_root, tmp_path / "other", init_from=str(ckpt), **small))
+    with pytest.raises(ConfigError, match="not a policy checkpoint"):
+        _cfg(dataset_root, tmp_path / "none", init_from=str(tmp_path), **kw)
+
+
 def test_progress_into_a_log_is_a_few_lines(dataset_root, tmp_path, capsys):
     """Into a pipe or a log (no terminal) the epoch bar is redrawn every 15 s at most (progress.py), not once per
     epoch: a short run writes its first and last state only. On a terminal it is redrawn twice a second."""

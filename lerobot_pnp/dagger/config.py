@@ -124,6 +124,9 @@ class DaggerConfig:
         eval_seed: Evaluation episode ``i`` uses seed ``eval_seed + i``, the same every round.
         policy: The ``pnp_lstm`` config trained each round (``--policy.mode=recovering`` by default).
         epochs: Training epochs of each round (the fast path, ``lerobot-pnp train``).
+        warm_start_epochs: ``0``: each round after round 0 retrains from scratch on the aggregate. ``> 0``:
+            each such round continues the previous round's weights and normalisation statistics for this many
+            epochs instead (cheaper; not neutral: docs/results/dagger_curve.md).
         batch_size: Episodes per training batch.
         seed: The seed of the demonstrations, rollouts and training (the run is deterministic given it).
         progress: Show progress bars (demonstrations, rollouts, training, evaluation).
@@ -148,6 +151,7 @@ class DaggerConfig:
     eval_seed: int = 10_000_000
     policy: PnpLstmConfig = field(default_factory=_recovering_policy)
     epochs: int = 100
+    warm_start_epochs: int = 0
     batch_size: int = RECOVERING_BATCH_SIZE
     seed: int = 0
     progress: bool = True
@@ -173,6 +177,10 @@ class DaggerConfig:
             ),
             (self.eval_episodes >= 0, f"eval_episodes must be >= 0, got {self.eval_episodes}"),
             (self.epochs >= 1 and self.batch_size >= 1, "epochs and batch_size must be >= 1"),
+            (
+                isinstance(self.warm_start_epochs, int) and self.warm_start_epochs >= 0,
+                f"warm_start_epochs must be an integer >= 0 (0: retrain from scratch), got {self.warm_start_epochs!r}",
+            ),
             (bool(self.rollout_suites), "rollout_suites must not be empty"),
             (
                 self.round0_checkpoint is None or Path(self.round0_checkpoint, "config.json").is_file(),

@@ -1,9 +1,10 @@
 """The DAgger rounds: demonstrations -> train -> (roll out, label, aggregate, retrain) x N, evaluated each round.
 
-Retraining is **from scratch** on the aggregate each round: the normalisation statistics change with the
-data (DAgger adds the policy's off-distribution states), a fresh policy is a function of its dataset and seed
-only (deterministic, reproducible on its own), and the recovering planner trains in about a minute, so a warm
-start would save little.
+By default each round retrains **from scratch** on the aggregate: its normalisation statistics are the
+aggregate's (DAgger adds the policy's off-distribution states), and a fresh policy is a function of its dataset
+and seed only. With ``warm_start_epochs`` a round instead continues the previous round's weights, with their
+normalisation statistics, for that many epochs: a fraction of the cost, so that several rounds fit the budget
+of one (the study's DAgger and DART rounds; docs/results/dagger_curve.md compares the two).
 
 Layout of ``output_dir``::
 
@@ -175,16 +176,21 @@ def _aggregate(inputs: list[tuple[Path, str, str]], data_root: Path, repo_id: st
     return stage.key
 
 
-def _train(cfg: DaggerConfig, data: tuple[Path, str, str], test: str, out_dir: Path) -> tuple[Path, str]:
-    """Train on ``data`` (root, repo_id, key); the checkpoint (its path and key). ``done.json`` records the
-    checkpoint relative to the training folder, so a moved output folder reads its own checkpoint."""
+def _train(
+    cfg: DaggerConfig, data: tuple[Path, str, str], test: str, out_dir: Path, init: tuple[Path, str] | None = None
+) -> tuple[Path, str]:
+    """Train on ``data`` (root, repo_id, key), from scratch or, with ``init`` (a checkpoint and its key), continuing
+    it for ``cfg.warm_start_epochs``; the checkpoint (its path and key). ``done.json`` records the checkpoint
+    relative to the training folder, so a moved output folder reads its own checkpoint."""
     import draccus
 
     from lerobot_pnp.train_fast import TrainFastConfig, train_fast
 
     root, repo_id, data_key = data
+    epochs = cfg.epochs if init is None else cfg.warm_start_epochs
+    warm = {} if init is None else {"init": init[1]}  # a from-scratch key stays what it was before warm starts
     stage = _stage(out_dir / "done.json", "train", data=data_key, test=test, policy=draccus.encode(cfg.policy),
-                   epochs=cfg.epochs, batch_size=cfg.batch_size, seed=cfg.seed)  # fmt: skip
+                   epochs=epochs, batch_size=cfg.batch_size, seed=cfg.seed, **warm)  # fmt: skip
     if stage.done(f"dagger {out_dir.parent.name} training"):
         return out_dir / stage.stored()["checkpoint"], stage.key
     stage.invalidate()  # a training killed midway leaves no record that a later run could match
@@ -193,7 +199,8 @@ def _train(cfg: DaggerConfig, data: tuple[Path, str, str], test: str, out_dir: P
             dataset_repo_id=repo_id,
             dataset_root=str(root),
             policy=copy.deepcopy(cfg.policy),
-            epochs=cfg.epochs,
+            epochs=epochs,
+            init_from=None if init is None else str(init[0]),
             batch_size=cfg.batch_size,
             seed=cfg.seed,
             output_dir=str(out_dir),
@@ -288,7 +295,8 @@ def _run_rounds(cfg: DaggerConfig, out: Path) -> dict:
         if rnd == 0 and cfg.round0_checkpoint:
             ckpt = (Path(cfg.round0_checkpoint), checkpoint_key(Path(cfg.round0_checkpoint)))
         else:
-            ckpt = _train(cfg, data, test, rdir / "train")
+            warm = rnd > 0 and cfg.warm_start_epochs > 0
+            ckpt = _train(cfg, data, test, rdir / "train", ckpt if warm else None)
         timings[f"round{rnd}_train_s"] = time.perf_counter() - t
         if cfg.eval_episodes > 0:
             rows.append((f"round {rnd}", evaluate_checkpoint(cfg, ckpt[0], env_cfg, rdir / "eval.json", ckpt[1])))

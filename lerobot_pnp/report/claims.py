@@ -188,9 +188,16 @@ def _corrects_itself(table, comparisons) -> list[str]:
     return out
 
 
+def _rounds(method: str) -> str:
+    """How many rounds ``method`` runs and on how many labelled episodes (its study schedule)."""
+    sched = METHODS[method].schedule
+    n = sched.get("rounds", 1)
+    return f"{n} round{'s' if n > 1 else ''}, {n * sched.get('rollouts_per_round', 0)} labelled episodes"
+
+
 def _round_adds(method: str, what: str) -> Callable[[dict, dict], list[str]]:
-    """The suites where one round of extra expert-labelled data (``method``, on top of ``recovering`` of the same
-    seed) moves the rate beyond both intervals, up or down."""
+    """The suites where the extra expert-labelled data of ``method``'s rounds (on top of ``recovering`` of the same
+    seed, at the same label budget for DAgger and DART) moves the rate beyond both intervals, up or down."""
 
     def render(table, comparisons) -> list[str]:
         before_after = [
@@ -203,7 +210,7 @@ def _round_adds(method: str, what: str) -> Callable[[dict, dict], list[str]]:
         ]
         worse = [f"`{s}` {_pct(a)} -> {_pct(b)}" for s, a, b in before_after if b.rate.interval[1] < a.rate.interval[0]]
         return [
-            f"- *What the teacher adds ({what}, one round)*: beyond the intervals better on "
+            f"- *What the teacher adds ({what}, {_rounds(method)})*: beyond the intervals better on "
             + ("; ".join(better) or "no suite")
             + ", worse on "
             + ("; ".join(worse) or "no suite")

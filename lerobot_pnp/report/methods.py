@@ -33,6 +33,7 @@ demonstrations (the paper's task), so a study on the ``full`` task refuses them 
 
 from __future__ import annotations
 
+import copy
 import json
 import shutil
 from collections.abc import Callable
@@ -41,6 +42,7 @@ from pathlib import Path
 
 from lerobot_pnp.cache import STAGE_FILE, Stage, code_versions, remove
 from lerobot_pnp.dagger import RECOVERING_BATCH_SIZE, RECOVERING_RECIPE
+from lerobot_pnp.dagger.config import DEFAULT_ROLLOUT_SUITES
 from lerobot_pnp.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.evaluation.checkpoints import load_policy
@@ -92,6 +94,9 @@ class Method:
     # episodes per training batch when the method's recipe sets one (the recovering planners: the recipe's);
     # None = the study's default (adapters.BATCH_SIZE), which is then not part of the training key
     batch_size: int | None = None
+    # the settings of its training procedure outside the policy config (the DAgger round's mixture, noise and
+    # rollouts: ``dagger.DaggerConfig`` fields), part of its training key; empty = none
+    schedule: dict = field(default_factory=dict)
 
     def env_config(self, env_cfg: BaxterPnPEnvConfig, ctx: TrainContext) -> BaxterPnPEnvConfig:
         return env_cfg if self.adapt_env is None else self.adapt_env(env_cfg, ctx)
@@ -184,23 +189,63 @@ PHASE_TOLD_MLP = {**RECOVERING, "recurrent": False, "latency_augment_prob": 0.0}
 DAGGER_ROLLOUTS = 300  # policy episodes of the one DAgger round, cycled over the rollout suites
 # the recipe's trunk as the method descriptions name it, read from the recipe so that a report cannot name another
 RECOVERING_TRUNK = f"{RECOVERING['num_layers']} x {RECOVERING['hidden_size']} LSTM"
-
-
+# DAgger's rounds in the study (Ross et al.'s mixture): round r's rollouts execute the expert's label at each step
+# with probability DAGGER_BETA * 0.5 ** (r - 1), the policy's action otherwise, and every visited state is labelled.
+# Pure on-policy rounds (beta 0) label only the first keyframe of each recovery (docs/results/dagger_curve.md).
+DAGGER_ROUNDS = 2
+DAGGER_BETA = 1.0
 # rad of noise on each joint target the expert executes (docs/results/dart.md: about twice the grasp clearance)
 DART_SIGMA = 0.02
+# epochs of a DAgger round's training when it continues the previous round's weights (0: retrained from scratch).
+# DART retrains from scratch: warm-started it lost the drop recovery (docs/results/dagger_curve.md, warm start)
+DAGGER_WARM_START_EPOCHS = 100
+
+# The one DAgger round of the study (``dagger.DaggerConfig`` fields): part of the training key of the methods that
+# run it (``Method.schedule``), so a changed mixture, noise or rollout budget trains again.
+# The same label budget for both: DAGGER_ROLLOUTS expert-labelled episodes, split evenly over DAgger's rounds.
+_ROUND = {"env_changes": {"keyframe_budget": RECOVERY_BUDGET}}
+DAGGER_SCHEDULE = {
+    **_ROUND,
+    "rounds": DAGGER_ROUNDS,
+    "rollouts_per_round": DAGGER_ROLLOUTS // DAGGER_ROUNDS,
+    "beta": DAGGER_BETA,
+    "beta_decay": 0.5,
+    "rollout_suites": list(DEFAULT_ROLLOUT_SUITES),
+    "warm_start_epochs": DAGGER_WARM_START_EPOCHS,
+}
+DART_SCHEDULE = {
+    **_ROUND,
+    "rounds": 1,
+    "rollouts_per_round": DAGGER_ROLLOUTS,
+    "beta": 1.0,
+    "dart": {"sigma": DART_SIGMA},
+    "rollout_suites": ["nominal"],
+    "warm_start_epochs": 0,
+}
+# What each ran before its schedule was part of the training key (a record made then is valid for this value):
+# DAgger one pure on-policy round, DART as now.
+SCHEDULE_BEFORE_KEYED = {
+    "recovering_dagger": {**_ROUND, "rounds": 1, "rollouts_per_round": DAGGER_ROLLOUTS, "beta": 0.0,
+                          "beta_decay": 0.5, "rollout_suites": list(DEFAULT_ROLLOUT_SUITES), "warm_start_epochs": 0},
+    "recovering_dart": DART_SCHEDULE,
+}  # fmt: skip
 
 
-def _dagger_train(ctx: TrainContext, name: str = "recovering_dagger", **schedule) -> Path:
+def _dagger_train(ctx: TrainContext, name: str) -> Path:
     """One round of ``lerobot_pnp.dagger`` on top of the ``recovering`` run of the same seed (trained first if
-    missing): DAgger's pure on-policy round (the defaults), or DART's noisy expert demonstrations (``schedule``:
-    ``beta``, ``dart``, ``rollout_suites``)."""
+    missing), as the method's ``schedule`` sets it: DAgger's mixture under the recovery suites, or DART's noisy
+    expert demonstrations of the undisturbed task."""
     from lerobot_pnp.dagger import DaggerConfig, run_dagger
+    from lerobot_pnp.dagger.dart import DartNoise
     from lerobot_pnp.policy import PnpLstmConfig
 
     if ctx.n_demos is not None:
         raise ConfigError(f"method {name!r} has no data-efficiency variant")
-    base = METHODS[name].continues
-    round0, _ = keyed_train(METHODS[base], _continued(ctx, base))
+    method = METHODS[name]
+    schedule = copy.deepcopy(method.schedule)
+    if "dart" in schedule:
+        schedule["dart"] = DartNoise(**schedule["dart"])
+    round0, _ = keyed_train(METHODS[method.continues], _continued(ctx, method.continues))
     summary = run_dagger(
         DaggerConfig(
             **schedule,
@@ -208,10 +253,6 @@ def _dagger_train(ctx: TrainContext, name: str = "recovering_dagger", **schedule
             base_root=str(ctx.dataset_root),
             base_repo_id=f"local/{ctx.dataset_root.name}",
             round0_checkpoint=str(round0),
-            # room to recover in the rollouts (the study's recovery suites have the same budget)
-            env_changes={"keyframe_budget": RECOVERY_BUDGET},
-            rounds=1,
-            rollouts_per_round=DAGGER_ROLLOUTS,
             eval_episodes=0,  # the study evaluates it like every other method
             policy=PnpLstmConfig(**policy_settings(RECOVERING, ctx)),
             epochs=ctx.epochs,
@@ -223,13 +264,32 @@ def _dagger_train(ctx: TrainContext, name: str = "recovering_dagger", **schedule
     return Path(summary["final_checkpoint"])
 
 
+def _retraining(schedule: dict) -> str:
+    """How a round's policy is trained, for the method descriptions."""
+    if epochs := schedule["warm_start_epochs"]:
+        return f"the previous round's planner trained on for {epochs} epochs (warm start)"
+    return "retrained from scratch"
+
+
+def _betas() -> str:
+    s = DAGGER_SCHEDULE
+    return ", ".join(f"{s['beta'] * s['beta_decay'] ** r:g}" for r in range(s["rounds"]))
+
+
+def _round_names() -> str:
+    return ", ".join(str(r + 1) for r in range(DAGGER_SCHEDULE["rounds"]))
+
+
+def _dagger_mixture_train(ctx: TrainContext) -> Path:
+    """DAgger's rounds with Ross et al.'s mixture policy (``DAGGER_SCHEDULE``) under the recovery suites."""
+    return _dagger_train(ctx, "recovering_dagger")
+
+
 def _dart_train(ctx: TrainContext) -> Path:
     """DART (Laskey et al., 2017) at DAgger's budget: one round of ``DAGGER_ROLLOUTS`` expert demonstrations of
     the undisturbed task with Gaussian noise on the joint targets the expert executes, each frame labelled with
     its clean command; no disturbance is ever in the data."""
-    from lerobot_pnp.dagger.dart import DartNoise
-
-    return _dagger_train(ctx, "recovering_dart", beta=1.0, dart=DartNoise(sigma=DART_SIGMA), rollout_suites=["nominal"])
+    return _dagger_train(ctx, "recovering_dart")
 
 
 def _observe_phase(env_cfg: BaxterPnPEnvConfig, ctx: TrainContext) -> BaxterPnPEnvConfig:
@@ -324,15 +384,19 @@ METHODS: dict[str, Method] = {
         Method(
             "recovering_dagger",
             "recovering LSTM + DAgger",
-            f"`recovering` of the same seed + one DAgger round: {DAGGER_ROLLOUTS} rollouts of it under nominal, "
-            "missed-grasp, drop, nudge and displacement conditions labelled by the expert, aggregated with the "
-            "demonstrations, retrained from scratch (extra interactive data: what the teacher adds)",
+            f"`recovering` of the same seed + {DAGGER_ROUNDS} DAgger rounds of "
+            f"{DAGGER_SCHEDULE['rollouts_per_round']} rollouts under nominal, missed-grasp, drop, nudge and "
+            "displacement conditions (Ross et al.'s mixture: each step executes the expert's label with "
+            f"probability {_betas()} in rounds {_round_names()}, the policy's own action otherwise), every visited state "
+            f"labelled by the expert, aggregated with the demonstrations and earlier rounds, each round "
+            f"{_retraining(DAGGER_SCHEDULE)} (extra interactive data: what the teacher adds)",
             True,
-            _dagger_train,
+            _dagger_mixture_train,
             _checkpoint_eval,
             RECOVERING,
             continues="recovering",
             batch_size=RECOVERING_BATCH_SIZE,
+            schedule=DAGGER_SCHEDULE,
             tasks=("paper",),
             tasks_why="the study's DAgger round is set up for the paper task (its rollouts run at a "
             f"{RECOVERY_BUDGET}-keyframe budget, below the full task's); DAgger on full: `lerobot-pnp dagger`",
@@ -342,14 +406,15 @@ METHODS: dict[str, Method] = {
             "recovering LSTM + DART",
             f"`recovering` of the same seed + one DART round at DAgger's budget: {DAGGER_ROLLOUTS} expert "
             f"demonstrations of the undisturbed task with {DART_SIGMA} rad of Gaussian noise on each joint target "
-            "it executes, labelled with its clean commands, aggregated with the demonstrations, retrained from "
-            "scratch (no disturbance in its data)",
+            f"it executes, labelled with its clean commands, aggregated with the demonstrations, {_retraining(DART_SCHEDULE)} "
+            "(no disturbance in its data)",
             True,
             _dart_train,
             _checkpoint_eval,
             RECOVERING,
             continues="recovering",
             batch_size=RECOVERING_BATCH_SIZE,
+            schedule=DART_SCHEDULE,
             tasks=("paper",),
             tasks_why="the study's DART round is set up for the paper task, as its DAgger round; DART on full: "
             "`lerobot-pnp dagger --config_path configs/dart_full.json`",
@@ -392,8 +457,10 @@ def train_stage(method: Method, ctx: TrainContext) -> Stage:
         else None,
         "versions": code_versions(),
         **({"batch_size": method.batch_size} if method.batch_size is not None else {}),
+        **({"schedule": method.schedule} if method.schedule else {}),
     }
-    return Stage(ctx.train_dir / STAGE_FILE, parts)
+    before = SCHEDULE_BEFORE_KEYED.get(method.name)
+    return Stage(ctx.train_dir / STAGE_FILE, parts, added={"schedule": before} if before else None)
 
 
 def keyed_train(method: Method, ctx: TrainContext) -> tuple[Path | None, bool]:

@@ -55,6 +55,9 @@ class TrainFastConfig:
     """Held-out MSE every N epochs (the loss curve's resolution)."""
     save_every_epochs: int = 0
     """Extra checkpoints every N epochs; 0: only the final one."""
+    init_from: str | None = None
+    """A ``pretrained_model`` folder of the same architecture to continue from: its weights and normalisation
+    statistics (so the weights keep their meaning), a fresh optimiser schedule. ``None``: train from scratch."""
     num_threads: int | None = 1
     """``torch.set_num_threads``; this model is far faster on 1 thread."""
     progress: bool = True
@@ -99,6 +102,8 @@ class TrainFastConfig:
                 f"episode has {robot.N_KEYFRAMES} frames",
             ),
         ]
+        if self.init_from is not None and not Path(self.init_from, "config.json").is_file():
+            checks.append((False, f"init_from {self.init_from} is not a policy checkpoint (no config.json)"))
         for ok, message in checks:
             if not ok:
                 raise ConfigError(message)
