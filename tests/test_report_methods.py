@@ -61,7 +61,9 @@ def test_dagger_continues_the_recovering_run_of_the_same_seed(study):
     assert json.loads((dagger / "round_01" / "rollouts.json").read_text())["episodes"] == 3
     # each round continues the previous round's weights (warm start): each round's training is keyed by the checkpoint it starts from
     warm = [json.loads((dagger / f"round_0{r}" / "train" / "done.json").read_text())["parts"] for r in (1, 2)]
-    assert warm[0]["epochs"] == warm[1]["epochs"] == methods.DAGGER_WARM_START_EPOCHS and all("init" in w for w in warm)
+    assert all("init" in w for w in warm)
+    # at most the study's epochs (2 here; 100 of 300 in the paper study): never dearer than a retraining
+    assert warm[0]["epochs"] == warm[1]["epochs"] == min(methods.DAGGER_WARM_START_EPOCHS, 2) == 2
     # the schedule is part of the method's training key: another mixture would train again
     stage = json.loads((dagger / "stage.json").read_text())
     assert stage["parts"]["schedule"]["beta"] == 1.0 and stage["parts"]["schedule"]["rollouts_per_round"] == 3

@@ -245,6 +245,8 @@ def _dagger_train(ctx: TrainContext, name: str) -> Path:
     schedule = copy.deepcopy(method.schedule)
     if "dart" in schedule:
         schedule["dart"] = DartNoise(**schedule["dart"])
+    # a study with fewer epochs (--epochs) warm-starts for at most as many: never dearer than a retraining
+    schedule["warm_start_epochs"] = min(schedule["warm_start_epochs"], ctx.epochs)
     round0, _ = keyed_train(METHODS[method.continues], _continued(ctx, method.continues))
     summary = run_dagger(
         DaggerConfig(
@@ -267,7 +269,7 @@ def _dagger_train(ctx: TrainContext, name: str) -> Path:
 def _retraining(schedule: dict) -> str:
     """How a round's policy is trained, for the method descriptions."""
     if epochs := schedule["warm_start_epochs"]:
-        return f"the previous round's planner trained on for {epochs} epochs (warm start)"
+        return f"the previous round's planner trained on for {epochs} epochs (warm start; at most the study's epochs)"
     return "retrained from scratch"
 
 
