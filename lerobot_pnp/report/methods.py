@@ -231,7 +231,7 @@ SCHEDULE_BEFORE_KEYED = {
 }  # fmt: skip
 
 
-def _dagger_train(ctx: TrainContext, name: str) -> Path:
+def _dagger_train(ctx: TrainContext, name: str = "recovering_dagger") -> Path:
     """One round of ``lerobot_pnp.dagger`` on top of the ``recovering`` run of the same seed (trained first if
     missing), as the method's ``schedule`` sets it: DAgger's mixture under the recovery suites, or DART's noisy
     expert demonstrations of the undisturbed task."""
