@@ -79,6 +79,11 @@ def _recovering_policy() -> PnpLstmConfig:
     return PnpLstmConfig(**RECOVERING_RECIPE)
 
 
+def mixture_beta(beta: float, beta_decay: float, rnd: int) -> float:
+    """Round ``rnd >= 1``'s mixture weight: ``beta * beta_decay ** (rnd - 1)`` (``beta_i = p^(i-1)`` in Ross et al.)."""
+    return beta * beta_decay ** (rnd - 1)
+
+
 @dataclass
 class DaggerConfig:
     """DAgger with the scripted expert as teacher.
@@ -158,7 +163,7 @@ class DaggerConfig:
 
     def beta_of(self, rnd: int) -> float:
         """The mixture weight of round ``rnd >= 1``'s rollouts."""
-        return self.beta * self.beta_decay ** (rnd - 1)
+        return mixture_beta(self.beta, self.beta_decay, rnd)
 
     def __post_init__(self) -> None:
         checks = [

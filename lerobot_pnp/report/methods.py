@@ -42,7 +42,7 @@ from pathlib import Path
 
 from lerobot_pnp.cache import STAGE_FILE, Stage, code_versions, remove
 from lerobot_pnp.dagger import RECOVERING_BATCH_SIZE, RECOVERING_RECIPE
-from lerobot_pnp.dagger.config import DEFAULT_ROLLOUT_SUITES
+from lerobot_pnp.dagger.config import DEFAULT_ROLLOUT_SUITES, mixture_beta
 from lerobot_pnp.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.evaluation.checkpoints import load_policy
@@ -200,8 +200,8 @@ DART_SIGMA = 0.02
 # DART retrains from scratch: warm-started it lost the drop recovery (docs/results/dagger_curve.md, warm start)
 DAGGER_WARM_START_EPOCHS = 100
 
-# The one DAgger round of the study (``dagger.DaggerConfig`` fields): part of the training key of the methods that
-# run it (``Method.schedule``), so a changed mixture, noise or rollout budget trains again.
+# The study's DAgger and DART rounds (``dagger.DaggerConfig`` fields): part of the training key of the methods
+# that run them (``Method.schedule``), so a changed mixture, noise or rollout budget trains again.
 # The same label budget for both: DAGGER_ROLLOUTS expert-labelled episodes, split evenly over DAgger's rounds.
 _ROUND = {"env_changes": {"keyframe_budget": RECOVERY_BUDGET}}
 DAGGER_SCHEDULE = {
@@ -275,16 +275,11 @@ def _retraining(schedule: dict) -> str:
 
 def _betas() -> str:
     s = DAGGER_SCHEDULE
-    return ", ".join(f"{s['beta'] * s['beta_decay'] ** r:g}" for r in range(s["rounds"]))
+    return ", ".join(f"{mixture_beta(s['beta'], s['beta_decay'], r):g}" for r in range(1, s["rounds"] + 1))
 
 
 def _round_names() -> str:
     return ", ".join(str(r + 1) for r in range(DAGGER_SCHEDULE["rounds"]))
-
-
-def _dagger_mixture_train(ctx: TrainContext) -> Path:
-    """DAgger's rounds with Ross et al.'s mixture policy (``DAGGER_SCHEDULE``) under the recovery suites."""
-    return _dagger_train(ctx, "recovering_dagger")
 
 
 def _dart_train(ctx: TrainContext) -> Path:
@@ -393,7 +388,7 @@ METHODS: dict[str, Method] = {
             f"labelled by the expert, aggregated with the demonstrations and earlier rounds, each round "
             f"{_retraining(DAGGER_SCHEDULE)} (extra interactive data: what the teacher adds)",
             True,
-            _dagger_mixture_train,
+            _dagger_train,
             _checkpoint_eval,
             RECOVERING,
             continues="recovering",

@@ -209,9 +209,10 @@ def _final_report(
     return TrainFastResult(ckpt_dir, step, final_train, final_test, err, history)
 
 
-def _continue_from(policy: PnpLstmPolicy, ckpt: Path) -> dict:
-    """Load ``ckpt``'s weights into ``policy`` and return the normalisation statistics they were trained with
-    (``TrainFastConfig.init_from``); a checkpoint of another architecture is one ConfigError."""
+def _continue_from(policy: PnpLstmPolicy, ckpt: Path) -> tuple:
+    """Load ``ckpt``'s weights into ``policy`` and return its pre- and post-processors, which hold the
+    normalisation statistics those weights were trained with (``TrainFastConfig.init_from``); a checkpoint of
+    another architecture is one ConfigError."""
     from lerobot_pnp.evaluation.checkpoints import load_policy
 
     loaded = load_policy(ckpt)
@@ -220,13 +221,7 @@ def _continue_from(policy: PnpLstmPolicy, ckpt: Path) -> dict:
     except RuntimeError as err:
         first = str(err).strip().splitlines()[-1].strip()
         raise ConfigError(f"init_from {ckpt}: its weights do not fit this policy config ({first})") from None
-    stats: dict = {}
-    for step in getattr(loaded.preprocessor, "steps", []):
-        for feature, values in (getattr(step, "stats", None) or {}).items():
-            stats[feature] = {k: np.asarray(v.cpu() if hasattr(v, "cpu") else v) for k, v in values.items()}
-    if not stats:
-        raise ConfigError(f"init_from {ckpt}: its pre-processor holds no normalisation statistics")
-    return stats
+    return loaded.preprocessor, loaded.postprocessor
 
 
 def train_fast(cfg: TrainFastConfig) -> TrainFastResult:
@@ -253,8 +248,10 @@ def train_fast(cfg: TrainFastConfig) -> TrainFastResult:
     policy_cfg.input_features = {}  # derived from the dataset, as in lerobot-train
     policy_cfg.output_features = {}
     policy: PnpLstmPolicy = make_policy(policy_cfg, ds_meta=ds.meta)  # type: ignore[assignment]
-    stats = ds.meta.stats if cfg.init_from is None else _continue_from(policy, Path(cfg.init_from))
-    preprocessor, postprocessor = make_pre_post_processors(policy_cfg, dataset_stats=stats)
+    if cfg.init_from is None:
+        preprocessor, postprocessor = make_pre_post_processors(policy_cfg, dataset_stats=ds.meta.stats)
+    else:
+        preprocessor, postprocessor = _continue_from(policy, Path(cfg.init_from))
     device = next(policy.parameters()).device
 
     train_all = _normalised(preprocessor, data, data.train_idx, device)
