@@ -106,7 +106,6 @@ class Disturbances:
         """Fire the first due event (at most one per call); returns its kind."""
         c = self.config
         obj, _ = physics.object_pose()
-        ee, rot = physics.ee_pose()
         held = physics.object_in_grasp()
         lift = obj[2] - physics.object_rest_z()
         if held and self._pick_xy is None:
@@ -117,6 +116,7 @@ class Disturbances:
         if at_step_end and self.pending["displace"]:  # the last moment before the episode ends on success
             due["displace"] = self.pending["displace"][0]
         if "grasp_miss" in due:
+            ee, rot = physics.ee_pose()  # only where an event may fire: this check runs after every control tick
             if due["grasp_miss"] == 0:
                 near = np.linalg.norm(ee[:2] - obj[:2]) < 0.02
                 hit = (
@@ -135,6 +135,7 @@ class Disturbances:
             else:
                 hit = lift >= _LIFTED and self._transported(task, obj) >= due["drop"]
             if hit:
+                rot = physics.ee_pose()[1]
                 kind = self._fire(task, physics, rng, "drop", rot[:, 0], c.drop_range, c.drop_spread, at_step_end)
                 if at_step_end:
                     physics.wait(0.8)  # it falls and comes to rest on the table

@@ -27,6 +27,12 @@ _FINGER_BODIES = ("l_finger", "r_finger", "l_finger_tip", "r_finger_tip")
 _PAD_HALF_THICKNESS = 0.0035  # m, from the gripper site down to the pads' bottom face
 
 
+def _as_slice(index: np.ndarray) -> slice | np.ndarray:
+    """``index`` as a slice when it is a run of consecutive addresses, else itself."""
+    start = int(index[0])
+    return slice(start, start + len(index)) if np.array_equal(index, np.arange(start, start + len(index))) else index
+
+
 class BaxterPhysics:
     """The simulated scene. ``straight_paths`` makes keyframe moves follow straight Cartesian segments."""
 
@@ -40,6 +46,10 @@ class BaxterPhysics:
         self._dofadr = np.array([m.joint(n).dofadr[0] for n in robot.JOINT_NAMES])
         self._finger_qadr = np.array([m.joint(n).qposadr[0] for n in _FINGER_JOINTS])
         self._finger_dofadr = np.array([m.joint(n).dofadr[0] for n in _FINGER_JOINTS])
+        # The same addresses as views where they are contiguous (they are, in this scene): the settle checks
+        # read them after every control tick, and a slice is cheaper than a gather.
+        self._arm_dofs, self._finger_dofs = _as_slice(self._dofadr), _as_slice(self._finger_dofadr)
+        self._arm_qpos = _as_slice(self._qadr)
         self._arm_act = np.array([m.actuator(n).id for n in robot.JOINT_NAMES])
         self._grip_act = m.actuator("gripper").id
         object_joint = m.joint(robot.CUBE_JOINT)
@@ -47,8 +57,8 @@ class BaxterPhysics:
         self._object_body = m.body(robot.CUBE_BODY).id
         self._object_geom = m.geom("cube").id
         self._pad_geoms = {m.geom("l_pad").id, m.geom("r_pad").id}
-        self._is_finger_body = np.zeros(m.nbody, dtype=bool)
-        self._is_finger_body[[m.body(n).id for n in _FINGER_BODIES]] = True
+        finger_bodies = {m.body(n).id for n in _FINGER_BODIES}
+        self._is_finger_geom = [int(body) in finger_bodies for body in m.geom_bodyid]
         self._ee_site = m.site(robot.EE_SITE).id
         self._target_site = m.site(robot.TARGET_SITE).id
         self._substeps_keyframe = round(CONTROL_DT / m.opt.timestep)
@@ -61,6 +71,15 @@ class BaxterPhysics:
         self.disturb = None
         # Keyframe moves with the object in the grasp last at least this long (s); 0 = the velocity limits alone.
         self.carry_min_time = 0.0
+        self._object_half_size = float(m.geom_size[self._object_geom][0])
+        self._fresh_state()
+
+    def _fresh_state(self) -> None:
+        """Forget the queries cached for the current state. Every method that steps MuJoCo or changes ``data``
+        calls it: the task asks for the object's pose and contacts many times per control tick (its
+        disturbance triggers, success and phase), and they only change when the state does."""
+        self._grasp: tuple[bool, bool] | None = None  # (object in grasp, gripper touches object)
+        self._object: tuple[np.ndarray, float] | None = None
 
     # ------------------------------------------------------------------ named queries
     @property
@@ -76,18 +95,24 @@ class BaxterPhysics:
 
     def gripper_opening(self) -> float:
         """Measured opening, 0 (closed) .. 1 (fully open)."""
-        opening = 0.5 * (self.data.qpos[self._finger_qadr[0]] - self.data.qpos[self._finger_qadr[1]])
-        return float(np.clip(opening / robot.FINGER_TRAVEL, 0.0, 1.0))
+        qpos = self.data.qpos
+        opening = 0.5 * (qpos[self._finger_qadr[0]] - qpos[self._finger_qadr[1]]) / robot.FINGER_TRAVEL
+        return float(min(max(opening, 0.0), 1.0))
 
     def state_vector(self) -> np.ndarray:
         """Noise-free agent state: joints + gripper opening (float32, the ``agent_pos`` layout)."""
-        return np.append(self.arm_qpos(), self.gripper_opening()).astype(np.float32)
+        state = np.empty(robot.N_JOINTS + 1, dtype=np.float32)
+        state[: robot.N_JOINTS] = self.data.qpos[self._arm_qpos]
+        state[robot.N_JOINTS] = self.gripper_opening()
+        return state
 
     def object_pose(self) -> tuple[np.ndarray, float]:
         """Object position and yaw (rad) in the base frame (ground truth)."""
-        pos = self.data.xpos[self._object_body].copy()
-        rot = self.data.xmat[self._object_body].reshape(3, 3)
-        return pos, float(math.atan2(rot[1, 0], rot[0, 0]))
+        if self._object is None:
+            rot = self.data.xmat[self._object_body]  # row-major 3 x 3
+            self._object = (self.data.xpos[self._object_body].copy(), float(math.atan2(rot[3], rot[0])))
+        pos, yaw = self._object
+        return pos.copy(), yaw
 
     def object_speed(self) -> float:
         return float(np.linalg.norm(self.data.qvel[self._object_dofadr : self._object_dofadr + 3]))
@@ -102,18 +127,27 @@ class BaxterPhysics:
     def place_target(self) -> np.ndarray:
         return self.model.site_pos[self._target_site][:2].copy()
 
-    def _object_contacts(self) -> np.ndarray:
-        """Geoms in contact with the object."""
-        pairs = self.data.contact.geom[: self.data.ncon]
-        mask = (pairs == self._object_geom).any(axis=1)
-        return pairs[mask].sum(axis=1) - self._object_geom
+    def _grasp_contacts(self) -> tuple[bool, bool]:
+        """(both finger pads touch the object, any finger touches it), from the contacts of the current state.
+        Plain Python over the few contacts: it runs after every control tick, where numpy's per-call overhead
+        on arrays this small costs more than the loop."""
+        if self._grasp is None:
+            ncon, g = self.data.ncon, self._object_geom
+            touching = (
+                [a + b - g for a, b in self.data.contact.geom[:ncon].tolist() if a == g or b == g] if ncon else []
+            )
+            self._grasp = (
+                self._pad_geoms.issubset(touching),
+                any(self._is_finger_geom[geom] for geom in touching),
+            )
+        return self._grasp
 
     def object_in_grasp(self) -> bool:
         """Both finger pads touch the object."""
-        return self._pad_geoms.issubset(self._object_contacts().tolist())
+        return self._grasp_contacts()[0]
 
     def gripper_touches_object(self) -> bool:
-        return bool(self._is_finger_body[self.model.geom_bodyid[self._object_contacts()]].any())
+        return self._grasp_contacts()[1]
 
     def is_finite(self) -> bool:
         return bool(np.all(np.isfinite(self.data.qpos)))
@@ -150,12 +184,14 @@ class BaxterPhysics:
             d.ctrl[self._arm_act] = arm_q
             d.ctrl[self._grip_act] = opening
         mujoco.mj_forward(self.model, d)
+        self._fresh_state()
 
     def reset(self, arm_q: np.ndarray, object_pos: np.ndarray, object_yaw: float, settle_time: float = 0.1) -> None:
         """Fresh state: the arm at ``arm_q`` with the gripper open, the object at rest; contacts settle."""
         mujoco.mj_resetData(self.model, self.data)
         self.set_state(arm_q, robot.GRIPPER_OPEN, object_pos, object_yaw)
         mujoco.mj_step(self.model, self.data, round(settle_time / self.timestep))
+        self._fresh_state()
 
     def set_object_properties(self, mass: float, friction: float) -> None:
         """Object mass (kg, inertia scaled with it) and sliding friction."""
@@ -165,11 +201,12 @@ class BaxterPhysics:
         self.model.body_inertia[body] *= scale
         self.model.geom_friction[self._object_geom][0] = friction
         mujoco.mj_setConst(self.model, self.data)  # derived quantities (constraint scaling) from the new mass
+        self._fresh_state()
 
     @property
     def object_size(self) -> float:
         """Edge length of the cube (m)."""
-        return float(2 * self.model.geom_size[self._object_geom][0])
+        return 2 * self._object_half_size
 
     def object_rest_z(self, size: float | None = None) -> float:
         """Height of the cube's centre when it rests on the table (for the current size, or ``size``)."""
@@ -181,6 +218,8 @@ class BaxterPhysics:
         self.model.geom_rbound[self._object_geom] = np.sqrt(3) * size / 2
         self.model.body_inertia[self._object_body] = self.model.body_mass[self._object_body] * size**2 / 6
         mujoco.mj_setConst(self.model, self.data)
+        self._object_half_size = float(self.model.geom_size[self._object_geom][0])
+        self._fresh_state()
 
     def object_properties(self) -> tuple[float, float]:
         return float(self.model.body_mass[self._object_body]), float(self.model.geom_friction[self._object_geom][0])
@@ -195,10 +234,12 @@ class BaxterPhysics:
         self.data.qpos[self._object_qadr : self._object_qadr + 3] += offset
         self.data.qvel[self._object_dofadr : self._object_dofadr + 6] = 0
         mujoco.mj_forward(self.model, self.data)
+        self._fresh_state()
 
     # ------------------------------------------------------------------ control primitives
     def _run(self, substeps: int) -> None:
         mujoco.mj_step(self.model, self.data, substeps)
+        self._fresh_state()
         if self.disturb is not None:
             self.disturb(self)
         if self.on_control_tick is not None:
@@ -212,12 +253,12 @@ class BaxterPhysics:
         for setpoint in joint_trajectory(q0, q_target, 1.0 / CONTROL_DT, speed, ik=self.path_ik, min_time=min_time):
             d.ctrl[self._arm_act] = setpoint
             self._run(self._substeps_keyframe)
-        self._settle(lambda: np.max(np.abs(d.qvel[self._dofadr])) < 0.02, max_time=1.0)
+        self._settle(lambda: np.abs(d.qvel[self._arm_dofs]).max() < 0.02, max_time=1.0)
         grip_ctrl = grip * robot.FINGER_TRAVEL
         if abs(grip_ctrl - d.ctrl[self._grip_act]) > 1e-9:
             d.ctrl[self._grip_act] = grip_ctrl
             self._run(round(0.1 / self.timestep))
-            self._settle(lambda: np.max(np.abs(d.qvel[self._finger_dofadr])) < 1e-3, max_time=0.8)
+            self._settle(lambda: np.abs(d.qvel[self._finger_dofs]).max() < 1e-3, max_time=0.8)
 
     def _settle(self, done, max_time: float) -> None:
         for _ in range(math.ceil(max_time / CONTROL_DT)):

@@ -22,6 +22,8 @@ RESET_OPTIONS = ("arm_qpos", "object_pos", "object_yaw")
 _START_TRIES = 20
 _OBJECT_TRIES = 10_000  # rejection draws for an object position outside the excluded box
 
+_REACHABLE: set[tuple] = set()  # the regions check_reachable has found reachable in this process
+
 FAILURE_CAUSES = ("not_grasped", "dropped", "not_transported", "not_placed", "not_released")
 
 
@@ -45,7 +47,10 @@ class PickPlaceTask:
 
     # ------------------------------------------------------------------ set-up
     def check_reachable(self, physics: BaxterPhysics) -> None:
-        """Raise ConfigError if any corner of the object box (grasp and hover) or the place region is unreachable."""
+        """Raise ConfigError if any corner of the object box (grasp and hover) or the place region is unreachable.
+
+        A pass is remembered for the process (``_REACHABLE``): a vector env builds one env per episode slot from
+        the same config, and the answer depends only on the regions checked and the arm (IK on its own data)."""
         c = self.config
         yaws = sorted({c.yaw_range[0], c.yaw_range[1]} if c.yaw_range[1] - c.yaw_range[0] < np.pi / 2 else {0.0})
         corners = [(x, y) for x in (c.object_low[0], c.object_high[0]) for y in (c.object_low[1], c.object_high[1])]
@@ -57,15 +62,20 @@ class PickPlaceTask:
                 (x, y) for x in (c.landing_low[0], c.landing_high[0]) for y in (c.landing_low[1], c.landing_high[1])
             ]
             checks += [("landing box corner", p, yaw) for p in landing for yaw in (-np.pi / 4, 0.0, np.pi / 4)]
+        heights = (robot.CUBE_REST_Z + c.hover_height, robot.TABLE_TOP_Z + c.size_range[0] / 2)
+        key = (tuple((x, y, yaw) for _, (x, y), yaw in checks), heights)
+        if key in _REACHABLE:
+            return
         for what, (x, y), yaw in checks:
             seed = robot.NEUTRAL_Q
             try:
-                for z in (robot.CUBE_REST_Z + c.hover_height, robot.TABLE_TOP_Z + c.size_range[0] / 2):
+                for z in heights:
                     seed = physics.ik.solve(np.array([x, y, z]), grasp_yaw(yaw), seed)
             except UnreachableError as err:
                 raise ConfigError(
                     f"env: {what} ({x:.3f}, {y:.3f}) with hover {c.hover_height} m is out of the arm's reach: {err}"
                 ) from None
+        _REACHABLE.add(key)
 
     def initialize_episode(self, physics: BaxterPhysics, rng: np.random.Generator, options: dict | None) -> None:
         """Sample (or take from ``options``) the object pose, the target and the start pose; reset the physics.
