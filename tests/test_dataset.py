@@ -448,3 +448,32 @@ def test_full_preset_dataset_has_goal_yaw_and_recoveries(tmp_path):
     assert read_recorded(root)["preset"] == "full"
     phases = np.asarray(ds.hf_dataset["phase.index"]).reshape(-1)
     assert phases.min() == 0 and phases.max() == robot.N_KEYFRAMES - 1
+
+
+def test_saves_without_image_embedding_write_the_same_table(tmp_path):
+    """The writer skips LeRobot's per-frame image embedding only where there is no image column, and the
+    parquet it writes holds what LeRobot's own save_episode writes: the same table, the same features."""
+    import lerobot.datasets.dataset_writer as writer
+    import pyarrow.parquet as pq
+    from keyframe_synth import features, make_keyframe_dataset
+
+    from lerobot_pnp.dataset.schema import saves_without_image_embedding
+
+    original = writer.embed_images
+    make_keyframe_dataset(tmp_path / "stock", n_episodes=3, episode_len=40)
+    with saves_without_image_embedding(features()):
+        assert writer.embed_images is not original  # no image feature: the map is skipped
+        make_keyframe_dataset(tmp_path / "lean", n_episodes=3, episode_len=40)
+    assert writer.embed_images is original
+    files = sorted(p.relative_to(tmp_path / "stock") for p in (tmp_path / "stock").rglob("*.parquet"))
+    assert files and files == sorted(p.relative_to(tmp_path / "lean") for p in (tmp_path / "lean").rglob("*.parquet"))
+    for rel in files:
+        stock, lean = pq.read_table(tmp_path / "stock" / rel), pq.read_table(tmp_path / "lean" / rel)
+        assert stock.num_rows > 0 and stock.equals(lean), rel
+        metas = [pq.read_schema(tmp_path / d / rel).metadata or {} for d in ("stock", "lean")]
+        hf = [json.loads(m[b"huggingface"])["info"] if b"huggingface" in m else None for m in metas]
+        assert hf[0] == hf[1], rel  # the features LeRobot and datasets read back
+        assert hf[0] is not None or "data" not in rel.parts, rel
+    image = {**features(), "observation.images.front": {"dtype": "image", "shape": (8, 8, 3), "names": None}}
+    with saves_without_image_embedding(image):
+        assert writer.embed_images is original  # an image column keeps LeRobot's embedding

@@ -47,26 +47,28 @@ def write_episodes(
     import datasets
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
-    from lerobot_pnp.dataset.schema import ROBOT_TYPE
+    from lerobot_pnp.dataset.schema import ROBOT_TYPE, saves_without_image_embedding
 
     datasets.disable_progress_bars()  # one "Map" bar per saved episode would flood the terminal
     root = Path(root)
     tmp = root.with_name(root.name + ".tmp")
     if tmp.exists():
         shutil.rmtree(tmp)
+    features = features_for(env_cfg)
     ds = LeRobotDataset.create(
         repo_id=repo_id,
         fps=env_cfg.fps,
-        features=features_for(env_cfg),
+        features=features,
         root=tmp,
         robot_type=ROBOT_TYPE,
         use_videos=False,
         metadata_buffer_size=max(10, len(episodes)),
     )
-    for ep in episodes:
-        for frame in frames_from_arrays(ep.states, ep.env_states, ep.actions, ep.phases, ep.seed, ep.success):
-            ds.add_frame(frame)
-        ds.save_episode()
+    with saves_without_image_embedding(features):
+        for ep in episodes:
+            for frame in frames_from_arrays(ep.states, ep.env_states, ep.actions, ep.phases, ep.seed, ep.success):
+                ds.add_frame(frame)
+            ds.save_episode()
     ds.finalize()
     return _commit(tmp, root, env_cfg, dict(splits) if splits else None)
 

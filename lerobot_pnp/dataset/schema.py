@@ -9,6 +9,8 @@ Camera images, when the env renders them, are videos ``observation.images.<camer
 
 from __future__ import annotations
 
+from contextlib import contextmanager
+
 from lerobot_pnp import robot
 
 ROBOT_TYPE = "baxter"
@@ -40,3 +42,31 @@ def dataset_features(env=None) -> dict:
             "names": ["height", "width", "channels"],
         }
     return features
+
+
+@contextmanager
+def saves_without_image_embedding(features: dict):
+    """While open, LeRobot's ``save_episode`` skips embedding image bytes into the episode's table when the
+    dataset has no ``image`` feature (state-only, or cameras stored as video files).
+
+    LeRobot embeds them with a ``datasets.map`` over every frame of the episode
+    (``lerobot.datasets.io_utils.embed_images``, called by its writer whatever the features), which costs more
+    than simulating a control-rate episode. Without an image column the map returns the table it was given, so
+    the written table and its features are the same (the file's footer only lacks the map's fingerprint; a
+    generated dataset, merged from its shards, is byte for byte the same). With an image feature nothing is
+    changed."""
+    import lerobot.datasets.dataset_writer as writer
+
+    original = getattr(writer, "embed_images", None)
+    if original is None or any(ft.get("dtype") == "image" for ft in features.values()):
+        yield
+        return
+    writer.embed_images = _same_table
+    try:
+        yield
+    finally:
+        writer.embed_images = original
+
+
+def _same_table(dataset):
+    return dataset

@@ -22,7 +22,7 @@ from datatrove.pipeline.base import PipelineStep
 
 from lerobot_pnp.dataset.episodes import episode_frames, make_recording_env, simulate_slot
 from lerobot_pnp.dataset.executors import die_with_parent
-from lerobot_pnp.dataset.schema import ROBOT_TYPE, dataset_features
+from lerobot_pnp.dataset.schema import ROBOT_TYPE, dataset_features, saves_without_image_embedding
 from lerobot_pnp.dataset.validation import validate_dataset
 from lerobot_pnp.dataset.workdir import disk_error
 from lerobot_pnp.errors import DatasetError, PnPError
@@ -112,10 +112,11 @@ class GenerateShard(PipelineStep):
         if key not in _ENVS:  # one env per worker process: a worker runs many ranks, reset(seed) rebuilds state
             _ENVS[key] = make_recording_env(env_cfg)
         env = _ENVS[key]
+        features = dataset_features(env_cfg)
         ds = LeRobotDataset.create(
             repo_id=f"{self.repo_id}_shard{rank:05d}",
             fps=env_cfg.fps,
-            features=dataset_features(env_cfg),
+            features=features,
             root=tmp,
             robot_type=ROBOT_TYPE,
             use_videos=bool(env_cfg.cameras),
@@ -124,19 +125,20 @@ class GenerateShard(PipelineStep):
         )
         seeds, failures = [], []
         sim_s = write_s = 0.0
-        for slot in range(start, stop):
-            if self.parent_pid is not None and os.getppid() != self.parent_pid and os.getpid() != self.parent_pid:
-                os._exit(1)
-            t0 = time.perf_counter()
-            ep = simulate_slot(env, self.seed, self.num_episodes, slot, self.max_retries, failures)
-            t1 = time.perf_counter()
-            for frame in episode_frames(ep, getattr(env, "pixels", None), env_cfg.cameras):
-                ds.add_frame(frame)
-            ds.save_episode()
-            write_s += time.perf_counter() - t1
-            sim_s += t1 - t0
-            seeds.append(ep.seed)
-            progress.write_text(f"{len(seeds)} {len(failures)}")
+        with saves_without_image_embedding(features):
+            for slot in range(start, stop):
+                if self.parent_pid is not None and os.getppid() != self.parent_pid and os.getpid() != self.parent_pid:
+                    os._exit(1)
+                t0 = time.perf_counter()
+                ep = simulate_slot(env, self.seed, self.num_episodes, slot, self.max_retries, failures)
+                t1 = time.perf_counter()
+                for frame in episode_frames(ep, getattr(env, "pixels", None), env_cfg.cameras):
+                    ds.add_frame(frame)
+                ds.save_episode()
+                write_s += time.perf_counter() - t1
+                sim_s += t1 - t0
+                seeds.append(ep.seed)
+                progress.write_text(f"{len(seeds)} {len(failures)}")
         t0 = time.perf_counter()
         ds.finalize()
         record = {"rank": rank, "start": start, "stop": stop, "seeds": seeds, "failures": failures}

@@ -1,0 +1,97 @@
+"""The wall clock a study would take from scratch, replayed from the job times a finished study recorded.
+
+The study's pool (``report.run``) runs each study's datasets first, then every training and every suite's
+evaluation as a job on one core each, in ``longest_first`` order, a job starting once the one it waits for
+(``Job.after``: its training, or the training it continues) has finished. This script replays that schedule
+on the recorded times: each training's ``study_train_time.json``, each evaluation record's ``wall_s`` and the
+dataset stages' wall times given on the command line (a reused dataset records none). ``--eval-scale`` and
+``--dataset-scale`` multiply the evaluation and dataset times, to project a measured speed-up of the env
+(``bench_eval_env.py``) onto the whole study; the projection is only as good as that ratio.
+
+    python benchmarks/study_schedule.py --study outputs/report_full --dataset-s 624 \\
+        --study outputs/heldout --dataset-s 403 [--processes 2] [--eval-scale 0.75 --dataset-scale 0.75]
+"""
+
+from __future__ import annotations
+
+import argparse
+import heapq
+import json
+from dataclasses import replace
+from pathlib import Path
+
+from lerobot_pnp.report.methods import get_methods
+from lerobot_pnp.report.run import ALL, TRAINING, Job, longest_first
+
+TRAIN_TIME = "study_train_time.json"
+
+
+def study_jobs(out: Path, study: int) -> tuple[list[Job], dict[tuple, float]]:
+    """The jobs of a finished study folder (each method x seed: its training, one job per evaluated suite) and
+    their recorded times (s)."""
+    cfg = json.loads((out / "study_config.json").read_text())
+    jobs, times = [], {}
+    for method in get_methods(cfg.get("methods")):
+        tags = [str(s) for s in cfg["train_seeds"]] if method.learned else ["-"]
+        for tag in tags:
+            if method.learned:
+                train = Job(method.name, tag, None, TRAINING, study)
+                record = out / "train" / method.name / f"seed{tag}" / TRAIN_TIME
+                times[train.key] = json.loads(record.read_text())["wall_s"] if record.is_file() else 0.0
+                jobs.append(train)
+            for record in sorted((out / "evals" / method.name / f"seed{tag}").glob("*.json")):
+                job = Job(method.name, tag, None, record.stem, study)
+                times[job.key] = json.loads(record.read_text()).get("wall_s", 0.0)
+                jobs.append(job)
+    return jobs, times
+
+
+def replay(jobs: list[Job], times: dict[tuple, float], processes: int) -> float:
+    """Wall time of ``jobs`` on ``processes`` cores under the study's order and dependencies."""
+    names = {j.key for j in jobs}
+    pending, running, done, clock = longest_first(jobs), [], set(), 0.0
+    while pending or running:
+        for job in [j for j in pending if j.after() not in names or j.after() in done]:
+            if len(running) >= processes:
+                break
+            pending.remove(job)
+            heapq.heappush(running, (clock + times[job.key], job.key))
+        if not running:
+            raise SystemExit(f"jobs wait on something that never runs: {[j.key for j in pending][:5]}")
+        clock, key = heapq.heappop(running)
+        done.add(key)
+    return clock
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--study", type=Path, action="append", required=True, help="a finished study folder")
+    p.add_argument("--dataset-s", type=float, action="append", default=None, help="its dataset stages' wall s")
+    p.add_argument("--processes", type=int, default=2)
+    p.add_argument("--eval-scale", type=float, default=1.0)
+    p.add_argument("--dataset-scale", type=float, default=1.0)
+    args = p.parse_args()
+    datasets = args.dataset_s or [0.0] * len(args.study)
+    if len(datasets) != len(args.study):
+        raise SystemExit("give one --dataset-s per --study")
+    jobs, times = [], {}
+    for i, out in enumerate(args.study):
+        j, t = study_jobs(out, i)
+        jobs += j
+        times.update(t)
+    times = {k: v * (args.eval_scale if k[2] not in (ALL, TRAINING) else 1.0) for k, v in times.items()}
+    jobs = [replace(j) for j in jobs]
+    total = sum(times.values())
+    train = sum(v for k, v in times.items() if k[2] == TRAINING)
+    pool = replay(jobs, times, args.processes)
+    data = sum(datasets) * args.dataset_scale
+    wall = data + pool
+    print(
+        f"{len(jobs)} jobs: training {train:.0f} s + evaluation {total - train:.0f} s of job time; "
+        f"datasets {data:.0f} s wall, then the pool of {args.processes}: {pool:.0f} s "
+        f"(job time / pool wall = {total / pool:.2f}); total {wall:.0f} s = {wall / 3600:.2f} h"
+    )
+
+
+if __name__ == "__main__":
+    main()
