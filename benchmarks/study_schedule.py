@@ -17,7 +17,6 @@ from __future__ import annotations
 import argparse
 import heapq
 import json
-from dataclasses import replace
 from pathlib import Path
 
 from lerobot_pnp.report.methods import get_methods
@@ -80,7 +79,6 @@ def main() -> None:
         jobs += j
         times.update(t)
     times = {k: v * (args.eval_scale if k[2] not in (ALL, TRAINING) else 1.0) for k, v in times.items()}
-    jobs = [replace(j) for j in jobs]
     total = sum(times.values())
     train = sum(v for k, v in times.items() if k[2] == TRAINING)
     pool = replay(jobs, times, args.processes)

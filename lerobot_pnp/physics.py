@@ -87,7 +87,7 @@ class BaxterPhysics:
         return float(self.model.opt.timestep)
 
     def arm_qpos(self) -> np.ndarray:
-        return self.data.qpos[self._qadr].copy()
+        return self.data.qpos[self._arm_qpos].copy()
 
     def arm_command(self) -> np.ndarray:
         """The arm's current joint setpoints (what the servos are tracking)."""
