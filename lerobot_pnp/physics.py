@@ -93,6 +93,10 @@ class BaxterPhysics:
         """The arm's current joint setpoints (what the servos are tracking)."""
         return self.data.ctrl[self._arm_act].copy()
 
+    def gripper_command(self) -> float:
+        """The gripper's current command, 0 (closed) .. 1 (open), as a keyframe's last entry gives it."""
+        return float(self.data.ctrl[self._grip_act] / robot.FINGER_TRAVEL)
+
     def gripper_opening(self) -> float:
         """Measured opening, 0 (closed) .. 1 (fully open)."""
         qpos = self.data.qpos

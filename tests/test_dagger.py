@@ -194,6 +194,42 @@ def test_teacher_labels_equal_the_demonstrations_along_an_expert_trajectory(full
     assert suite == "quiet" or len(ep.actions) > 11  # the perturbation made the expert recover
 
 
+class _OneStepLate:
+    """A 'policy' that holds every other step (arm and gripper commands as they are) and otherwise executes the
+    next keyframe of a demonstration: what a planner that waits to see its last move arrive does."""
+
+    def __init__(self, env, keyframes):
+        self.env, self.keyframes, self.t = env, keyframes, 0
+
+    def reset(self):
+        self.t = 0
+
+    def act(self, obs):
+        physics, t = self.env.unwrapped.physics, self.t
+        self.t += 1
+        if t % 2 == 0:
+            return np.append(physics.arm_command(), physics.gripper_command()).astype(np.float32)
+        return self.keyframes[min(t // 2, len(self.keyframes) - 1)]
+
+
+def test_a_hold_leaves_the_teachers_label_pending(full_cfg):
+    """A policy that holds where the expert moves on is labelled with the same keyframe again: the close and the
+    open keep the arm where it is, so judged by the arm alone a close not yet commanded passed for a missed grasp
+    and the next label lifted with the gripper open."""
+    from lerobot_pnp.expert import run_expert_episode
+
+    env = suite_env(full_cfg, "quiet")
+    demo = run_expert_episode(env, 4)
+    ep = labelled_rollout(env, _OneStepLate(env, demo.actions), seed=4, suite="quiet")
+    env.close()
+    assert ep.success and demo.phases.tolist() == list(range(10))  # an undisturbed demonstration: 10 states
+    phases = ep.phases.tolist()
+    assert phases == sorted(phases) and set(phases) == set(range(10))  # never back to an earlier state
+    assert len(phases) > len(demo.phases) + 5  # most labels were made twice (the policy held in between)
+    for action, phase in zip(ep.actions, phases, strict=True):  # each the demonstration's keyframe of its state
+        np.testing.assert_allclose(action, demo.actions[phase], atol=1e-2)
+
+
 class _Wrong:
     """A 'policy' that always commands the arm's current setpoints with the gripper open (never a label)."""
 

@@ -5,6 +5,7 @@ from dataclasses import replace
 
 import pytest
 
+from lerobot_pnp.dagger.rollouts import TEACHER_VERSION
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.recorded_task import read_recorded
 from lerobot_pnp.report import methods
@@ -67,6 +68,10 @@ def test_dagger_continues_the_recovering_run_of_the_same_seed(study):
     # the schedule is part of the method's training key: another mixture would train again
     stage = json.loads((dagger / "stage.json").read_text())
     assert stage["parts"]["schedule"]["beta"] == 1.0 and stage["parts"]["schedule"]["rollouts_per_round"] == 3
+    # so is the teacher's version, as in the rollouts where the policy acts (round 2), not where the expert does
+    assert stage["parts"]["teacher"] == TEACHER_VERSION
+    rounds = [json.loads((dagger / f"round_0{r}" / "rollouts.json").read_text()) for r in (1, 2)]
+    assert "teacher" not in rounds[0]["parts"] and rounds[1]["parts"]["teacher"] == TEACHER_VERSION
     recorded = read_recorded(dagger / "round_02" / "rollouts")
     assert recorded["keyframe_budget"] == 20  # room to recover in the rollouts
     for suite in ("nominal", "grasp_miss"):
@@ -78,6 +83,7 @@ def test_dart_continues_the_same_run_with_noisy_expert_demonstrations_of_the_und
     rollouts = json.loads((out / "train/recovering_dart/seed1000/round_01/rollouts.json").read_text())
     assert rollouts["episodes"] == 3 and rollouts["beta"] == 1.0  # the expert acts at every step
     assert rollouts["dart"]["sigma"] == methods.DART_SIGMA
+    assert "teacher" not in json.loads((out / "train/recovering_dart/seed1000/stage.json").read_text())["parts"]
     assert not (out / "train/recovering_dart/seed1000/round_00/train").exists()  # the recovering run of the seed
     recorded = read_recorded(out / "train/recovering_dart/seed1000/round_01/rollouts")
     assert recorded["grasp_miss_prob"] == recorded["drop_prob"] == recorded["displace_prob"] == 0.0  # undisturbed

@@ -46,7 +46,7 @@ from lerobot_pnp.evaluation.checkpoints import load_policy
 from lerobot_pnp.evaluation.stats import Rate
 
 from .config import RECOVERING_CURVE_EVERY, DaggerConfig
-from .rollouts import evaluate, labelled_rollout, suite_env
+from .rollouts import TEACHER_VERSION, evaluate, labelled_rollout, suite_env
 from .writer import aggregate, write_episodes
 
 logger = logging.getLogger(__name__)
@@ -126,12 +126,14 @@ def _demos(cfg: DaggerConfig, out: Path, env_cfg) -> tuple[Path, str, str, str]:
 def _rollouts(cfg: DaggerConfig, rnd: int, ckpt: tuple[Path, str], out: Path, env_cfg) -> tuple[Path, str, dict, str]:
     """Round ``rnd``'s expert-labelled rollouts of the checkpoint ``ckpt`` (its path and key), mixed with the
     expert by ``cfg.beta_of(rnd)`` with ``cfg.dart``'s noise on the expert's steps (each part of the key when
-    not 0 / off, so the keys of pure on-policy rounds are as before the mixture and DART existed)."""
+    not 0 / off, so the keys of pure on-policy rounds are as before the mixture and DART existed; the teacher's
+    version where the policy acts)."""
     root, repo_id = out / f"round_{rnd:02d}" / "rollouts", f"{cfg.base_repo_id}_dagger{rnd:02d}"
     beta = cfg.beta_of(rnd)
     stage = _stage(root.parent / "rollouts.json", "rollouts", policy=ckpt[1], env=env_cfg.to_dict(),
                    episodes=cfg.rollouts_per_round, suites=cfg.rollout_suites, seed=cfg.seed + ROUND_SEED_STRIDE * rnd,
-                   repo_id=repo_id, **({"beta": beta} if beta else {}), **cfg.dart.key())  # fmt: skip
+                   repo_id=repo_id, **({"beta": beta} if beta else {}), **cfg.dart.key(),
+                   **({"teacher": TEACHER_VERSION} if beta < 1 else {}))  # fmt: skip
     if stage.done(f"dagger round {rnd} rollouts"):
         return root, repo_id, {k: stage.stored().get(k) for k in ROLLOUT_SUMMARY}, stage.key
     stage.invalidate()

@@ -29,6 +29,11 @@ def suite_env(base_cfg, suite: str):
 # A policy "followed" the last label when every joint setpoint is within this of it (rad): a learned keyframe
 # lands a fraction of a degree from its label, a different keyframe is tens of degrees away.
 FOLLOW_TOL = 0.05
+# The teacher's rules for labelling a step the policy took (``Teacher``): part of the key of every rollout round
+# in which the policy acts (beta < 1), so rollouts labelled by an older teacher are made again. In a round where the
+# expert executes every step (beta = 1: the study's first DAgger round, DART) each label is followed, and the
+# labels are those of every version. 2: a hold leaves the label pending; "followed" reads the gripper too.
+TEACHER_VERSION = 2
 
 
 class Teacher:
@@ -45,9 +50,20 @@ class Teacher:
       it open and re-approaches; ``label()`` re-approaches at once.
 
     Mixing both teachers gives contradictory targets for the same state (a DAgger round trained on both did
-    much worse). So: when the previous label was followed (the arm's setpoints are at its target), the
-    teacher plans from the next FSM state as the demonstrating expert does (with the expert's own checks for
-    a miss, a drop or a displacement); otherwise, and at the first step, it is ``label()``.
+    much worse). So the teacher keeps the demonstrating FSM's state along the rollout:
+
+    * when the previous label was followed (the arm's setpoints at its target and the gripper commanded to
+      its side), it plans from the next FSM state, as the demonstrating expert does (with the expert's own
+      checks for a miss, a drop or a displacement);
+    * when nothing new was commanded since the previous label (the arm's setpoints and the gripper command
+      as they were: the policy held), that label is still pending: it plans from the same FSM state again
+      (with the same checks, so an event in between still starts a recovery);
+    * otherwise, and at the first step, it is ``label()``.
+
+    Both conditions read the gripper too. A policy that sees its observations late often holds a step where
+    the expert moves on (it has not seen its last move arrive), and the close and the open are keyframes that
+    keep the arm where it is: judged by the arm alone, a close that did not happen passed for one that missed
+    (the next label lifted with the gripper open) and a hold passed for a policy that went elsewhere.
     """
 
     def __init__(self, env):
@@ -56,18 +72,27 @@ class Teacher:
         self.expert = FSMExpert(env)
         self.physics = env.unwrapped.physics
         self.prev: tuple[robot.Phase, np.ndarray] | None = None
+        self.before: np.ndarray | None = None  # the command (arm and gripper) when the previous label was made
+
+    def _command(self) -> np.ndarray:
+        return np.append(self.physics.arm_command(), self.physics.gripper_command()).astype(np.float32)
 
     def label(self) -> tuple[np.ndarray, robot.Phase]:
-        prev = self.prev
-        command = np.asarray(self.physics.arm_command(), np.float32)
-        if prev is not None and joints_at(command, prev[1]):
-            self.expert.sync_to_state()
-            self.expert.phase = robot.Phase(min(prev[0] + 1, robot.N_KEYFRAMES - 1))
+        prev, command = self.prev, self._command()
+        if prev is not None and follows(command, prev[1]):
+            self._plan_from(robot.Phase(min(prev[0] + 1, robot.N_KEYFRAMES - 1)))
+            keyframe, phase = self.expert.next_keyframe(), self.expert.last_phase
+        elif prev is not None and self.before is not None and follows(command, self.before):
+            self._plan_from(prev[0])
             keyframe, phase = self.expert.next_keyframe(), self.expert.last_phase
         else:
             keyframe, phase = self.expert.label()
-        self.prev = (phase, keyframe)
+        self.prev, self.before = (phase, keyframe), command
         return keyframe, phase
+
+    def _plan_from(self, phase: robot.Phase) -> None:
+        self.expert.sync_to_state()
+        self.expert.phase = phase
 
     def executed(self, action: np.ndarray) -> None:
         """The teacher's last label was executed as ``action`` (itself, or with DART's noise): the next label

@@ -43,6 +43,7 @@ from pathlib import Path
 from lerobot_pnp.cache import STAGE_FILE, Stage, code_versions, remove
 from lerobot_pnp.dagger import RECOVERING_BATCH_SIZE, RECOVERING_RECIPE
 from lerobot_pnp.dagger.config import DEFAULT_ROLLOUT_SUITES, mixture_beta
+from lerobot_pnp.dagger.rollouts import TEACHER_VERSION
 from lerobot_pnp.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.evaluation.checkpoints import load_policy
@@ -435,6 +436,15 @@ def _continued(ctx: TrainContext, base: str) -> TrainContext:
     return replace(ctx, train_dir=ctx.train_dir.parent.parent / base / ctx.train_dir.name)
 
 
+def _policy_acts(schedule: dict | None) -> bool:
+    """Whether the policy acts in some round of a DAgger ``schedule`` (a round's mixture weight below 1)."""
+    if not schedule:
+        return False
+    return any(
+        mixture_beta(schedule["beta"], schedule.get("beta_decay", 0.5), r) < 1 for r in range(1, schedule["rounds"] + 1)
+    )
+
+
 def train_stage(method: Method, ctx: TrainContext) -> Stage:
     """The key of a learned method's training: the method (its policy settings), the key of the recording
     it trains on, seed, epochs, demonstrations, ACT's steps, the run it continues, the code versions."""
@@ -455,6 +465,8 @@ def train_stage(method: Method, ctx: TrainContext) -> Stage:
         "versions": code_versions(),
         **({"batch_size": method.batch_size} if method.batch_size is not None else {}),
         **({"schedule": method.schedule} if method.schedule else {}),
+        # the DAgger teacher's version where the policy acts in some round (its rollouts key it too)
+        **({"teacher": TEACHER_VERSION} if _policy_acts(method.schedule) else {}),
     }
     before = SCHEDULE_BEFORE_KEYED.get(method.name)
     return Stage(ctx.train_dir / STAGE_FILE, parts, added={"schedule": before} if before else None)
