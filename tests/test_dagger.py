@@ -80,7 +80,7 @@ def test_a_stuck_policy_is_labelled_with_the_way_forward(full_cfg):
     assert not np.allclose(ep.actions[:, :7], ep.states[:, :7], atol=1e-2)
 
 
-def test_written_datasets_load_and_aggregate(full_cfg, tmp_path):
+def test_written_datasets_load_and_aggregate(full_cfg, tmp_path, capfd):
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
     from lerobot_pnp.recorded_task import read_recorded
@@ -90,7 +90,12 @@ def test_written_datasets_load_and_aggregate(full_cfg, tmp_path):
     env.close()
     a = write_episodes(tmp_path / "a", "local/a", full_cfg, eps[:1], {"test": "0:1"})
     b = write_episodes(tmp_path / "b", "local/b", full_cfg, eps[1:])
+    capfd.readouterr()
     agg = aggregate([a, b], ["local/a", "local/b"], tmp_path / "ab", "local/ab", full_cfg, {"test": "0:1"})
+    assert "Copy data and videos" in capfd.readouterr().err  # LeRobot's bars, as a command shows them
+    quiet = aggregate([a, b], ["local/a", "local/b"], tmp_path / "q", "local/q", full_cfg, {"test": "0:1"}, False)
+    assert "Copy data and videos" not in capfd.readouterr().err  # off where the caller shows no progress
+    assert LeRobotDataset("local/q", root=quiet).meta.total_frames == sum(len(e.actions) for e in eps)
     ds = LeRobotDataset("local/ab", root=agg)
     assert ds.meta.total_episodes == 2 and ds.meta.total_frames == sum(len(e.actions) for e in eps)
     assert (

@@ -167,13 +167,16 @@ def _rollout_counts(episodes) -> dict:
     }
 
 
-def _aggregate(inputs: list[tuple[Path, str, str]], data_root: Path, repo_id: str, env_cfg, test: str) -> str:
+def _aggregate(
+    inputs: list[tuple[Path, str, str]], data_root: Path, repo_id: str, env_cfg, test: str, progress: bool
+) -> str:
     """The merge of ``inputs`` ((root, repo_id, key) each) into ``data_root``, rebuilt when an input changed."""
     stage = _stage(data_root / STAGE_FILE, "aggregate", inputs=[k for _, _, k in inputs], test=test,
                    repo_id=repo_id)  # fmt: skip
     if not stage.done(f"dagger {data_root.parent.name} aggregate"):
         stage.invalidate()
-        aggregate([r for r, _, _ in inputs], [i for _, i, _ in inputs], data_root, repo_id, env_cfg, {"test": test})
+        aggregate([r for r, _, _ in inputs], [i for _, i, _ in inputs], data_root, repo_id, env_cfg, {"test": test},
+                  progress)  # fmt: skip
         stage.commit()
     return stage.key
 
@@ -291,7 +294,7 @@ def _run_rounds(cfg: DaggerConfig, out: Path) -> dict:
             rollout_summaries[rnd] = summary
             inputs.append((root, repo, key))
             data_root, data_repo = rdir / "data", f"{cfg.base_repo_id}_aggregate{rnd:02d}"
-            data = (data_root, data_repo, _aggregate(inputs, data_root, data_repo, env_cfg, test))
+            data = (data_root, data_repo, _aggregate(inputs, data_root, data_repo, env_cfg, test, cfg.progress))
         timings[f"round{rnd}_data_s"] = time.perf_counter() - t
         t = time.perf_counter()
         if rnd == 0 and cfg.round0_checkpoint:

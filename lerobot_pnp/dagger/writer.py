@@ -8,9 +8,13 @@ A dataset is written into ``<root>.tmp`` and renamed when finalized: a folder wi
 
 from __future__ import annotations
 
+import contextlib
+import functools
 import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
+from types import SimpleNamespace
+from unittest import mock
 
 import numpy as np
 
@@ -73,17 +77,35 @@ def write_episodes(
     return _commit(tmp, root, env_cfg, dict(splits) if splits else None)
 
 
-def aggregate(roots: list[Path], repo_ids: list[str], out_root: Path, repo_id: str, env_cfg, splits: dict) -> Path:
-    """Merge datasets with LeRobot's ``aggregate_datasets`` into ``out_root`` (replaced atomically)."""
-    from lerobot.datasets.aggregate import aggregate_datasets
+def aggregate(
+    roots: list[Path], repo_ids: list[str], out_root: Path, repo_id: str, env_cfg, splits: dict, progress: bool = True
+) -> Path:
+    """Merge datasets with LeRobot's ``aggregate_datasets`` into ``out_root`` (replaced atomically). With
+    ``progress=False`` its two progress bars are off (the study runs DAgger rounds without bars)."""
+    from lerobot.datasets import aggregate as lerobot_aggregate
 
     out_root = Path(out_root)
     tmp = out_root.with_name(out_root.name + ".tmp")
     if tmp.exists():
         shutil.rmtree(tmp)
-    aggregate_datasets(repo_ids=repo_ids, aggr_repo_id=repo_id, roots=[Path(r) for r in roots], aggr_root=tmp)
+    with _bars_of(lerobot_aggregate, progress):
+        lerobot_aggregate.aggregate_datasets(
+            repo_ids=repo_ids, aggr_repo_id=repo_id, roots=[Path(r) for r in roots], aggr_root=tmp
+        )
     fix_index_stats(tmp)
     return _commit(tmp, out_root, env_cfg, dict(splits))
+
+
+@contextlib.contextmanager
+def _bars_of(module, progress: bool):
+    """``module``'s ``tqdm.tqdm`` bars, off unless ``progress`` (LeRobot's aggregate has no switch for them)."""
+    if progress:
+        yield
+        return
+    import tqdm
+
+    with mock.patch.object(module, "tqdm", SimpleNamespace(tqdm=functools.partial(tqdm.tqdm, disable=True))):
+        yield
 
 
 def _commit(tmp: Path, root: Path, env_cfg, splits: dict | None) -> Path:
