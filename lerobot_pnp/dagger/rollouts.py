@@ -72,7 +72,7 @@ class Teacher:
         self.expert = FSMExpert(env)
         self.physics = env.unwrapped.physics
         self.prev: tuple[robot.Phase, np.ndarray] | None = None
-        self.before: np.ndarray | None = None  # the command (arm and gripper) when the previous label was made
+        self.before: np.ndarray | None = None  # the command (arm and gripper) when ``prev`` was made; set with it
 
     def _command(self) -> np.ndarray:
         return np.append(self.physics.arm_command(), self.physics.gripper_command()).astype(np.float32)
@@ -82,7 +82,7 @@ class Teacher:
         if prev is not None and follows(command, prev[1]):
             self._plan_from(robot.Phase(min(prev[0] + 1, robot.N_KEYFRAMES - 1)))
             keyframe, phase = self.expert.next_keyframe(), self.expert.last_phase
-        elif prev is not None and self.before is not None and follows(command, self.before):
+        elif prev is not None and follows(command, self.before):
             self._plan_from(prev[0])
             keyframe, phase = self.expert.next_keyframe(), self.expert.last_phase
         else:
