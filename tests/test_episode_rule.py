@@ -23,6 +23,38 @@ from lerobot_pnp.report.stages import dataset_stage, eval_stage
 RULE = EpisodeRule(half_width=0.1, block=50, fixed_methods=())
 
 
+def test_a_claim_methods_cell_runs_n_then_goes_on_only_while_its_interval_is_wide():
+    rule = EpisodeRule(half_width=0.17, block=50, fixed_methods=("expert",), claim_methods=("recovering",))
+    assert rule.for_method("expert") is None and rule.for_method("act") is rule
+    extended = rule.for_method("recovering")
+    assert extended.stops(100, 50) == [100, 150, 200] and extended.stops(130, 50) == [130, 180, 230, 260]
+    assert extended.stop_at([True] * 100, 100, 50) == 100  # 100/100: [96.3, 100] %, decided at n
+    ninety = ([True] * 9 + [False]) * 20
+    assert extended.stop_at(ninety[:100], 100, 50) is None  # 90/100: +-5.9 pts, wider than 4.5: go on
+    assert extended.stop_at(ninety[:150], 100, 50) is None  # 135/150: +-4.9 pts
+    assert extended.stop_at(ninety, 100, 50) == 200  # 180/200: +-4.2 pts, or the most (2x n) in any case
+    assert extended.stop_at([False] * 200, 100, 50) == 100  # 0/100 is decided too: the rule reads width only
+    assert extended.key() == {"half_width": 0.045, "block": 50, "from_n": True, "max_factor": 2}
+
+
+def test_a_claim_method_extends_the_fixed_runs_episodes_with_the_next_seeds(tmp_path):
+    """A claim method's evaluation is the fixed run's n episodes, then the seeds after them while undecided."""
+    layout = StudyLayout(tmp_path / "s")
+    study = dict(output_dir=str(layout.out), preset="quick", num_episodes=10, workers=1, methods=["lookup_table"],
+                 suites=[SuiteSpec("nominal", 4)], eval_batch_size=2, cli_check_episodes=0)  # fmt: skip
+    records, _, _ = _job(StudyConfig(**study, episodes_rule=None), layout)
+    fixed = [vars(r) for r in records["nominal"]]
+    never = {"block": 2, "fixed_methods": [], "claim_methods": ["lookup_table"], "claim_half_width": 1e-6}
+    records, _, _ = _job(StudyConfig(**study, episodes_rule=never), layout)  # never decided: 2 x n
+    extended = [vars(r) for r in records["nominal"]]
+    assert [e["seed"] for e in extended] == list(range(100_000, 100_008)) and extended[:4] == fixed
+    stored = json.loads(layout.eval_record("lookup_table", "-", "nominal").read_text())
+    assert stored["parts"]["episodes_rule"] == {"half_width": 1e-6, "block": 2, "from_n": True, "max_factor": 2}
+    at_once = {**never, "claim_half_width": 0.49}  # decided at n: the fixed run's episodes exactly
+    records, _, _ = _job(StudyConfig(**study, episodes_rule=at_once), layout)
+    assert [vars(r) for r in records["nominal"]] == fixed
+
+
 def test_a_cell_near_0_stops_after_one_block_and_one_near_half_goes_on():
     assert RULE.stops(200, 50) == [50, 100, 150, 200]
     assert RULE.stops(130, 50) == [50, 130]  # 100 would leave 30 episodes, less than a batch: skipped
@@ -45,8 +77,15 @@ def test_a_cell_near_0_stops_after_one_block_and_one_near_half_goes_on():
         ({"fixed_methods": ["expert", "bogus"]}, "episodes_rule.fixed_methods: unknown method(s) ['bogus']; valid:"),
         (
             {"halfwidth": 0.1},
-            "episodes_rule: unknown field(s) ['halfwidth']; valid: ['block', 'fixed_methods', 'half_width']",
+            "episodes_rule: unknown field(s) ['halfwidth']; valid: ['block', 'claim_half_width', 'claim_max_factor',",
         ),
+        ({"claim_methods": ["bogus"]}, "episodes_rule.claim_methods: unknown method(s) ['bogus']; valid:"),
+        (
+            {"fixed_methods": ["expert"], "claim_methods": ["expert"]},
+            "episodes_rule: ['expert'] both in fixed_methods and claim_methods; name each in one",
+        ),
+        ({"claim_max_factor": 0}, "episodes_rule.claim_max_factor must be an integer >= 1, got 0"),
+        ({"claim_half_width": 0.6}, "episodes_rule.claim_half_width must be in (0, 0.5) (a fraction), got 0.6"),
     ],
 )
 def test_a_bad_rule_is_a_config_error_naming_the_value(rule, message):
@@ -60,7 +99,8 @@ def test_the_command_line_takes_a_rule_and_refuses_a_bad_one_in_one_line(capsys,
     err = capsys.readouterr().err.strip()
     assert "episodes_rule.block must be a positive multiple" in err and len(err.splitlines()) == 1
     assert not (tmp_path / "never").exists()
-    assert StudyConfig(preset="heldout").episodes_rule.fixed_methods == ("expert", "recovering")
+    heldout = StudyConfig(preset="heldout").episodes_rule  # the expert under the rule, the planner extended
+    assert heldout.fixed_methods == () and heldout.claim_methods == ("recovering",)
     assert StudyConfig(preset="heldout", fixed_episodes=True).episodes_rule is None  # off
     full = StudyConfig(preset="full").episodes_rule  # the paired comparisons' methods run n, the others +-10 pts
     assert full.fixed_methods == ("expert", "lookup_table", "clocked_lstm") and full.half_width == 0.1
@@ -142,7 +182,8 @@ def test_the_report_states_the_rule_under_intervals_and_nothing_when_it_is_off()
     from lerobot_pnp.report.markdown import _episodes_rule_sentence
 
     text = _episodes_rule_sentence(StudyConfig(preset="heldout"))
-    assert "expert (FSM), recovering LSTM run every suite's n" in text
+    assert "every method's but the claims' method's evaluation runs blocks" in text
+    assert "The claims' method (recovering LSTM) runs at least every suite's n" in text and "up to 2x n" in text
     assert "blocks of 50 seeds" in text and "+-17 pts" in text and "the common prefix" in text
     assert "split over a learned method's 3 training seeds" in text and "1.7x narrower" in text
     assert _episodes_rule_sentence(StudyConfig(preset="quick")) == ""

@@ -121,15 +121,28 @@ def _episodes_rule_sentence(cfg) -> str:
     rule = getattr(cfg, "episodes_rule", None)
     if rule is None:
         return split
-    fixed = ", ".join(METHODS[m].label for m in rule.fixed_methods if m in METHODS) or "no method"
+    fixed = ", ".join(METHODS[m].label for m in rule.fixed_methods if m in METHODS)
+    claims = ", ".join(METHODS[m].label for m in rule.claim_methods if m in METHODS)
+    claim = (
+        f" The claims' method ({claims}) runs at least every suite's n, exactly the fixed run's episodes, and "
+        f"goes on in blocks of {rule.block} seeds while its interval is wider than +-{100 * rule.claim_half_width:g}"
+        f" pts, up to {rule.claim_max_factor}x n: a cell near a bar (90 / 95 / 98 %) is where an interval at n "
+        "cannot decide it, so more episodes go there and nowhere else (a training seed that scores lower runs "
+        "more of them, which weighs the pooled cell towards it)."
+        if claims
+        else ""
+    )
+    others = "every other method's" if fixed else "every method's" + (" but the claims' method's" if claims else "")
     return split + (
-        f" Episode counts are chosen from the interval widths they need: {fixed} run every suite's n; every other "
-        f"method's evaluation runs blocks of {rule.block} seeds from the first and stops after the first block "
+        " Episode counts are chosen from the interval widths they need: "
+        + (f"{fixed} run every suite's n; " if fixed else "")
+        + f"{others} evaluation runs blocks of {rule.block} seeds from the first and stops after the first block "
         f"whose 95 % Wilson interval is at most +-{100 * rule.half_width:g} pts, or at the suite's n (a target "
         f"per evaluation: a cell pooling {len(cfg.train_seeds)} seeds is about {len(cfg.train_seeds) ** 0.5:.1f}x "
         "narrower; each cell shows its n). Every method runs the same first seeds, so a paired comparison pairs two methods on the "
         "seeds both ran (the common prefix). An evaluation reused by cutting an earlier fixed-n one to the rule's "
         "stop (exactly the episodes a fresh run makes) shows its share of the original time, estimated by steps."
+        + claim
     )
 
 

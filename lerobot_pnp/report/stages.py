@@ -101,11 +101,12 @@ def episode_rule(cfg, method, suite, n_demos: int | None):
     """The episode rule an evaluation runs under (``config.EpisodeRule``), or None for the suite's whole n: the
     rule off, a method of its ``fixed_methods``, a data-efficiency run (its curve compares equal counts), or a
     suite of several parts (``Suite.part_episodes`` lays out each part's seeds from n, so a shorter run would
-    not be the first episodes of the fixed one: such suites stay at their n)."""
+    not be the first episodes of the fixed one: such suites stay at their n). A method of its ``claim_methods``
+    runs under its ``ExtendedRule`` (at least n, more where the interval is wide)."""
     rule = cfg.episodes_rule
-    if rule is None or method.name in rule.fixed_methods or n_demos is not None or len(suite.parts) != 1:
+    if rule is None or n_demos is not None or len(suite.parts) != 1:
         return None
-    return rule
+    return rule.for_method(method.name)
 
 
 def truncated_record(stage: Stage, rule, n_episodes: int, cfg) -> dict | None:
