@@ -10,6 +10,11 @@ dataset stages' wall times given on the command line (a reused dataset records n
 
     python benchmarks/study_schedule.py --study outputs/report_full --dataset-s 624 \\
         --study outputs/heldout --dataset-s 403 [--processes 2] [--eval-scale 0.75 --dataset-scale 0.75]
+
+``--study`` also takes a study's ``summary.json`` (``timings_s``: every training and evaluation it recorded,
+the data-efficiency runs and the ``lerobot-eval`` cross-check included), so a committed summary
+(``docs/results/report_full_summary.json``) replays without its folder. The cross-check runs after the pool,
+alone, and is added as it was recorded.
 """
 
 from __future__ import annotations
@@ -23,6 +28,26 @@ from lerobot_pnp.report.methods import get_methods
 from lerobot_pnp.report.run import ALL, TRAINING, Job, longest_first
 
 TRAIN_TIME = "study_train_time.json"
+
+
+def summary_jobs(summary: Path, study: int) -> tuple[list[Job], dict[tuple, float], float]:
+    """The jobs of a study's ``summary.json`` (``timings_s``: ``train/<method>/<tag>`` and
+    ``eval/<method>/<tag>/<suite>``, data-efficiency tags ``n<demos>`` included), their recorded times (s), and
+    the ``lerobot-eval`` cross-check's time."""
+    timings = json.loads(summary.read_text())["timings_s"]
+    jobs, times = [], {}
+    for name, seconds in timings.items():
+        kind, *rest = name.split("/")
+        if kind == "train":
+            (method, tag), part = rest, TRAINING
+        elif kind == "eval":
+            method, tag, part = rest
+        else:
+            continue
+        job = Job(method, tag, int(tag[1:]) if tag.startswith("n") else None, part, study)
+        jobs.append(job)
+        times[job.key] = float(seconds)
+    return jobs, times, float(timings.get("cli_check", 0.0))
 
 
 def study_jobs(out: Path, study: int) -> tuple[list[Job], dict[tuple, float]]:
@@ -64,7 +89,9 @@ def replay(jobs: list[Job], times: dict[tuple, float], processes: int) -> float:
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--study", type=Path, action="append", required=True, help="a finished study folder")
+    p.add_argument(
+        "--study", type=Path, action="append", required=True, help="a finished study folder, or its summary.json"
+    )
     p.add_argument("--dataset-s", type=float, action="append", default=None, help="its dataset stages' wall s")
     p.add_argument("--processes", type=int, default=2)
     p.add_argument("--eval-scale", type=float, default=1.0)
@@ -73,9 +100,13 @@ def main() -> None:
     datasets = args.dataset_s or [0.0] * len(args.study)
     if len(datasets) != len(args.study):
         raise SystemExit("give one --dataset-s per --study")
-    jobs, times = [], {}
+    jobs, times, serial = [], {}, 0.0
     for i, out in enumerate(args.study):
-        j, t = study_jobs(out, i)
+        if out.is_file():
+            j, t, check = summary_jobs(out, i)
+            serial += check
+        else:
+            j, t = study_jobs(out, i)
         jobs += j
         times.update(t)
     times = {k: v * (args.eval_scale if k[2] not in (ALL, TRAINING) else 1.0) for k, v in times.items()}
@@ -83,10 +114,11 @@ def main() -> None:
     train = sum(v for k, v in times.items() if k[2] == TRAINING)
     pool = replay(jobs, times, args.processes)
     data = sum(datasets) * args.dataset_scale
-    wall = data + pool
+    wall = data + pool + serial
     print(
         f"{len(jobs)} jobs: training {train:.0f} s + evaluation {total - train:.0f} s of job time; "
-        f"datasets {data:.0f} s wall, then the pool of {args.processes}: {pool:.0f} s "
+        f"datasets {data:.0f} s wall, then the pool of {args.processes}: {pool:.0f} s, then the cross-checks "
+        f"{serial:.0f} s "
         f"(job time / pool wall = {total / pool:.2f}); total {wall:.0f} s = {wall / 3600:.2f} h"
     )
 
