@@ -3,8 +3,8 @@
 #               it the recovering planner on the full task, on a recovery suite and two held-out ones
 #   make test   the test suite (what CI runs)
 #   make study  the whole study behind docs/results.md: the paper task and the held-out-disturbance protocol
-#               on the full task (every method, 3 training seeds; resumable; about 2.1 h on 2 cores, over the
-#               2-hour target: README's cost note)
+#               on the full task (every method, 3 training seeds; resumable): 1 h 04 min on 2 cores of an
+#               AVX-512 Xeon, about 2.1 h on 2 AMD EPYC (AVX2) cores (README's cost note)
 # Python 3.12 comes from pyenv when present (LeRobot 0.6 needs >= 3.12), else python3.12 on PATH.
 PYTHON ?= $(shell p=$$(pyenv prefix 3.12.1 2>/dev/null) && echo $$p/bin/python || command -v python3.12)
 VENV := .venv
