@@ -90,8 +90,10 @@ class DaggerConfig:
 
     Round 0 trains on expert demonstrations of the task; round ``r >= 1`` rolls out the round ``r-1`` policy
     mixed with the expert (``beta``; by default the policy's own actions are executed) under ``rollout_suites``,
-    labels every visited state with ``FSMExpert(env).label()``, aggregates the labelled episodes with everything before (LeRobot's
-    ``aggregate_datasets``) and retrains from scratch (see ``loop``). Each round is evaluated on the same
+    labels every visited state with the expert's ``Teacher`` (``rollouts``: the FSM continued while the policy
+    follows its labels, ``FSMExpert.label()`` where it does not), aggregates the labelled episodes with
+    everything before (LeRobot's ``aggregate_datasets``) and retrains, from scratch or warm-started
+    (``warm_start_epochs``; see ``loop``). Each round is evaluated on the same
     seeds. Everything lives in ``output_dir``; a finished step (dataset, checkpoint, evaluation) is reused
     while its key (the settings and inputs it was made from) is unchanged, so an interrupted run continues
     where it stopped and a changed flag re-runs what depends on it. Deterministic given ``seed``.
