@@ -128,7 +128,10 @@ def test_a_tiny_heldout_study_reports_the_axis_table_and_cross_checks_on_the_ful
     assert summary["lerobot_eval_cli_check"]["agree"] == 2
     axes = summary["held_out_axes"]
     assert [(a["axis"], a["method"]) for a in axes] == [("latency", "lookup_table"), ("latency", "recovering")]
-    assert all(a["held_out"]["n"] == 4 and set(a["held_out_suites"]) == set(latency[1:]) for a in axes)
+    assert all(set(a["held_out_suites"]) == set(latency[1:]) for a in axes)
+    # the lookup table runs 2 per suite; the recovering planner, the preset's claims' method, goes on to 2x n
+    # (no interval over 2 or 4 episodes is +-4.5 pts wide)
+    assert [a["held_out"]["n"] for a in axes] == [4, 8]
     report = (out / "report.md").read_text()
     section = report[report.index("### latency: how old the observations are") :]
     assert "| lookup table |" in section and "| recovering LSTM |" in section
