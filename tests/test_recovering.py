@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -526,3 +527,70 @@ def test_shipped_configs_train_the_recovering_recipe(name):
 
     policy = json.loads((Path(__file__).parents[1] / "configs" / f"{name}.json").read_text())["policy"]
     assert {k: policy.get(k) for k in RECOVERING_RECIPE} == RECOVERING_RECIPE
+
+
+def test_memory_per_attempt_trains_each_attempt_from_a_zero_state():
+    """With ``memory_per_attempt`` an episode whose labels go back from place to pick trains as its attempts would
+    alone, each from its own first frame; the frame where the labels go back is also the last of the attempt it
+    ends (where inference recognises the switch). Without labels it says how to get them."""
+    policy = _policy(memory_per_attempt=True)
+    batch, _ = _episodes([16])
+    batch[SUBTASK_KEY][0] = torch.tensor([0] * 4 + [1] * 5 + [0] * 3 + [1] * 4)  # back to pick at frame 9
+    per_episode, _ = policy.forward(batch, reduction="none")
+    pieces = [({k: v[:, a:b] for k, v in batch.items()}, b - a) for a, b in ((0, 10), (9, 16))]
+    plain = _policy()  # the same weights, memory carried: each piece alone
+    alone = [plain.forward(piece)[0] * n for piece, n in pieces]
+    torch.testing.assert_close(per_episode[0], sum(alone) / 17)
+    carried, _ = plain.forward(batch, reduction="none")
+    assert not torch.allclose(carried, per_episode)  # the memory across the cut mattered before
+    # The teacher-forced sequence restarts at the same frame; the first attempt is untouched.
+    seq = policy.predict_sequence(batch)
+    torch.testing.assert_close(seq[:, 9:], policy.predict_sequence({k: v[:, 9:] for k, v in batch.items()}))
+    torch.testing.assert_close(seq[:, :9], _policy().predict_sequence(batch)[:, :9])
+    no_labels = {k: v for k, v in batch.items() if k != SUBTASK_KEY}
+    with pytest.raises(DatasetError, match="memory_per_attempt .* carries none"):
+        policy.forward(no_labels)
+    with pytest.raises(ConfigError, match="memory_per_attempt is the recovering planner's"):
+        PnpLstmConfig(memory_per_attempt=True)
+
+
+@pytest.mark.parametrize("per_attempt", [True, False])
+def test_memory_per_attempt_restarts_where_the_switch_goes_back_to_pick(per_attempt):
+    """At inference the step where the subtask classifier goes from place back to pick is re-run from the zero
+    state: its action and the memory it leaves are those of a fresh episode starting on that observation."""
+    policy = _policy(memory_per_attempt=per_attempt)
+    with torch.no_grad():  # the classifier says pick, whatever the state
+        policy.model.subtask_head.weight.zero_()
+        policy.model.subtask_head.bias.copy_(torch.tensor([5.0, -5.0]))
+    batch, _ = _episodes([6])
+    obs = [{OBS_STATE: batch[OBS_STATE][:, k], OBS_ENV_STATE: batch[OBS_ENV_STATE][:, k]} for k in range(6)]
+    policy.reset()
+    for o in obs[:3]:
+        policy.select_action(o)
+    policy._state = dataclasses.replace(policy._state, subtask_prob=torch.ones(1))  # the last step said place
+    after = torch.stack([policy.select_action(o) for o in obs[3:]])
+    policy.reset()
+    fresh = torch.stack([policy.select_action(o) for o in obs[3:]])
+    if per_attempt:
+        torch.testing.assert_close(after, fresh)
+    else:
+        assert not torch.allclose(after[0], fresh[0]) and not torch.allclose(after[1], fresh[1])
+
+
+def test_attempts_start_where_a_late_robot_can_see_the_event():
+    """Frames out of the loss (a late observer's blind frames, a retimed recovery's copies) stay with the attempt
+    the late robot is still running: the new attempt starts at the first frame in the loss that says pick, which is
+    also the last of the attempt it ends."""
+    from lerobot_pnp.policy.recovering import Attempts
+
+    subtask = torch.tensor([[0, 0, 1, 1, 0, 0, 0, 1], [0, 1, 1, 0, 0, 1, 1, 1]])
+    valid = torch.ones(2, 8, dtype=torch.bool)
+    valid[0, 4] = False  # the first pick frame is blind: the cut waits for frame 5
+    valid[1, 6:] = False  # no cut after the last frame in the loss
+    attempts = Attempts(subtask, valid)
+    frames = torch.arange(16.0).view(2, 8, 1)
+    rows = attempts.split(frames).squeeze(-1)
+    assert rows[:, 0].tolist() == [0.0, 5.0, 8.0, 11.0]  # each attempt's first frame
+    assert rows[0, :6].tolist() == [0.0, 1.0, 2.0, 3.0, 4.0, 5.0]  # ... the first ends on the next one's first
+    assert attempts.split(valid)[0].sum() == 5  # its blind frame stays out of the loss
+    torch.testing.assert_close(attempts.merge(attempts.split(frames)), frames)

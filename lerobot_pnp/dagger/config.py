@@ -68,6 +68,7 @@ RECOVERING_RECIPE: dict[str, Any] = {
     "await_observation": True,
     "still_arm_phases": [7],  # the place's open keeps the arm (Phase.PLACE_DESCEND) ...
     "still_arm_tol": 0.05,  # ... where the network would move it by more than a refinement
+    "memory_per_attempt": True,  # a re-pick starts from the zero state (docs/results/memory_per_attempt.md)
 }
 RECOVERING_BATCH_SIZE = 32  # episodes per batch of the recipe (DAgger's default, the held-out protocol's)
 # epochs between two held-out losses of a recipe training (no figure reads its curve; a pass over the held-out

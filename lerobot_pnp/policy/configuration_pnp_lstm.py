@@ -146,6 +146,16 @@ class PnpLstmConfig(PreTrainedConfig):
     """Recovering mode: the longest episode, in frames, a training window holds (the env's ``keyframe_budget`` + 1,
     the final observed state). Windows are ``-(L-1) .. L-1`` around any frame, so each holds its whole episode;
     every frame is sampled (no ``drop_n_last_frames``), which weights episodes by length."""
+    memory_per_attempt: bool = False
+    """Recovering mode: the LSTM state restarts from zero where the task goes back from place to pick (the
+    re-pick after a drop or a displacement), so its memory spans one pick-and-place attempt. In training the
+    restarts are where the per-frame ``phase.subtask`` labels switch back (the fast path, DAgger and stock
+    ``lerobot-train`` on a dataset with the ``phase.*`` columns, ``stock_train``; without labels training stops
+    with an error); at inference, where the subtask classifier switches back, and that step is re-run from the
+    zero state. The paper's PICK and PLACE
+    nets restart at their switch too. Why: with memory carried over the whole episode, an attempt's state
+    depends on how many came before, and a third attempt (two displacements) is a history training never
+    shows; with it, every later attempt starts as the trained re-picks do."""
     binary_gripper: bool = False
     """The post-processor snaps the gripper command to fully open or closed (threshold half way), as every
     demonstration commands it (``processor_pnp_lstm.BinaryGripperStep``). Off by default: the paper's planner
@@ -240,6 +250,11 @@ class PnpLstmConfig(PreTrainedConfig):
                 f"pnp_lstm keeps its own history in the LSTM state; n_obs_steps must be 1, got {self.n_obs_steps}",
             ),
             (self.mode in MODES, f"mode must be one of {MODES}, got {self.mode!r}"),
+            (
+                self.recovering or not self.memory_per_attempt,
+                "memory_per_attempt is the recovering planner's (mode='recovering'); the clocked planner's "
+                "subtask nets restart at their switch anyway",
+            ),
             (
                 self.mode != "recovering" or not (self.shared_network or self.carry_hidden_across_subtasks),
                 "shared_network and carry_hidden_across_subtasks are the clocked planner's (its subtask nets); the "

@@ -216,9 +216,14 @@ class PnpLstmPolicy(PreTrainedPolicy):
     def predict_sequence(self, batch: dict[str, Tensor]) -> Tensor:
         """Teacher-forced prediction for whole episodes: inputs ``(B, T, D)`` from frame 0 -> ``(B, T, A)``.
 
-        Stateless (does not touch the inference state); used for evaluation on a dataset.
+        Stateless (does not touch the inference state); used for evaluation on a dataset. A recovering planner
+        with ``memory_per_attempt`` restarts its memory at the batch's ``phase.subtask`` switches, where it has them.
         """
-        return self.model.sequence(torch.cat([batch[k] for k in self.input_keys], dim=-1))
+        x = torch.cat([batch[k] for k in self.input_keys], dim=-1)
+        subtask = batch.get(SUBTASK_KEY)
+        if self.config.recovering and _is_window(subtask, x):
+            return self.model.sequence(x, subtask)
+        return self.model.sequence(x)
 
     def _episodes_of(
         self, batch: dict[str, Tensor], x: Tensor, y: Tensor, labels: list[Tensor | None] | None = None

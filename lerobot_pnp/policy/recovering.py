@@ -144,12 +144,35 @@ class RecoveringPlanner(nn.Module):
         self, x: Tensor, y: Tensor, valid: Tensor, subtask: Tensor | None, phase: Tensor | None
     ) -> tuple[Tensor, Tensor, dict[str, float]]:
         cfg = self.config
+        attempts = None
+        if cfg.memory_per_attempt and self.recurrent:
+            if subtask is None:
+                raise DatasetError(
+                    "policy.memory_per_attempt restarts the memory at the phase.subtask labels' switches back to "
+                    "pick, and this batch carries none (a dataset without the phase.* columns): train on one "
+                    "recorded by `lerobot-pnp generate` or set --policy.memory_per_attempt=false"
+                )
+            attempts = Attempts(subtask, valid)
+            x, y, valid, subtask, phase = (
+                None if v is None else attempts.split(v) for v in (x, y, valid, subtask, phase)
+            )
         frames = torch.arange(1, valid.shape[1] + 1, device=valid.device)
         lengths = (valid * frames).amax(dim=1)  # up to the last frame in the loss: nothing after it matters
         out = self(x, lengths)
-        return recovering_loss(out, y, valid, subtask, phase, cfg.subtask_loss_weight, cfg.phase_loss_weight)
+        loss, per_sample, info = recovering_loss(
+            out, y, valid, subtask, phase, cfg.subtask_loss_weight, cfg.phase_loss_weight
+        )
+        if attempts is not None:  # one loss per episode again (LeRobot's per-sample hook): its attempts' frames
+            per_sample = attempts.per_episode(per_sample, valid)
+        return loss, per_sample, info
 
-    def sequence(self, x: Tensor) -> Tensor:
+    def sequence(self, x: Tensor, subtask: Tensor | None = None) -> Tensor:
+        """Teacher-forced actions of whole episodes; with ``memory_per_attempt`` and the ``subtask`` labels, the
+        memory restarts at each switch back to pick, as in training (without labels it is carried)."""
+        if self.config.memory_per_attempt and self.recurrent and subtask is not None:
+            valid = torch.ones(x.shape[:2], dtype=torch.bool, device=x.device)
+            attempts = Attempts(subtask, valid)
+            return attempts.merge(self(attempts.split(x))["action"])
         return self(x)["action"]
 
     def act(self, x: Tensor, state: PlannerState | None) -> tuple[Tensor, PlannerState]:
@@ -157,6 +180,14 @@ class RecoveringPlanner(nn.Module):
         an env whose last move is not observed yet keeps its command and its network state."""
         memory = None if state is None else state.memory
         out, new_memory = self.step(x, memory)
+        if self.config.memory_per_attempt and self.recurrent and state is not None and state.subtask_prob is not None:
+            back = (state.subtask_prob >= 0.5) & (out["subtask_logits"].argmax(dim=-1) == 0)  # place -> pick
+            if bool(back.any()):  # a new attempt: this step again from the zero state, as training restarts it
+                fresh, fresh_memory = self.step(x, None)
+                out = {k: torch.where(back.view(-1, *[1] * (v.dim() - 1)), fresh[k], v) for k, v in out.items()}
+                new_memory = tuple(
+                    torch.where(back[None, :, None], f, n) for f, n in zip(fresh_memory, new_memory, strict=True)
+                )
         action = out["action"]
         phase = out["phase_logits"].argmax(dim=-1)
         if self.config.still_arm_phases and state is not None:  # keyframes the FSM sends without moving the arm
@@ -175,12 +206,15 @@ class RecoveringPlanner(nn.Module):
                         torch.where(decided[:, None], n, o) for n, o in zip(new_memory, memory, strict=True)
                     )
             gate.update(decided, action, old)
+        subtask_prob = out["subtask_logits"].softmax(dim=-1)[:, 1]
+        if gate is not None and state is not None and state.subtask_prob is not None:
+            subtask_prob = torch.where(decided, subtask_prob, state.subtask_prob)  # held with the memory
         return action, PlannerState(
             step=1 if state is None else state.step + 1,
             action=action,
             memory=new_memory,
             gate=gate,
-            subtask_prob=out["subtask_logits"].softmax(dim=-1)[:, 1],
+            subtask_prob=subtask_prob,
             phase=phase,
         )
 
@@ -217,6 +251,67 @@ class RecoveringPlanner(nn.Module):
             return self._heads(self.mlp(x)), None
         h, state = lstm_step(self.lstm, x, state)
         return self._heads(h), state
+
+
+class Attempts:
+    """Episodes ``(B, T)`` cut into attempts (``memory_per_attempt``): a new one starts at frame 0 and wherever the
+    ``phase.subtask`` labels of the frames in the loss switch from place (1) back to pick (0).
+
+    The frame where the labels go back is the first of the new attempt and also the last of the one it ends: at
+    inference the switch is recognised by the old attempt's memory (its classifier says pick) before the step is
+    re-run from the zero state, so training must show it there too. ``split`` lays each attempt out as a row of
+    its own, ``(A, T_a, ...)`` from its first frame, zero-padded (an attempt with no frame in the loss is left
+    out); ``merge`` puts rows back, each frame from the attempt it starts or continues."""
+
+    def __init__(self, subtask: Tensor, valid: Tensor):
+        bsz, length = valid.shape
+        frames = torch.arange(length, device=valid.device)
+        # The label of the last frame in the loss before each frame: the frames out of the loss (a late observer's
+        # blind frames, a retimed recovery's repeated first frame) are steps the late robot still spends on the
+        # attempt it sees; the new one starts where it can see the event, its first frame in the loss.
+        seen = torch.where(valid, frames, torch.full_like(frames, -1)).cummax(dim=1).values
+        before = torch.cat([seen.new_full((bsz, 1), -1), seen[:, :-1]], dim=1)
+        was_place = (before >= 0) & (subtask.gather(1, before.clamp(min=0)) == 1)
+        back = valid & (subtask == 0) & was_place
+        back[:, 0] = True
+        index = back.long().cumsum(dim=1) - 1  # the attempt of each frame within its episode
+        count = index[:, -1] + 1
+        self.attempt = index + (count.cumsum(dim=0) - count)[:, None]  # (B, T): a global id
+        self.pos = frames - torch.where(back, frames, torch.zeros_like(frames)).cummax(dim=1).values
+        starts = back.nonzero()  # (n, 2) in attempt order: episode, first frame
+        self.episode, self.start = starts[:, 0], starts[:, 1]
+        following = torch.cat([self.start[1:], self.start.new_full((1,), length)])
+        same = torch.cat([self.episode[1:] == self.episode[:-1], self.episode.new_zeros(1, dtype=torch.bool)])
+        self.length = torch.where(same, following - self.start + 1, length - self.start)  # + the next one's first
+        in_loss = self.split_all(valid).any(dim=1)
+        self.keep = in_loss.nonzero().squeeze(1)
+
+    def split_all(self, v: Tensor) -> Tensor:
+        width = int(self.length.max())
+        steps = torch.arange(width, device=v.device)
+        index = (self.start[:, None] + steps).clamp(max=v.shape[1] - 1)
+        out = v[self.episode[:, None], index]
+        inside = steps[None, :] < self.length[:, None]
+        return out * inside.view(*inside.shape, *[1] * (v.dim() - 2)).to(out.dtype)
+
+    def split(self, v: Tensor) -> Tensor:
+        """``(B, T, ...)`` -> ``(A, T_a, ...)``."""
+        return self.split_all(v)[self.keep]
+
+    def merge(self, v: Tensor) -> Tensor:
+        """``(A, T_a, ...)`` (from ``split``) -> ``(B, T, ...)``; frames of an attempt left out are zeros."""
+        full = v.new_zeros((len(self.episode), *v.shape[1:]))
+        full[self.keep] = v
+        return full[self.attempt, self.pos]
+
+    def per_episode(self, per_attempt: Tensor, valid: Tensor) -> Tensor:
+        """An attempt's mean loss over its frames in the loss -> its episode's, weighted by those frames."""
+        weight = valid.sum(dim=1).to(per_attempt.dtype)
+        episode = self.episode[self.keep]
+        bsz = self.attempt.shape[0]
+        total = per_attempt.new_zeros(bsz).index_add(0, episode, per_attempt * weight)
+        frames = per_attempt.new_zeros(bsz).index_add(0, episode, weight)
+        return total / frames.clamp(min=1.0)
 
 
 def recovering_loss(

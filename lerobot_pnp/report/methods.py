@@ -185,8 +185,9 @@ def pnp_lstm_method(name: str, label: str, description: str, **overrides) -> Met
 RECOVERING = {**RECOVERING_RECIPE, "max_episode_length": RECOVERY_BUDGET + 1}
 # The memoryless controls take the recipe that gave each its best nominal success on the `full` task
 # (docs/results/planner.md): the plain MLP with the late episodes, the phase-told one without.
-MEMORYLESS_MLP = {**RECOVERING, "recurrent": False}
-PHASE_TOLD_MLP = {**RECOVERING, "recurrent": False, "latency_augment_prob": 0.0}
+# Without memory there is none to restart at a re-pick: memory_per_attempt is off (it would change nothing).
+MEMORYLESS_MLP = {**RECOVERING, "recurrent": False, "memory_per_attempt": False}
+PHASE_TOLD_MLP = {**RECOVERING, "recurrent": False, "latency_augment_prob": 0.0, "memory_per_attempt": False}
 DAGGER_ROLLOUTS = 300  # policy episodes of the one DAgger round, cycled over the rollout suites
 # the recipe's trunk as the method descriptions name it, read from the recipe so that a report cannot name another
 RECOVERING_TRUNK = f"{RECOVERING['num_layers']} x {RECOVERING['hidden_size']} LSTM"
@@ -375,7 +376,8 @@ METHODS: dict[str, Method] = {
             "recovering",
             "recovering LSTM",
             "one LSTM over the whole episode, no clock, learned subtask switch; the recipe of `configs/dagger.json` "
-            f"({RECOVERING_TRUNK} trunk, late episodes, binary gripper, the observation gate, the arm held on the place's open); recoveries only as the task "
+            f"({RECOVERING_TRUNK} trunk, late episodes, binary gripper, the observation gate, the arm held on the place's open, the memory restarted at each "
+            "re-pick); recoveries only as the task "
             "demonstrates them (none on `paper`, every disturbance on `full`)",
             **RECOVERING,
         ),
