@@ -173,6 +173,9 @@ def load_policy(path: str | Path, device: str = "cpu", env_cfg: Any = None) -> L
     return LoadedPolicy(policy, preprocessor, postprocessor, ckpt, config.type)
 
 
+_FLAGGED: set[tuple[Path, str]] = set()  # (checkpoint, feature) whose std 0 was already flagged
+
+
 def check_checkpoint_values(ckpt: Path, policy: Any, processors: tuple) -> None:
     """A checkpoint whose weights or normalisation stats hold NaN/inf is the checkpoint's fault, named here
     (otherwise it surfaces steps later as a NaN action); a stat with std 0 is flagged (any change of that
@@ -193,7 +196,8 @@ def check_checkpoint_values(ckpt: Path, policy: Any, processors: tuple) -> None:
                         raise PolicyLoadError(
                             f"the checkpoint {ckpt} is corrupt: its normalisation stats {feature}.{stat} contain NaN/inf"
                         )
-                    if stat == "std" and feature in used and np.any(array == 0):
+                    if stat == "std" and feature in used and np.any(array == 0) and (ckpt, feature) not in _FLAGGED:
+                        _FLAGGED.add((ckpt, feature))  # once per checkpoint and process: a study loads it per suite
                         logging.getLogger(__name__).warning(
                             "checkpoint %s: %s has std 0 in dims %s (constant in its training data)",
                             ckpt, feature, np.flatnonzero(array.reshape(-1) == 0).tolist(),
