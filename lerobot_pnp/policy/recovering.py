@@ -90,6 +90,12 @@ class RecoveringPlanner(nn.Module):
         self.phase_head = nn.Linear(width, N_PHASES)
         self.action_dim = action_dim
 
+    @property
+    def per_attempt(self) -> bool:
+        """``memory_per_attempt`` on a trunk with memory (an MLP has none to restart); read from the config each
+        time, as the gate's settings are, so that a changed config takes effect."""
+        return self.recurrent and self.config.memory_per_attempt
+
     def trunk_parameters(self) -> int:
         module = self.lstm if self.recurrent else self.mlp
         return sum(p.numel() for p in module.parameters())
@@ -145,7 +151,7 @@ class RecoveringPlanner(nn.Module):
     ) -> tuple[Tensor, Tensor, dict[str, float]]:
         cfg = self.config
         attempts = None
-        if cfg.memory_per_attempt and self.recurrent:
+        if self.per_attempt:
             if subtask is None:
                 raise DatasetError(
                     "policy.memory_per_attempt restarts the memory at the phase.subtask labels' switches back to "
@@ -169,7 +175,7 @@ class RecoveringPlanner(nn.Module):
     def sequence(self, x: Tensor, subtask: Tensor | None = None) -> Tensor:
         """Teacher-forced actions of whole episodes; with ``memory_per_attempt`` and the ``subtask`` labels, the
         memory restarts at each switch back to pick, as in training (without labels it is carried)."""
-        if self.config.memory_per_attempt and self.recurrent and subtask is not None:
+        if self.per_attempt and subtask is not None:
             valid = torch.ones(x.shape[:2], dtype=torch.bool, device=x.device)
             attempts = Attempts(subtask, valid)
             return attempts.merge(self(attempts.split(x))["action"])
@@ -180,7 +186,7 @@ class RecoveringPlanner(nn.Module):
         an env whose last move is not observed yet keeps its command and its network state."""
         memory = None if state is None else state.memory
         out, new_memory = self.step(x, memory)
-        if self.config.memory_per_attempt and self.recurrent and state is not None and state.subtask_prob is not None:
+        if self.per_attempt and state is not None and state.subtask_prob is not None:
             back = (state.subtask_prob >= 0.5) & (out["subtask_logits"].argmax(dim=-1) == 0)  # place -> pick
             if bool(back.any()):  # a new attempt: this step again from the zero state, as training restarts it
                 fresh, fresh_memory = self.step(x, None)
@@ -283,10 +289,11 @@ class Attempts:
         following = torch.cat([self.start[1:], self.start.new_full((1,), length)])
         same = torch.cat([self.episode[1:] == self.episode[:-1], self.episode.new_zeros(1, dtype=torch.bool)])
         self.length = torch.where(same, following - self.start + 1, length - self.start)  # + the next one's first
-        in_loss = self.split_all(valid).any(dim=1)
+        in_loss = self._rows(valid).any(dim=1)
         self.keep = in_loss.nonzero().squeeze(1)
 
-    def split_all(self, v: Tensor) -> Tensor:
+    def _rows(self, v: Tensor) -> Tensor:
+        """Every attempt as a row, those without a frame in the loss included."""
         width = int(self.length.max())
         steps = torch.arange(width, device=v.device)
         index = (self.start[:, None] + steps).clamp(max=v.shape[1] - 1)
@@ -296,7 +303,7 @@ class Attempts:
 
     def split(self, v: Tensor) -> Tensor:
         """``(B, T, ...)`` -> ``(A, T_a, ...)``."""
-        return self.split_all(v)[self.keep]
+        return self._rows(v)[self.keep]
 
     def merge(self, v: Tensor) -> Tensor:
         """``(A, T_a, ...)`` (from ``split``) -> ``(B, T, ...)``; frames of an attempt left out are zeros."""
