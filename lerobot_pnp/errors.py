@@ -5,7 +5,8 @@ is a bug and keeps its traceback. Messages name the bad value and, where there i
 
     PnPError
     ├── ConfigError            a configuration value or flag is invalid (also a ValueError)
-    │   └── ResetOptionError   a reset option passed to env.reset(options=...) is invalid
+    │   ├── ResetOptionError   a reset option passed to env.reset(options=...) is invalid
+    │   └── OtherSettingsError data on disk was made with other settings than the ones requested
     ├── UnreachableError       a gripper pose is outside the arm's reach
     ├── ExpertFailure          the scripted expert ran but the task did not succeed (``cause``)
     ├── DatasetError           a dataset is missing, incomplete, corrupt, or cannot be written
@@ -24,6 +25,13 @@ class ConfigError(PnPError, ValueError):
 
 class ResetOptionError(ConfigError):
     """An ``env.reset(options=...)`` entry is unknown or invalid."""
+
+
+class OtherSettingsError(ConfigError):
+    """Data on disk (a dataset, an interrupted run) was made with other settings than the ones requested.
+
+    Its own class because a caller that owns the data may replace it, where any other configuration error
+    (a mistyped flag) must leave it untouched."""
 
 
 class UnreachableError(PnPError):
