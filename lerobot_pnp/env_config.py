@@ -23,7 +23,6 @@ A generated dataset records the resolved config (``recorded_task.write_recorded`
 from __future__ import annotations
 
 import logging
-import math
 from dataclasses import dataclass, field, fields
 from typing import ClassVar
 
@@ -31,11 +30,10 @@ from lerobot.configs import FeatureType, PolicyFeature
 from lerobot.envs.configs import EnvConfig
 from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_IMAGES, OBS_STATE
 
-from lerobot_pnp import disturbances, robot
+from lerobot_pnp import robot
+from lerobot_pnp.env_validation import validate
 from lerobot_pnp.errors import ConfigError
-from lerobot_pnp.physics import CAMERAS
 from lerobot_pnp.presets import (
-    CONTROL_MODES,
     ENV_TYPE,
     GYM_ID,
     GYM_NAMESPACE,
@@ -52,7 +50,6 @@ KEYFRAME_FPS = robot.KEYFRAME_FPS
 DENSE_FPS = 20
 # Dense episodes: 1 s of control (20 steps) per keyframe of the budget, the keyframe methods' budget at the pace
 # of the dense expert (15-18 steps per keyframe, docs/results/dense_budget.md) with a margin of a few steps.
-# It was 3 s: three times the keyframe methods' budget, spent almost wholly by failing episodes.
 DENSE_SECONDS_PER_KEYFRAME = 1
 
 
@@ -60,15 +57,6 @@ def dense_episode_length(keyframe_budget: int, fps: int = DENSE_FPS) -> int:
     """Env steps of a dense episode with ``keyframe_budget`` keyframes at ``fps``: ``DENSE_SECONDS_PER_KEYFRAME``
     of control per keyframe (the default ``episode_length`` in dense control)."""
     return DENSE_SECONDS_PER_KEYFRAME * keyframe_budget * fps
-
-
-_PAIRS = (
-    ("object_low", "object_high"),
-    ("object_exclude_low", "object_exclude_high"),
-    ("place_low", "place_high"),
-    ("start_low", "start_high"),
-)
-_RANGES = ("yaw_range", "size_range", "mass_range", "friction_range")
 
 
 @EnvConfig.register_subclass(ENV_TYPE)
@@ -150,7 +138,7 @@ class BaxterPnPEnvConfig(EnvConfig):
 
     def __post_init__(self):
         self._resolve_task()
-        self._validate()
+        validate(self)
         if self.fps is None:
             self.fps = KEYFRAME_FPS if self.control_mode == "keyframe" else DENSE_FPS
         if self.episode_length is None:
@@ -217,112 +205,6 @@ class BaxterPnPEnvConfig(EnvConfig):
             )
         elif rec_mode and self.fps is not None and rec_fps is not None and self.fps != rec_fps:
             raise ConfigError(f"env.fps={self.fps} contradicts the recorded fps {rec_fps} of the dataset/checkpoint")
-
-    def _validate(self) -> None:
-        self._validate_control()
-        self._validate_boxes()
-        self._validate_scalars()
-        self._validate_physical()
-        disturbances.validate(self)
-
-    def _validate_control(self) -> None:
-        """Control mode, rate, episode length, cameras and image size, speed."""
-        if self.control_mode not in CONTROL_MODES:
-            raise ConfigError(f"env.control_mode must be one of {CONTROL_MODES}, got {self.control_mode!r}")
-        self.cameras = list(self.cameras or [])
-        unknown = [c for c in self.cameras if c not in CAMERAS]
-        if unknown or len(set(self.cameras)) != len(self.cameras):
-            raise ConfigError(f"env.cameras must be distinct names from {CAMERAS}, got {self.cameras}")
-        if self.fps is not None and not (isinstance(self.fps, int) and 1 <= self.fps <= 500):
-            raise ConfigError(f"env.fps must be an integer in [1, 500], got {self.fps!r}")
-        if self.control_mode == "keyframe" and self.fps not in (None, KEYFRAME_FPS):
-            raise ConfigError(
-                f"env.fps: keyframe control has one step per FSM state (fps {KEYFRAME_FPS}), got {self.fps}"
-            )
-        if self.episode_length is not None and not (isinstance(self.episode_length, int) and self.episode_length >= 1):
-            raise ConfigError(f"env.episode_length must be an integer >= 1, got {self.episode_length!r}")
-        if not all(
-            isinstance(v, int) and not isinstance(v, bool) and 8 <= v <= 4096
-            for v in (self.image_height, self.image_width)
-        ):
-            raise ConfigError(
-                f"env.image_height/width must be in [8, 4096], got {self.image_height}x{self.image_width}"
-            )
-        if not 0 < self.speed <= 1:
-            raise ConfigError(
-                f"env.speed (fraction of Baxter's joint velocity limits) must be in (0, 1], got {self.speed}"
-            )
-
-    def _validate_boxes(self) -> None:
-        """The xy/xyz boxes and the ranges: their sizes, finite, low <= high; the exclusion leaves room."""
-        sizes = {
-            name: 3 if name.startswith("start_") else 2 for name in (*(n for pair in _PAIRS for n in pair), *_RANGES)
-        }
-        for name, size in sizes.items():
-            value = getattr(self, name)
-            try:
-                value = tuple(float(v) for v in value)
-            except (TypeError, ValueError):
-                raise ConfigError(f"env.{name} must be {size} numbers, got {value!r}") from None
-            if len(value) != size or not all(math.isfinite(v) for v in value):
-                raise ConfigError(f"env.{name} must be {size} finite numbers, got {list(value)}")
-            setattr(self, name, value)
-        for low, high in (*_PAIRS, *((r, None) for r in _RANGES)):
-            lo, hi = (
-                (getattr(self, low)[:1], getattr(self, low)[1:])
-                if high is None
-                else (getattr(self, low), getattr(self, high))
-            )
-            if any(a > b for a, b in zip(lo, hi, strict=True)):
-                raise ConfigError(
-                    f"env.{low} must be <= {high or 'its upper end'} elementwise, got {list(lo)} > {list(hi)}"
-                )
-        if all(e <= o for e, o in zip(self.object_exclude_low, self.object_low, strict=True)) and all(
-            e >= o for e, o in zip(self.object_exclude_high, self.object_high, strict=True)
-        ):
-            raise ConfigError(
-                f"env.object_exclude_low/high {list(self.object_exclude_low)}..{list(self.object_exclude_high)} "
-                f"covers the whole object box {list(self.object_low)}..{list(self.object_high)}: no position is left"
-            )
-
-    def _validate_scalars(self) -> None:
-        """Heights, tolerances, noise, probabilities, step counts and the observe flags."""
-        for name in ("hover_height", "success_xy_tol"):
-            if not (isinstance(getattr(self, name), int | float) and 0 < getattr(self, name) < 1):
-                raise ConfigError(f"env.{name} must be in (0, 1) m, got {getattr(self, name)!r}")
-        for name in ("nudge_max", "obs_noise_object", "obs_noise_joints", "obs_bias_object"):
-            value = getattr(self, name)
-            if not (isinstance(value, int | float) and 0 <= value < 1):
-                raise ConfigError(f"env.{name} must be in [0, 1) (metres or radians), got {value!r}")
-        for name in ("grasp_miss_prob", "drop_prob", "displace_prob"):
-            value = getattr(self, name)
-            if not (isinstance(value, int | float) and 0 <= value <= 1):
-                raise ConfigError(f"env.{name} is a probability per episode and must be in [0, 1], got {value!r}")
-        for name, low in (("nudge_at_step", 0), ("obs_latency", 0), ("keyframe_budget", robot.N_KEYFRAMES)):
-            value = getattr(self, name)
-            if not (isinstance(value, int) and not isinstance(value, bool) and low <= value <= 10_000):
-                raise ConfigError(f"env.{name} must be an integer in [{low}, 10000], got {value!r}")
-        for name in ("observe_yaw", "observe_goal", "observe_phase"):
-            if not isinstance(getattr(self, name), bool):
-                raise ConfigError(f"env.{name} must be true or false, got {getattr(self, name)!r}")
-
-    def _validate_physical(self) -> None:
-        """What the gripper and the table allow: cube size, mass, friction, the start height."""
-        if not (self.size_range[0] >= 0.045 and self.size_range[1] <= 0.06):
-            raise ConfigError(
-                f"env.size_range must lie in [0.045, 0.06] m (the jaw closes to 36 mm), got {list(self.size_range)}"
-            )
-        if not (self.mass_range[0] >= 0.05 and self.mass_range[1] <= 2.0):
-            raise ConfigError(
-                f"env.mass_range must lie in [0.05, 2.0] kg (the gripper's payload), got {list(self.mass_range)}"
-            )
-        if not (self.friction_range[0] >= 0.3 and self.friction_range[1] <= 2.0):
-            raise ConfigError(f"env.friction_range must lie in [0.3, 2.0], got {list(self.friction_range)}")
-        if self.start_low[2] < robot.TABLE_TOP_Z + 0.05:
-            raise ConfigError(
-                f"env.start_low z={self.start_low[2]} puts the gripper within 5 cm of the table "
-                f"(table top at z={robot.TABLE_TOP_Z})"
-            )
 
     @property
     def environment_state_names(self) -> list[str]:

@@ -20,7 +20,6 @@ from lerobot_pnp.errors import PhysicsError
 from lerobot_pnp.ik import ArmIK
 from lerobot_pnp.interpolation import joint_trajectory
 
-CAMERAS = ("front", "overhead", "wrist")
 CONTROL_DT = 0.01  # interpolator update period in keyframe mode (100 Hz)
 _FINGER_JOINTS = ("l_gripper_l_finger_joint", "l_gripper_r_finger_joint")
 _FINGER_BODIES = ("l_finger", "r_finger", "l_finger_tip", "r_finger_tip")

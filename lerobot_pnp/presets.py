@@ -117,3 +117,4 @@ TASK_FIELDS = tuple(PAPER_TASK)
 # The observation setup (not part of any preset): rendered cameras and their image size. Like the control mode it
 # is read back from the recorded task, so a policy trained on camera images is evaluated with the same cameras.
 OBSERVATION_DEFAULTS: dict[str, Any] = {"cameras": [], "image_height": 240, "image_width": 320}
+CAMERAS = ("front", "overhead", "wrist")  # the named cameras of the MJCF scene (envs/baxter_pnp.xml)

@@ -93,7 +93,7 @@ def check_policy_features(
     """Raise ``IncompatiblePolicyError`` unless the policy's features are those of this env (with an
     ``environment_state`` of ``env_state_dim``, or of any width a task can give when None; camera inputs
     among the env's cameras, of the size ``cameras`` renders them at when given)."""
-    from lerobot_pnp.physics import CAMERAS
+    from lerobot_pnp.presets import CAMERAS
 
     inputs = dict(config.input_features or {})
     outputs = dict(config.output_features or {})
