@@ -1,0 +1,394 @@
+"""Regenerate every number and reference table of README.md and docs/ from the files they come from.
+
+    python scripts/docs_tables.py          # rewrite the generated blocks in place
+    python scripts/docs_tables.py --check  # exit 1 and name the pages whose blocks differ (tests/test_docs_tables.py)
+
+A page holds a generated block between two marker comments::
+
+    <!-- begin generated: NAME -->
+    ...
+    <!-- end generated: NAME -->
+
+and this script owns everything between them. The result tables read the committed study summaries and
+measurement files under ``docs/results/`` (their provenance, commit, date and machine, is in
+``docs/results/sources.json`` and each summary's ``machine``); the reference blocks read the code itself (the
+suite catalogue, the CLI's ``--help``, the config dataclasses), so a page can never drift from its source.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "docs" / "results"
+BLOCK = re.compile(r"(<!-- begin generated: ([\w-]+) -->\n)(.*?)(<!-- end generated: \2 -->)", re.S)
+
+# study method key -> column label (the report's own labels are longer than a table header should be)
+PAPER_METHODS = {
+    "expert": "expert (FSM)",
+    "lookup_table": "lookup table",
+    "clocked_lstm": "clocked LSTM (paper)",
+    "memoryless_mlp": "memoryless MLP",
+    "recovering": "recovering LSTM",
+    "recovering_dagger": "+ DAgger",
+    "recovering_dart": "+ DART",
+    "act": "ACT",
+}
+PAPER_SUITES = {
+    "nominal": "unseen positions (`nominal`)",
+    "outside_ring": "outside the training box (`outside_ring`)",
+    "nudge_0.03": "nudge 3 cm before the grasp (`nudge_0.03`)",
+    "nudge_0.05": "nudge 5 cm (`nudge_0.05`)",
+    "obs_noise_0.01": "observation noise 10 mm (`obs_noise_0.01`)",
+    "latency": "observations one step old (`latency`)",
+    "random_yaw": "random cube yaw, not observed (`random_yaw`)",
+    "grasp_miss": "missed grasp (`grasp_miss`)",
+    "drop": "drop in transport (`drop`)",
+    "displace": "displaced after release (`displace`)",
+}
+HELDOUT_METHODS = ("recovering", "expert", "memoryless_mlp", "act", "lookup_table")
+VERDICT_SHORT = {"generalises": "**generalises**", "degrades": "**only partly**", "fails": "**does not**"}
+
+
+def _json(rel: str) -> dict:
+    return json.loads((RESULTS / rel).read_text())
+
+
+def _pct(rate: float) -> str:
+    return f"{100 * rate:.1f}".removesuffix(".0") if rate not in (0.0, 1.0) else f"{100 * rate:.0f}"
+
+
+def _cell(c: dict, interval: bool = True) -> str:
+    text = f"{_pct(c['rate'])} %"
+    if interval:
+        lo, hi = c["interval"]
+        text += f" [{100 * lo:.1f}, {100 * hi:.1f}]"
+    return text
+
+
+def _machine(m: dict) -> str:
+    return f"{m['cpu']}, {m['cores_available']} cores; LeRobot {m['lerobot']}, torch {m['torch']}, MuJoCo {m['mujoco']}"
+
+
+def study_source() -> str:
+    """The one line that names the run every study number comes from."""
+    src = _json("sources.json")["study"]
+    machine = _machine(_json(src["files"][0])["machine"])
+    return f"Run: `{src['command']}` at commit `{src['commit']}`, {src['date']}, on {machine}."
+
+
+def _source(name: str) -> str:
+    s = _json("sources.json")[name]
+    return f"Source: `docs/results/{name}`, commit `{s['commit']}`, {s['date']}, {s['machine']}."
+
+
+# ------------------------------------------------------------------------------------------------ result tables
+def paper_table(base: str) -> str:
+    """Success % on the paper's task: the headline suites, the study's main methods, 3 training seeds pooled."""
+    summary = _json("study/report_full/summary.json")
+    success = summary["success"]
+    head = "| suite | " + " | ".join(PAPER_METHODS.values()) + " |"
+    lines = [head, "|---" * (len(PAPER_METHODS) + 1) + "|"]
+    for suite, label in PAPER_SUITES.items():
+        cells = [_pct(success[suite][m]["rate"]) for m in PAPER_METHODS]
+        lines.append(f"| {label} | " + " | ".join(cells) + " |")
+    ns = [c["n"] for s in PAPER_SUITES for c in success[s].values()]
+    seeds = summary["config"]["train_seeds"]
+    return "\n".join(
+        [
+            *lines,
+            "",
+            f"Success %, task `paper`, {len(seeds)} training seeds pooled, {min(ns)}-{max(ns)} episodes per cell "
+            "(95 % intervals, per-seed ranges and paired tests: "
+            f"[the paper-task report]({base}study/report_full/report.md)). " + study_source(),
+        ]
+    )
+
+
+def _verdict(entry: dict) -> str:
+    return VERDICT_SHORT.get(entry["verdict"], "no verdict")
+
+
+def heldout_verdicts(base: str) -> str:
+    """The recovering planner's verdict per disturbance axis of the held-out protocol."""
+    from lerobot_pnp.evaluation.suites import HELD_OUT_AXES
+
+    summary = _json("study/heldout/summary.json")
+    rows = {(e["axis"], e["method"]): e for e in summary["held_out_axes"]}
+    lines = ["| axis | in distribution | held out | lowest held-out suite | verdict |", "|---|---|---|---|---|"]
+    for axis in HELD_OUT_AXES:
+        e = rows[(axis.name, "recovering")]
+        low_name, low = min(e["held_out_suites"].items(), key=lambda kv: kv[1]["rate"])
+        lines.append(
+            f"| {axis.name} ({axis.description}) | {_cell(e['in_distribution'])} | {_cell(e['held_out'])} | "
+            f"`{low_name}` {_cell(low, False)} | {_verdict(e)} (p {e['p_below']:.2g}) |"
+        )
+    others = []
+    for m in HELDOUT_METHODS[1:]:
+        verdicts = sorted({_verdict(e).strip("*") for (_, method), e in rows.items() if method == m})
+        others.append(f"{PAPER_METHODS[m]}: {', '.join(verdicts)}")
+    seeds = summary["config"]["train_seeds"]
+    return "\n".join(
+        [
+            *lines,
+            "",
+            f"Recovering LSTM, task `full`, {len(seeds)} training seeds pooled, eval seeds from "
+            f"{summary['config']['eval_seed']:,}. Other methods' verdicts on the five axes: {'; '.join(others)}. "
+            + study_source(),
+        ]
+    )
+
+
+def heldout_suites(base: str) -> str:
+    """Every suite of the held-out study: the recovering planner with its interval and seeds, the baselines."""
+    summary = _json("study/heldout/summary.json")
+    cols = HELDOUT_METHODS
+    lines = ["| suite | " + " | ".join(PAPER_METHODS[m] for m in cols) + " |", "|---" * (len(cols) + 1) + "|"]
+    for suite, cells in summary["success"].items():
+        rec = cells["recovering"]
+        seeds = "-".join(_pct(r) for r in (min(rec["per_seed"]), max(rec["per_seed"])))
+        first = f"{_cell(rec)} n={rec['n']}, seeds {seeds} %"
+        rest = [f"{_pct(cells[m]['rate'])} %" if m in cells else "-" for m in cols[1:]]
+        alias = summary["suite_aliases"].get(suite)
+        name = f"`{suite}`" + (f" (= `{alias}`)" if alias else "")
+        lines.append(f"| {name} | {first} | " + " | ".join(rest) + " |")
+    return "\n".join([*lines, "", study_source()])
+
+
+def _pooled(rows: dict, suite: str) -> tuple[int, int]:
+    return sum(r[suite]["successes"] for r in rows.values()), sum(r[suite]["n"] for r in rows.values())
+
+
+def gate_table(base: str) -> str:
+    """The observation gate on and off, the same weights: latency beyond the trained one step."""
+    from lerobot_pnp.evaluation.stats import wilson_interval
+
+    data = _json("recovering_gate_3seeds_eval.json")
+    lines = ["| suite | gate on | gate off (same weights) |", "|---|---|---|"]
+    for suite in ("train_latency", "heldout_latency_2", "heldout_latency_jitter"):
+        cells = []
+        for arm in ("gated", "ungated"):
+            k, n = _pooled(data[arm], suite)
+            lo, hi = wilson_interval(k, n)
+            cells.append(f"{_pct(k / n)} % [{100 * lo:.1f}, {100 * hi:.1f}] ({k}/{n})")
+        lines.append(f"| `{suite}` | " + " | ".join(cells) + " |")
+    return "\n".join([*lines, "", _source("recovering_gate_3seeds_eval.json")])
+
+
+def memory_table(base: str) -> str:
+    """Memory per attempt on and off, the same training and eval seeds."""
+    from lerobot_pnp.evaluation.stats import wilson_interval
+
+    data = _json("memory_per_attempt.json")
+    lines = ["| suite | memory carried over the episode | memory per attempt |", "|---|---|---|"]
+    for suite in ("nominal", "train_displace", "heldout_double_displace", "heldout_latency_2"):
+        row = data["suites"][suite]
+        cells = []
+        for arm in ("carried", "per_attempt"):
+            k, n = row[arm], row["n"]
+            lo, hi = wilson_interval(k, n)
+            cells.append(f"{_pct(k / n)} % [{100 * lo:.1f}, {100 * hi:.1f}]")
+        lines.append(f"| `{suite}` (n={row['n']}) | " + " | ".join(cells) + " |")
+    seeds = ", ".join(map(str, data["train_seeds"]))
+    return "\n".join([*lines, "", f"Training seeds {seeds} pooled. " + _source("memory_per_attempt.json")])
+
+
+def planner_table(base: str) -> str:
+    """Clocked against recovering on a task with recovery demonstrations, and the memoryless controls."""
+    data = _json("planner_evals.json")
+    suites = ("nominal", "grasp_miss", "drop", "displace", "noise_latency")
+    rows = {
+        "clocked (paper), 10-frame demos": "clocked (paper)",
+        "recovering, round 0": "recovering",
+        "memoryless MLP, with late episodes": "memoryless MLP",
+        "memoryless MLP told the phase, current observations only": "memoryless MLP told the phase",
+    }
+    lines = ["| policy | " + " | ".join(f"`{s}`" for s in suites) + " |", "|---" * (len(suites) + 1) + "|"]
+    for key, label in rows.items():
+        cells = [data["rows"][key][s] for s in suites]
+        lines.append(f"| {label} | " + " | ".join(f"{_pct(c['successes'] / c['n'])}" for c in cells) + " |")
+    return "\n".join(
+        [
+            *lines,
+            "",
+            f"Success %, {data['episodes_per_suite']} episodes per suite, one training seed, the same eval seeds "
+            "for every row. " + _source("planner_evals.json"),
+        ]
+    )
+
+
+def cost_lines(base: str) -> str:
+    """What `make demo` and `make study` cost, on the machine that measured them."""
+    src = _json("sources.json")
+    demo, study = src["demo"], src["study"]
+    machine = _machine(_json(study["files"][0])["machine"])
+    return (
+        f"- `make demo`: **{demo['wall']}** on {demo['machine']} ({demo['how']}; commit `{demo['commit']}`, "
+        f"{demo['date']}).\n"
+        f"- `make study`: **{study['from_scratch_h']:.1f} h** from scratch on {machine} ({study['from_scratch_how']}; "
+        f"commit `{study['commit']}`, {study['date']})."
+    )
+
+
+# ------------------------------------------------------------------------------------------- reference blocks
+def _changes(changes: dict, base: dict) -> str:
+    def fmt(v):
+        if isinstance(v, float):
+            return f"{v:.4g}"
+        if isinstance(v, (tuple, list)):
+            return "(" + ", ".join(fmt(x) for x in v) + ")"
+        return str(v)
+
+    shown = {k: v for k, v in changes.items() if k not in base or fmt(base[k]) != fmt(v)}
+    return ", ".join(f"`{k}={fmt(v)}`" for k, v in shown.items()) or "none"
+
+
+def suite_catalogue(base: str) -> str:
+    """Every suite of ``evaluation/suites.py``, grouped as the studies use them, with what it changes."""
+    from lerobot_pnp.evaluation.suites import HELD_OUT_AXES, SUITES
+    from lerobot_pnp.presets import FULL_TASK
+
+    groups = {
+        "The paper-task study (base: the task a policy was trained on)": [],
+        "The held-out protocol (base: the `full` task)": [],
+        "DAgger's suites (`quiet*`: every perturbation off, then one at a time)": [],
+    }
+    titles = list(groups)
+    for s in SUITES.values():
+        key = 1 if s.name.startswith(("train_", "heldout_")) else 2 if s.name.startswith("quiet") else 0
+        groups[titles[key]].append(s)
+    out = [f"{len(SUITES)} suites. Fields shown: those that differ from the `full` preset."]
+    for title, suites in groups.items():
+        out += ["", f"### {title}", "", "| suite | what it is | env-config changes |", "|---|---|---|"]
+        for s in suites:
+            changes = "; ".join(_changes(p, FULL_TASK) for p in s.parts)
+            out.append(f"| `{s.name}` | {s.description} | {changes} |")
+    out += ["", "### Held-out axes", "", "| axis | what varies | in distribution | held out |", "|---|---|---|---|"]
+    for a in HELD_OUT_AXES:
+        ins, held = (", ".join(f"`{n}`" for n in names) for names in (a.in_distribution, a.held_out))
+        out.append(f"| {a.name} | {a.description} | {ins} | {held} |")
+    return "\n".join(out)
+
+
+def cli_help(base: str) -> str:
+    """``lerobot-pnp --help`` and every command's ``--help``, as the CLI prints them at 100 columns."""
+    from lerobot_pnp import cli
+    from lerobot_pnp.cli_help import command_help
+
+    old = os.environ.get("COLUMNS")
+    os.environ["COLUMNS"] = "100"
+    try:
+        out = ["```text", "$ lerobot-pnp --help", cli._usage(), "```"]
+        for name, (cfg_ref, _, summary) in cli.COMMANDS.items():
+            out += [
+                "",
+                f"### `lerobot-pnp {name}`",
+                "",
+                "```text",
+                command_help(name, summary, cli._load(cfg_ref)),
+                "```",
+            ]
+    finally:
+        if old is None:
+            del os.environ["COLUMNS"]
+        else:
+            os.environ["COLUMNS"] = old
+    return "\n".join(out)
+
+
+def _field_table(cls, prefix: str) -> str:
+    from lerobot_pnp.cli_help import field_rows
+
+    lines = ["| flag | type | description [default] |", "|---|---|---|"]
+    for flag, tp, text in field_rows(cls):
+        text = text.replace("\N{NO-BREAK SPACE}", " ").replace("|", "\\|")
+        lines.append(f"| `{prefix}{flag.removeprefix('--')}` | `{tp}` | {text} |")
+    return "\n".join(lines)
+
+
+def env_fields(base: str) -> str:
+    """Every field of the env config: flags of lerobot-eval, lerobot-train and lerobot-pnp (``--env.*``)."""
+    from lerobot_pnp.env_config import BaxterPnPEnvConfig
+
+    return _field_table(BaxterPnPEnvConfig, "--env.")
+
+
+def policy_fields(base: str) -> str:
+    """Every field of the pnp_lstm policy config (``--policy.*``)."""
+    from lerobot_pnp.policy.configuration_pnp_lstm import PnpLstmConfig
+
+    return _field_table(PnpLstmConfig, "--policy.")
+
+
+# ----------------------------------------------------------------------------------------------------- render
+BLOCKS = {
+    "paper-table": paper_table,
+    "heldout-verdicts": heldout_verdicts,
+    "heldout-suites": heldout_suites,
+    "gate-table": gate_table,
+    "memory-table": memory_table,
+    "planner-table": planner_table,
+    "cost": cost_lines,
+    "suite-catalogue": suite_catalogue,
+    "cli-help": cli_help,
+    "env-fields": env_fields,
+    "policy-fields": policy_fields,
+}
+
+
+def pages() -> list[Path]:
+    """README.md and every hand-written page of docs/ (a study's own report.md is written by the study)."""
+    docs = [p for p in sorted((ROOT / "docs").rglob("*.md")) if "study" not in p.relative_to(RESULTS.parent).parts]
+    return [ROOT / "README.md", *docs]
+
+
+def render(page: Path, text: str, cache: dict[tuple[str, str], str]) -> str:
+    """``text`` with every generated block of ``page`` regenerated; an unknown block name is an error."""
+    base = os.path.relpath(RESULTS, page.parent).replace(os.sep, "/") + "/"
+
+    def fill(m: re.Match) -> str:
+        name = m.group(2)
+        if name not in BLOCKS:
+            raise SystemExit(f"{page.relative_to(ROOT)}: unknown generated block {name!r}; valid: {sorted(BLOCKS)}")
+        if (name, base) not in cache:
+            cache[(name, base)] = BLOCKS[name](base)
+        return f"{m.group(1)}{cache[(name, base)]}\n{m.group(4)}"
+
+    return BLOCK.sub(fill, text)
+
+
+def regenerate() -> dict[Path, tuple[str, str]]:
+    """Every page that holds a generated block -> (its text now, its text regenerated)."""
+    cache: dict[tuple[str, str], str] = {}
+    out = {}
+    for page in pages():
+        text = page.read_text()
+        if BLOCK.search(text):
+            out[page] = (text, render(page, text, cache))
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--check", action="store_true", help="write nothing; exit 1 if a page differs")
+    args = parser.parse_args(argv)
+    stale = []
+    for page, (old, new) in regenerate().items():
+        if old != new:
+            stale.append(str(page.relative_to(ROOT)))
+            if not args.check:
+                page.write_text(new)
+    if args.check and stale:
+        print("generated blocks differ from their sources (run python scripts/docs_tables.py): " + ", ".join(stale))
+        return 1
+    print(("stale: " if args.check else "rewritten: ") + (", ".join(stale) or "none"))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
