@@ -179,7 +179,7 @@ def test_a_method_stopped_early_is_compared_with_the_lookup_table_on_the_seeds_b
 
 
 def test_the_report_states_the_rule_under_intervals_and_nothing_when_it_is_off():
-    from lerobot_pnp.report.markdown import _episodes_rule_sentence
+    from lerobot_pnp.report.preamble import _episodes_rule_sentence
 
     text = _episodes_rule_sentence(StudyConfig(preset="heldout"))
     assert "every method's but the claims' method's evaluation runs blocks" in text

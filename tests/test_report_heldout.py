@@ -170,7 +170,7 @@ def test_the_paper_study_trains_the_recipe_with_its_changes(tmp_path, monkeypatc
     from pathlib import Path
 
     from lerobot_pnp import dagger
-    from lerobot_pnp.report import markdown
+    from lerobot_pnp.report import builders, preamble, training
     from lerobot_pnp.report.layout import StudyLayout
     from lerobot_pnp.report.run import Job, _context
 
@@ -194,14 +194,14 @@ def test_the_paper_study_trains_the_recipe_with_its_changes(tmp_path, monkeypatc
     seen, round0 = {}, tmp_path / "round0"
     round0.mkdir()
     (round0 / "config.json").write_text("{}")  # the DAgger config checks it is a checkpoint folder
-    monkeypatch.setattr(methods, "keyed_train", lambda m, c: (round0, False))
+    monkeypatch.setattr(training, "keyed_train", lambda m, c: (round0, False))
     monkeypatch.setattr(dagger, "run_dagger", lambda cfg: seen.setdefault("cfg", cfg) and {"final_checkpoint": "x"})
-    assert methods._dagger_train(replace(ctx, train_dir=tmp_path / "recovering_dagger" / "1000")) == Path("x")
+    assert builders.dagger_train(replace(ctx, train_dir=tmp_path / "recovering_dagger" / "1000")) == Path("x")
     assert seen["cfg"].policy.num_layers == 1
 
-    lines = markdown._recipe_changes_line(paper, methods.get_methods(["clocked_lstm", "recovering"]))
+    lines = preamble._recipe_changes_line(paper, methods.get_methods(["clocked_lstm", "recovering"]))
     assert "`num_layers` = 1" in lines[0] and "recovering LSTM" in lines[0]
-    assert markdown._recipe_changes_line(heldout, methods.get_methods(["recovering"])) == []
+    assert preamble._recipe_changes_line(heldout, methods.get_methods(["recovering"])) == []
     # an unknown or fixed field, or a value the planner refuses, fails when the study is configured
     refused = (({"num_layerz": 1}, "num_layerz"), ({"mode": "clocked"}, "mode"), ({"hidden_size": -5}, "hidden_size"))
     for bad, named in refused:

@@ -8,7 +8,7 @@ import pytest
 from lerobot_pnp.dagger.rollouts import TEACHER_VERSION
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.recorded_task import read_recorded
-from lerobot_pnp.report import methods
+from lerobot_pnp.report import methods, recipes
 from lerobot_pnp.report.run import StudyConfig, SuiteSpec, run_study
 
 N = 10  # demonstrations: 8 train / 2 test
@@ -58,13 +58,13 @@ def test_dagger_continues_the_recovering_run_of_the_same_seed(study):
     assert not (dagger / "round_00" / "train").exists()  # round 0 was not trained again
     # Ross et al.'s mixture: the expert executes every step of round 1, half of round 2's
     betas = [json.loads((dagger / f"round_0{r}" / "rollouts.json").read_text())["beta"] for r in (1, 2)]
-    assert betas == [1.0, 0.5] and methods.DAGGER_ROUNDS == 2
+    assert betas == [1.0, 0.5] and recipes.DAGGER_ROUNDS == 2
     assert json.loads((dagger / "round_01" / "rollouts.json").read_text())["episodes"] == 3
     # each round continues the previous round's weights (warm start): each round's training is keyed by the checkpoint it starts from
     warm = [json.loads((dagger / f"round_0{r}" / "train" / "done.json").read_text())["parts"] for r in (1, 2)]
     assert all("init" in w for w in warm)
     # at most the study's epochs (2 here; 100 of 300 in the paper study): never dearer than a retraining
-    assert warm[0]["epochs"] == warm[1]["epochs"] == min(methods.DAGGER_WARM_START_EPOCHS, 2) == 2
+    assert warm[0]["epochs"] == warm[1]["epochs"] == min(recipes.DAGGER_WARM_START_EPOCHS, 2) == 2
     # the schedule is part of the method's training key: another mixture would train again
     stage = json.loads((dagger / "stage.json").read_text())
     assert stage["parts"]["schedule"]["beta"] == 1.0 and stage["parts"]["schedule"]["rollouts_per_round"] == 3
@@ -82,7 +82,7 @@ def test_dart_continues_the_same_run_with_noisy_expert_demonstrations_of_the_und
     out, _, _ = study
     rollouts = json.loads((out / "train/recovering_dart/seed1000/round_01/rollouts.json").read_text())
     assert rollouts["episodes"] == 3 and rollouts["beta"] == 1.0  # the expert acts at every step
-    assert rollouts["dart"]["sigma"] == methods.DART_SIGMA
+    assert rollouts["dart"]["sigma"] == recipes.DART_SIGMA
     assert "teacher" not in json.loads((out / "train/recovering_dart/seed1000/stage.json").read_text())["parts"]
     assert not (out / "train/recovering_dart/seed1000/round_00/train").exists()  # the recovering run of the seed
     recorded = read_recorded(out / "train/recovering_dart/seed1000/round_01/rollouts")

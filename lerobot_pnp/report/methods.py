@@ -29,28 +29,53 @@ is evaluated. New methods (the recovering planner, DAgger rounds, ACT) plug in b
 
 A method may train on some task presets only (``Method.tasks``): the clocked planners need exactly 10-frame
 demonstrations (the paper's task), so a study on the ``full`` task refuses them up front (``StudyConfig``).
+
+The parts live beside this catalogue: ``recipes`` (the recovering recipe, the DAgger and DART schedules,
+``policy_settings``), ``builders`` (how each method is trained and evaluated) and ``training`` (a training's key,
+and the keyed training that reuses one on disk).
 """
 
 from __future__ import annotations
 
-import copy
-import json
-import shutil
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 
-from lerobot_pnp.cache import STAGE_FILE, Stage, code_versions, remove
-from lerobot_pnp.dagger import RECOVERING_BATCH_SIZE, RECOVERING_RECIPE
-from lerobot_pnp.dagger.config import DEFAULT_ROLLOUT_SUITES, mixture_beta
-from lerobot_pnp.dagger.rollouts import TEACHER_VERSION
+from lerobot_pnp.dagger import RECOVERING_BATCH_SIZE
 from lerobot_pnp.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.errors import ConfigError
-from lerobot_pnp.evaluation.checkpoints import load_policy
-from lerobot_pnp.evaluation.episodes import eval_expert, eval_lerobot_policy
 from lerobot_pnp.evaluation.records import EpisodeRecord
 from lerobot_pnp.evaluation.suites import RECOVERY_BUDGET
-from lerobot_pnp.report import act_baseline, adapters
+from lerobot_pnp.report.builders import (
+    act_description,
+    act_env,
+    act_train,
+    checkpoint_eval,
+    dagger_train,
+    dart_train,
+    expert_eval,
+    lookup_eval,
+    no_training,
+    observe_phase,
+    pnp_lstm_trainer,
+)
+from lerobot_pnp.report.recipes import (
+    DAGGER_ROLLOUTS,
+    DAGGER_ROUNDS,
+    DAGGER_SCHEDULE,
+    DART_SCHEDULE,
+    DART_SIGMA,
+    MEMORYLESS_MLP,
+    PHASE_TOLD_MLP,
+    RECOVERING,
+    RECOVERING_TRUNK,
+    dagger_betas,
+    dagger_round_names,
+    retraining,
+)
+from lerobot_pnp.report.recipes import policy_settings as policy_settings
+from lerobot_pnp.report.training import keyed_train as keyed_train
+from lerobot_pnp.report.training import train_stage as train_stage
 
 
 @dataclass
@@ -103,68 +128,6 @@ class Method:
         return env_cfg if self.adapt_env is None else self.adapt_env(env_cfg, ctx)
 
 
-# ------------------------------------------------------------------------------------------------ builders
-def _no_training(ctx: TrainContext) -> None:
-    return None
-
-
-def _expert_eval(artifact, ctx, env_cfg, n, start_seed, batch_size):
-    return eval_expert(env_cfg, n, start_seed)
-
-
-_EPISODES: dict[tuple[str, int | None], adapters.Episodes] = {}
-
-
-def _lookup_eval(artifact, ctx, env_cfg, n, start_seed, batch_size):
-    from lerobot_pnp.report.baselines import LookupTablePolicy, identity_processors
-
-    key = (str(ctx.dataset_root), ctx.data_keys.get("keyframe"), ctx.n_demos)
-    if key not in _EPISODES:  # one read per dataset and subset, not one per suite
-        _EPISODES[key] = adapters.load_train_episodes(ctx.dataset_root, limit=ctx.n_demos)
-    episodes = _EPISODES[key]
-    pre, post = identity_processors()
-    return eval_lerobot_policy(LookupTablePolicy(episodes), pre, post, env_cfg, n, start_seed, batch_size)
-
-
-def policy_settings(overrides: dict, ctx: TrainContext) -> dict:
-    """A method's policy settings for its study and training data. A method that takes the recovering recipe
-    takes the study's changes to it (``ctx.recipe_changes``: the paper study trains it with one LSTM layer).
-    A recovering-mode window must hold the longest episode the recorded task allows (its keyframe budget + the
-    final state: 41 frames on the ``full`` task, more than the study's recovery budget); the paper's task (10
-    keyframes) leaves it unchanged. A study without recipe changes on the paper task keeps its training keys."""
-    if overrides.get("mode") != "recovering":
-        return overrides
-    # a change reaches the settings the method keeps from the recipe (the told MLP keeps its own augmentation)
-    kept = {k: v for k, v in ctx.recipe_changes.items() if overrides.get(k) == RECOVERING.get(k)}
-    settings = {**overrides, **kept}
-    if ctx.task_budget is not None:
-        settings["max_episode_length"] = max(settings["max_episode_length"], ctx.task_budget + 1)
-    return settings
-
-
-def _pnp_lstm_trainer(overrides: dict, batch_size: int | None) -> Callable[[TrainContext], Path]:
-    def train(ctx: TrainContext) -> Path:
-        ckpt = adapters.checkpoint_of(ctx.train_dir)
-        if (ckpt / "model.safetensors").is_file() and (ctx.train_dir / "test_keyframe_error.json").is_file():
-            return ckpt  # finished earlier: reused
-        return adapters.train_pnp_lstm(
-            ctx.dataset_root,
-            ctx.train_dir,
-            ctx.seed,
-            ctx.epochs,
-            policy_settings(overrides, ctx),
-            n_demos=ctx.n_demos,
-            batch_size=batch_size or adapters.BATCH_SIZE,
-        )
-
-    return train
-
-
-def _checkpoint_eval(artifact, ctx, env_cfg, n, start_seed, batch_size):
-    lp = load_policy(artifact, env_cfg=env_cfg)
-    return eval_lerobot_policy(lp.policy, lp.preprocessor, lp.postprocessor, env_cfg, n, start_seed, batch_size)
-
-
 CLOCKED_WHY = (
     "the clocked planner trains on exactly 10-frame episodes (the paper's task); this task's demonstrations "
     "have recoveries (longer episodes of varying length)"
@@ -175,160 +138,12 @@ def pnp_lstm_method(name: str, label: str, description: str, **overrides) -> Met
     """A ``pnp_lstm`` method; a recovering planner trains with the recipe's batch size, as DAgger does."""
     clocked = overrides.get("mode", "clocked") == "clocked"
     batch = None if clocked else RECOVERING_BATCH_SIZE
-    return Method(name, label, description, True, _pnp_lstm_trainer(overrides, batch), _checkpoint_eval, overrides,
+    return Method(name, label, description, True, pnp_lstm_trainer(overrides, batch), checkpoint_eval, overrides,
                   tasks=("paper",) if clocked else None, tasks_why=CLOCKED_WHY if clocked else "",
                   batch_size=batch)  # fmt: skip
 
 
 # The recovering planner's recipe; its training windows hold the longest episode of the study (a recovery
-# suite's budget + the final state: DAgger's rollouts are that long).
-RECOVERING = {**RECOVERING_RECIPE, "max_episode_length": RECOVERY_BUDGET + 1}
-# The memoryless controls take the recipe that gave each its best nominal success on the `full` task
-# (docs/results/planner.md): the plain MLP with the late episodes, the phase-told one without.
-# Without memory there is none to restart at a re-pick: memory_per_attempt is off (it would change nothing).
-MEMORYLESS_MLP = {**RECOVERING, "recurrent": False, "memory_per_attempt": False}
-PHASE_TOLD_MLP = {**RECOVERING, "recurrent": False, "latency_augment_prob": 0.0, "memory_per_attempt": False}
-DAGGER_ROLLOUTS = 300  # policy episodes of the one DAgger round, cycled over the rollout suites
-# the recipe's trunk as the method descriptions name it, read from the recipe so that a report cannot name another
-RECOVERING_TRUNK = f"{RECOVERING['num_layers']} x {RECOVERING['hidden_size']} LSTM"
-# DAgger's rounds in the study (Ross et al.'s mixture): round r's rollouts execute the expert's label at each step
-# with probability DAGGER_BETA * 0.5 ** (r - 1), the policy's action otherwise, and every visited state is labelled.
-# Pure on-policy rounds (beta 0) label only the first keyframe of each recovery (docs/results/dagger_curve.md).
-DAGGER_ROUNDS = 2
-DAGGER_BETA = 1.0
-# rad of noise on each joint target the expert executes (docs/results/dart.md: about twice the grasp clearance)
-DART_SIGMA = 0.02
-# epochs of a DAgger round's training when it continues the previous round's weights (0: retrained from scratch).
-# DART retrains from scratch: warm-started it lost the drop recovery (docs/results/dagger_curve.md, warm start)
-DAGGER_WARM_START_EPOCHS = 100
-
-# The study's DAgger and DART rounds (``dagger.DaggerConfig`` fields): part of the training key of the methods
-# that run them (``Method.schedule``), so a changed mixture, noise or rollout budget trains again.
-# The same label budget for both: DAGGER_ROLLOUTS expert-labelled episodes, split evenly over DAgger's rounds.
-_ROUND = {"env_changes": {"keyframe_budget": RECOVERY_BUDGET}}
-DAGGER_SCHEDULE = {
-    **_ROUND,
-    "rounds": DAGGER_ROUNDS,
-    "rollouts_per_round": DAGGER_ROLLOUTS // DAGGER_ROUNDS,
-    "beta": DAGGER_BETA,
-    "beta_decay": 0.5,
-    "rollout_suites": list(DEFAULT_ROLLOUT_SUITES),
-    "warm_start_epochs": DAGGER_WARM_START_EPOCHS,
-}
-DART_SCHEDULE = {
-    **_ROUND,
-    "rounds": 1,
-    "rollouts_per_round": DAGGER_ROLLOUTS,
-    "beta": 1.0,
-    "dart": {"sigma": DART_SIGMA},
-    "rollout_suites": ["nominal"],
-    "warm_start_epochs": 0,
-}
-# What each ran before its schedule was part of the training key (a record made then is valid for this value):
-# DAgger one pure on-policy round, DART as now.
-SCHEDULE_BEFORE_KEYED = {
-    "recovering_dagger": {**_ROUND, "rounds": 1, "rollouts_per_round": DAGGER_ROLLOUTS, "beta": 0.0,
-                          "beta_decay": 0.5, "rollout_suites": list(DEFAULT_ROLLOUT_SUITES), "warm_start_epochs": 0},
-    "recovering_dart": DART_SCHEDULE,
-}  # fmt: skip
-
-
-def _dagger_train(ctx: TrainContext, name: str = "recovering_dagger") -> Path:
-    """One round of ``lerobot_pnp.dagger`` on top of the ``recovering`` run of the same seed (trained first if
-    missing), as the method's ``schedule`` sets it: DAgger's mixture under the recovery suites, or DART's noisy
-    expert demonstrations of the undisturbed task."""
-    from lerobot_pnp.dagger import DaggerConfig, run_dagger
-    from lerobot_pnp.dagger.dart import DartNoise
-    from lerobot_pnp.policy import PnpLstmConfig
-
-    if ctx.n_demos is not None:
-        raise ConfigError(f"method {name!r} has no data-efficiency variant")
-    method = METHODS[name]
-    schedule = copy.deepcopy(method.schedule)
-    if "dart" in schedule:
-        schedule["dart"] = DartNoise(**schedule["dart"])
-    # a study with fewer epochs (--epochs) warm-starts for at most as many: never dearer than a retraining
-    schedule["warm_start_epochs"] = min(schedule["warm_start_epochs"], ctx.epochs)
-    round0, _ = keyed_train(METHODS[method.continues], _continued(ctx, method.continues))
-    summary = run_dagger(
-        DaggerConfig(
-            **schedule,
-            output_dir=str(ctx.train_dir),
-            base_root=str(ctx.dataset_root),
-            base_repo_id=f"local/{ctx.dataset_root.name}",
-            round0_checkpoint=str(round0),
-            eval_episodes=0,  # the study evaluates it like every other method
-            policy=PnpLstmConfig(**policy_settings(RECOVERING, ctx)),
-            epochs=ctx.epochs,
-            batch_size=RECOVERING_BATCH_SIZE,
-            seed=ctx.seed,
-            progress=False,
-        )
-    )
-    return Path(summary["final_checkpoint"])
-
-
-def _retraining(schedule: dict) -> str:
-    """How a round's policy is trained, for the method descriptions."""
-    if epochs := schedule["warm_start_epochs"]:
-        return f"the previous round's planner trained on for {epochs} epochs (warm start; at most the study's epochs)"
-    return "retrained from scratch"
-
-
-def _betas() -> str:
-    s = DAGGER_SCHEDULE
-    return ", ".join(f"{mixture_beta(s['beta'], s['beta_decay'], r):g}" for r in range(1, s["rounds"] + 1))
-
-
-def _round_names() -> str:
-    return ", ".join(str(r + 1) for r in range(DAGGER_SCHEDULE["rounds"]))
-
-
-def _dart_train(ctx: TrainContext) -> Path:
-    """DART (Laskey et al., 2017) at DAgger's budget: one round of ``DAGGER_ROLLOUTS`` expert demonstrations of
-    the undisturbed task with Gaussian noise on the joint targets the expert executes, each frame labelled with
-    its clean command; no disturbance is ever in the data."""
-    return _dagger_train(ctx, "recovering_dart")
-
-
-def _observe_phase(env_cfg: BaxterPnPEnvConfig, ctx: TrainContext) -> BaxterPnPEnvConfig:
-    return env_cfg.with_changes(observe_phase=True)
-
-
-def _act_budget(ctx: TrainContext):
-    return act_baseline.ActBudget() if ctx.act_steps is None else act_baseline.ActBudget(steps=ctx.act_steps)
-
-
-def _act_train(ctx: TrainContext) -> Path:
-    if ctx.dense_root is None:
-        raise ConfigError("method 'act' needs the dense dataset (TrainContext.dense_root)")
-    ckpt, log, budget = adapters.checkpoint_of(ctx.train_dir), ctx.train_dir / "act_train.json", _act_budget(ctx)
-    if (
-        (ckpt / "model.safetensors").is_file()
-        and log.is_file()
-        and json.loads(log.read_text()).get("identity") == budget.identity()
-    ):
-        return ckpt  # finished earlier with this budget: reused
-    if ctx.train_dir.exists():
-        shutil.rmtree(ctx.train_dir)  # interrupted, or another budget: start over (a seed takes minutes)
-    return act_baseline.train_act(ctx.dense_root, ctx.train_dir, ctx.seed, budget, n_demos=ctx.n_demos)
-
-
-def _act_env(env_cfg: BaxterPnPEnvConfig, ctx: TrainContext) -> BaxterPnPEnvConfig:
-    return act_baseline.dense_env(env_cfg, ctx.dense_root)
-
-
-def _act_description() -> str:
-    o = act_baseline.ACT_OVERRIDES
-    return (
-        "LeRobot ACT, state-only (joints + the environment state: object position; on `full` also its yaw and "
-        f"the goal), no VAE, chunk {o['chunk_size']} / "
-        f"{o['n_action_steps']} executed, width {o['dim_model']}, {o['n_encoder_layers']}+{o['n_decoder_layers']} "
-        f"layers; trained on the dense recording of the same demonstrations ({act_baseline.ActBudget().describe()} per seed); "
-        "run in dense control mode (20 fps)"
-    )
-
-
 METHODS: dict[str, Method] = {
     m.name: m
     for m in (
@@ -338,16 +153,16 @@ METHODS: dict[str, Method] = {
             "scripted feedback FSM; upper bound. It reads the simulator's state, so observation noise, bias and "
             "latency do not reach it: on those suites it is not a like-for-like bound",
             False,
-            _no_training,
-            _expert_eval,
+            no_training,
+            expert_eval,
         ),
         Method(
             "lookup_table",
             "lookup table",
             "open-loop replay of the nearest training episode (same inputs, same data)",
             False,
-            _no_training,
-            _lookup_eval,
+            no_training,
+            lookup_eval,
         ),
         pnp_lstm_method("clocked_lstm", "clocked LSTM (paper)", "two LSTMs on a fixed 10-step clock (paper)"),
         pnp_lstm_method("shared_lstm", "shared LSTM", "one LSTM + subtask one-hot", shared_network=True),
@@ -365,11 +180,11 @@ METHODS: dict[str, Method] = {
             "the matched MLP with the phase one-hot inferred from the simulator appended to its input (privileged; "
             "the same demonstrations recorded with `observe_phase`; trained on current observations only)",
             True,
-            _pnp_lstm_trainer(PHASE_TOLD_MLP, RECOVERING_BATCH_SIZE),
-            _checkpoint_eval,
+            pnp_lstm_trainer(PHASE_TOLD_MLP, RECOVERING_BATCH_SIZE),
+            checkpoint_eval,
             PHASE_TOLD_MLP,
             data="phase",
-            adapt_env=_observe_phase,
+            adapt_env=observe_phase,
             batch_size=RECOVERING_BATCH_SIZE,
         ),
         pnp_lstm_method(
@@ -387,12 +202,12 @@ METHODS: dict[str, Method] = {
             f"`recovering` of the same seed + {DAGGER_ROUNDS} DAgger rounds of "
             f"{DAGGER_SCHEDULE['rollouts_per_round']} rollouts under nominal, missed-grasp, drop, nudge and "
             "displacement conditions (Ross et al.'s mixture: each step executes the expert's label with "
-            f"probability {_betas()} in rounds {_round_names()}, the policy's own action otherwise), every visited state "
+            f"probability {dagger_betas()} in rounds {dagger_round_names()}, the policy's own action otherwise), every visited state "
             f"labelled by the expert, aggregated with the demonstrations and earlier rounds, each round "
-            f"{_retraining(DAGGER_SCHEDULE)} (extra interactive data: what the teacher adds)",
+            f"{retraining(DAGGER_SCHEDULE)} (extra interactive data: what the teacher adds)",
             True,
-            _dagger_train,
-            _checkpoint_eval,
+            dagger_train,
+            checkpoint_eval,
             RECOVERING,
             continues="recovering",
             batch_size=RECOVERING_BATCH_SIZE,
@@ -406,11 +221,11 @@ METHODS: dict[str, Method] = {
             "recovering LSTM + DART",
             f"`recovering` of the same seed + one DART round at DAgger's budget: {DAGGER_ROLLOUTS} expert "
             f"demonstrations of the undisturbed task with {DART_SIGMA} rad of Gaussian noise on each joint target "
-            f"it executes, labelled with its clean commands, aggregated with the demonstrations, {_retraining(DART_SCHEDULE)} "
+            f"it executes, labelled with its clean commands, aggregated with the demonstrations, {retraining(DART_SCHEDULE)} "
             "(no disturbance in its data)",
             True,
-            _dart_train,
-            _checkpoint_eval,
+            dart_train,
+            checkpoint_eval,
             RECOVERING,
             continues="recovering",
             batch_size=RECOVERING_BATCH_SIZE,
@@ -422,73 +237,15 @@ METHODS: dict[str, Method] = {
         Method(
             "act",
             "ACT (dense)",
-            _act_description(),
+            act_description(),
             True,
-            _act_train,
-            _checkpoint_eval,
+            act_train,
+            checkpoint_eval,
             data="dense",
-            adapt_env=_act_env,
+            adapt_env=act_env,
         ),
     )
 }
-
-
-def _continued(ctx: TrainContext, base: str) -> TrainContext:
-    """The context of the run of the same seed that a method continues (``Method.continues``)."""
-    return replace(ctx, train_dir=ctx.train_dir.parent.parent / base / ctx.train_dir.name)
-
-
-def _policy_acts(schedule: dict | None) -> bool:
-    """Whether the policy acts in some round of a DAgger ``schedule`` (a round's mixture weight below 1)."""
-    if not schedule:
-        return False
-    return any(
-        mixture_beta(schedule["beta"], schedule.get("beta_decay", 0.5), r) < 1 for r in range(1, schedule["rounds"] + 1)
-    )
-
-
-def train_stage(method: Method, ctx: TrainContext) -> Stage:
-    """The key of a learned method's training: the method (its policy settings), the key of the recording
-    it trains on, seed, epochs, demonstrations, ACT's steps, the run it continues, the code versions."""
-    parts = {
-        "stage": "train",
-        "method": method.name,
-        "overrides": policy_settings(method.policy_overrides, ctx),
-        "data": ctx.data_keys.get(method.data),
-        "seed": ctx.seed,
-        "epochs": ctx.epochs,
-        "n_demos": ctx.n_demos,
-        # the loss curve's resolution (an output of the training): one held-out loss per whole-split epoch
-        **({"heldout_every": "whole_split_epoch"} if ctx.n_demos is not None and method.data != "dense" else {}),
-        "act_steps": ctx.act_steps if method.data == "dense" else None,
-        "continues": train_stage(METHODS[method.continues], _continued(ctx, method.continues)).key
-        if method.continues
-        else None,
-        "versions": code_versions(),
-        **({"batch_size": method.batch_size} if method.batch_size is not None else {}),
-        **({"schedule": method.schedule} if method.schedule else {}),
-        # the DAgger teacher's version where the policy acts in some round (its rollouts key it too)
-        **({"teacher": TEACHER_VERSION} if _policy_acts(method.schedule) else {}),
-    }
-    before = SCHEDULE_BEFORE_KEYED.get(method.name)
-    return Stage(ctx.train_dir / STAGE_FILE, parts, added={"schedule": before} if before else None)
-
-
-def keyed_train(method: Method, ctx: TrainContext) -> tuple[Path | None, bool]:
-    """``method.train(ctx)`` unless a training of the same key is on disk: (artefact, trained now).
-
-    A training folder without a matching record (another key, or killed midway) is deleted and trained
-    again: what is in it is never trusted by its existence alone."""
-    if not method.learned:
-        return method.train(ctx), False
-    stage = train_stage(method, ctx)
-    if stage.done(f"training {method.name} {ctx.train_dir.name}"):
-        return ctx.train_dir / stage.stored()["artifact"], False
-    stage.invalidate()
-    remove(ctx.train_dir)
-    artifact = Path(method.train(ctx))
-    stage.commit(artifact=str(artifact.resolve().relative_to(ctx.train_dir.resolve())))
-    return artifact, True
 
 
 # The methods trained again on fewer demonstrations (``StudyConfig.data_efficiency``): the paper's comparison.
