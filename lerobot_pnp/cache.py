@@ -17,6 +17,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import os
 import shutil
 from collections.abc import Callable
 from pathlib import Path
@@ -25,6 +26,9 @@ from typing import Any
 from lerobot_pnp.errors import ConfigError
 
 STAGE_FILE = "stage.json"  # the record of a stage kept in a folder
+# Record fields naming an output of the stage, relative to the record's folder (a study training's artefact, a
+# DAgger round's checkpoint); a training's record names one. Anything else is not this stage's output.
+OUTPUT_FIELDS = ("artifact", "checkpoint")
 MANIFEST_FILE = ".pnp_manifest.json"
 
 
@@ -152,12 +156,27 @@ class Stage:
         self.added = canonical(added or {})
 
     def stored(self) -> dict | None:
-        """The record on disk, or None when absent or unreadable (an unreadable record is not trusted)."""
+        """The record on disk, or None when absent or not trusted (``untrusted``)."""
+        data, _ = self._load()
+        return data
+
+    def _load(self) -> tuple[dict | None, str | None]:
+        """(the record, None), or (None, why it is not trusted; None when there is no record)."""
         try:
             data = json.loads(self.record.read_text())
-        except (OSError, ValueError):
-            return None
-        return data if isinstance(data, dict) and isinstance(data.get("parts"), dict) else None
+        except FileNotFoundError:
+            return None, None
+        except (OSError, ValueError) as err:
+            return None, f"unreadable ({type(err).__name__})"
+        if not isinstance(data, dict) or not isinstance(data.get("parts"), dict):
+            return None, "not a stage record"
+        named = [f for f in OUTPUT_FIELDS if f in data]
+        for field in named:
+            if inside(self.record.parent, data[field]) is None:
+                return None, f"its {field} {data[field]!r} is not a path inside {self.record.parent}"
+        if not named and self.parts.get("stage") == "train":
+            return None, "it names no trained artefact"
+        return data, None
 
     def changes(self) -> list[str] | None:
         """None when no record exists; else the names of the parts that differ from the record's."""
@@ -176,6 +195,8 @@ class Stage:
         changed = self.changes()
         if changed and what:
             print(f"  {what}: re-run (changed since it was made: {', '.join(changed)})", flush=True)
+        elif changed is None and what and (why := self._load()[1]):
+            print(f"  {what}: re-run (its record {self.record} is not trusted: {why})", flush=True)
         return changed == []
 
     def commit(self, **extra: Any) -> None:
@@ -188,36 +209,94 @@ class Stage:
 
 
 def remove(path: Path) -> None:
-    """Delete a stage's output (a folder or a file), if present."""
+    """Delete a stage's output (a folder or a file), if present; a symbolic link is unlinked, never followed."""
     if path.is_dir() and not path.is_symlink():
         shutil.rmtree(path)
     elif path.exists() or path.is_symlink():
         path.unlink()
 
 
+def plain_name(name: Any) -> str | None:
+    """Why ``name`` is not a plain entry name directly inside a folder (None when it is one)."""
+    if not isinstance(name, str):
+        return f"{name!r} is not a name"
+    if name in ("", ".", "..") or "/" in name or "\\" in name or "\0" in name:
+        return f"{name!r} is not a plain name inside the folder"
+    return None
+
+
+def inside(folder: Path, relative: Any) -> Path | None:
+    """``folder / relative`` when ``relative`` is a relative path that stays inside ``folder`` (links resolved);
+    else None. How a record's path to one of its own outputs is read: never as a path elsewhere on disk."""
+    if not isinstance(relative, str) or not relative or Path(relative).is_absolute() or ".." in Path(relative).parts:
+        return None
+    path = Path(folder) / relative
+    return path if path.resolve().is_relative_to(Path(folder).resolve()) else None
+
+
 def lock_output(out: Path, command: str):
     """The output folder's lock (the generation's ``RootLock``), taken before anything is read or written;
-    a second command on the same folder fails at once with one line."""
+    a second command on the same folder fails at once with one line. A folder that cannot be made or written
+    (a file of that name, a read-only place) is refused first, in one line that names it."""
     from lerobot_pnp.dataset.workdir import RootLock
+    from lerobot_pnp.errors import DatasetError
 
-    return RootLock(Path(out), busy=f"another `{command}` is using {out}; wait for it to finish (or stop it)")
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise ConfigError(f"output_dir {out} is a file, not a folder; choose another --output_dir")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise DatasetError(
+            f"cannot create the output folder {out}: {err.strerror}; choose another --output_dir"
+        ) from None
+    if not os.access(out, os.W_OK | os.X_OK):
+        raise DatasetError(
+            f"cannot write in the output folder {out} (read-only or no permission); choose another --output_dir"
+        )
+    return RootLock(out, busy=f"another `{command}` is using {out}; wait for it to finish (or stop it)")
 
 
 class Manifest:
     """The top-level entries of ``out`` that a command wrote (``.pnp_manifest.json``), so that ``--fresh``
-    deletes exactly those and never a file of the user's."""
+    deletes exactly those and never a file of the user's.
+
+    The file is read as untrusted input (a copied, downloaded or edited folder): every entry must be a plain
+    name directly inside ``out``, and a file that is not a manifest of the expected shape is refused in one
+    line, never read as an empty one."""
 
     def __init__(self, out: Path, command: str):
         self.out, self.command = Path(out), command
         self.path = self.out / MANIFEST_FILE
+        self.entries: set[str] = self._read() if self.path.exists() or self.path.is_symlink() else set()
+
+    def _read(self) -> set[str]:
         try:
-            self.entries: set[str] = set(json.loads(self.path.read_text())["entries"])
-        except (OSError, ValueError, KeyError, TypeError):
-            self.entries = set()
+            data = json.loads(self.path.read_text()) if not self.path.is_symlink() else None
+        except (OSError, ValueError) as err:
+            raise self._refused(f"it cannot be read ({type(err).__name__})") from None
+        if not isinstance(data, dict) or not isinstance(data.get("entries"), list):
+            raise self._refused('it is not {"command": ..., "entries": [names]}')
+        for name in data["entries"]:
+            if (why := plain_name(name)) is not None:
+                raise self._refused(f"its entry {why}")
+        return set(data["entries"])
+
+    def _refused(self, why: str) -> ConfigError:
+        return ConfigError(
+            f"{self.path} is not a manifest `{self.command}` wrote: {why}; nothing was deleted (remove the file "
+            "if the folder is yours, or choose another --output_dir)"
+        )
 
     def claim(self, *names: str) -> None:
         """Record top-level entries as this command's, before they are written."""
-        new = {Path(n).parts[0] for n in names} - self.entries
+        top = set()
+        for name in names:
+            first = Path(name).parts[0] if isinstance(name, str) and name else name
+            if (why := plain_name(first)) is not None or Path(name).is_absolute():
+                raise ConfigError(f"cannot claim {name!r} in {self.out}: {why or 'an absolute path'}")
+            top.add(first)
+        new = top - self.entries
         if new:
             self.entries |= new
             write_json_atomic(self.path, {"command": self.command, "entries": sorted(self.entries)})
@@ -229,16 +308,21 @@ class Manifest:
         own = self.entries | {MANIFEST_FILE, LOCK_FILE}
         return sorted(p.name for p in self.out.iterdir() if p.name.removesuffix(".tmp") not in own)
 
+    def refuse_fresh(self, foreign: list[str]) -> None:
+        """The one line refusing ``--fresh`` on a folder that holds ``foreign`` entries."""
+        raise ConfigError(
+            f"--fresh: {self.out} holds {self.out / foreign[0]}, which `{self.command}` did not write "
+            f"({len(foreign)} such entr{'y' if len(foreign) == 1 else 'ies'}); move it or choose another --output_dir"
+        )
+
     def clear(self) -> None:
-        """``--fresh``: delete every entry this command wrote; refuse (one line) if ``out`` holds another."""
+        """``--fresh``: delete every entry this command wrote (a link is unlinked, not followed); refuse (one
+        line) if ``out`` holds another."""
         foreign = self.foreign()
         if foreign:
-            raise ConfigError(
-                f"--fresh: {self.out} holds {self.out / foreign[0]}, which `{self.command}` did not write "
-                f"({len(foreign)} such entr{'y' if len(foreign) == 1 else 'ies'}); move it or choose another "
-                "--output_dir"
-            )
+            self.refuse_fresh(foreign)
         for name in sorted(self.entries):
+            assert plain_name(name) is None  # every entry was checked when read or claimed
             remove(self.out / name)
             remove(self.out / f"{name}.tmp")
         self.entries = set()

@@ -34,9 +34,18 @@ from lerobot_pnp.dataset.merge import GENERATION_FILE, MergeShards, merge_and_co
 from lerobot_pnp.dataset.shards import GenerateShard, shard_dir, shard_is_valid
 from lerobot_pnp.dataset.splits import TRAIN_FRACTION
 from lerobot_pnp.dataset.validation import WORK_DIR, read_json, validate_dataset, write_json_atomic
-from lerobot_pnp.dataset.workdir import RootLock, disk_error, remove_generation, root_state
+from lerobot_pnp.dataset.workdir import (
+    LOCK_FILE,
+    RUN_FILE,
+    RootLock,
+    disk_error,
+    episodes_recorded,
+    read_run_record,
+    remove_generation,
+    root_state,
+)
 from lerobot_pnp.env_config import BaxterPnPEnvConfig
-from lerobot_pnp.errors import ConfigError, DatasetError
+from lerobot_pnp.errors import ConfigError, DatasetError, OtherSettingsError
 
 EXECUTORS = ("local", "slurm")
 MAX_EPISODES = 10_000_000  # above this, --allow_huge must say it is meant (memory and disk grow with N)
@@ -141,15 +150,31 @@ def generate(cfg: GenerateConfig) -> dict:
     root = cfg.output_root.resolve()
     if root.is_file():
         raise DatasetError(f"{root} is a file, not a dataset folder")
+    made = [p for p in (root, *root.parents) if not p.exists()]  # the folders this run creates
     try:
-        with RootLock(root):  # taken before anything is deleted; the root directory itself is never removed
-            return _generate_locked(cfg, root, t_start)
+        with RootLock(root):  # taken before anything is deleted; a root that existed before is never removed
+            try:
+                return _generate_locked(cfg, root, t_start)
+            except Exception:
+                if made and not any(p.name != LOCK_FILE for p in root.iterdir()):
+                    _remove_made(made)  # made by this run, which leaves nothing in them: gone again
+                raise
     except OSError as err:
         raise disk_error(root, err) from None
     except KeyboardInterrupt:
         raise DatasetError(
             f"interrupted; the finished shards in {root} are kept: rerun the same command with --resume"
         ) from None
+
+
+def _remove_made(folders: list[Path]) -> None:
+    """Remove ``folders`` (a root and the parents made for it, innermost first) while each is empty."""
+    (folders[0] / LOCK_FILE).unlink(missing_ok=True)
+    for folder in folders:
+        try:
+            folder.rmdir()
+        except OSError:  # something else was written there meanwhile: keep it
+            return
 
 
 def _root_state_for(cfg: GenerateConfig, root: Path) -> str:
@@ -184,7 +209,11 @@ def _verify_complete(cfg: GenerateConfig, root: Path) -> dict:
     """``--resume`` on a finished dataset: verify it matches this run's settings and report it."""
     info = validate_dataset(root)
     record = read_json(root / GENERATION_FILE, "generation record")
-    _check_same_run(record.get("generation", {}), cfg, read_json(recorded_task_path(root), "env"))
+    made = record.get("generation") if isinstance(record, dict) else None
+    env = read_json(recorded_task_path(root), "env")
+    if not isinstance(made, dict) or not isinstance(env, dict):
+        raise DatasetError(f"{root / GENERATION_FILE} or {recorded_task_path(root)} is not a record of this package")
+    _check_same_run(made, cfg, env)
     if cfg.subtask_annotations:
         annotate_subtasks(root)
     return {"root": str(root), "status": "already complete", "episodes": info["total_episodes"],
@@ -192,33 +221,44 @@ def _verify_complete(cfg: GenerateConfig, root: Path) -> dict:
 
 
 def _generate_locked(cfg: GenerateConfig, root: Path, t_start: float) -> dict:
+    """A run from the state ``root`` is in. One that fails before its first episode, started on an empty root,
+    leaves the root as it was (its work folder removed), so that the corrected command is a fresh start."""
     work = root / WORK_DIR
     state = _root_state_for(cfg, root)
     if state == "complete":
         return _verify_complete(cfg, root)
+    try:
+        return _run(cfg, root, state, t_start)
+    except Exception:
+        if state == "empty" and not episodes_recorded(work):
+            shutil.rmtree(work, ignore_errors=True)
+        raise
 
-    # The run's settings: recorded on a fresh start, checked on a resume (the shard layout comes from disk).
-    workers = cfg.workers or default_workers()
-    run_path = work / "run.json"
+
+def _run_settings(cfg: GenerateConfig, work: Path, state: str, workers: int) -> dict:
+    """The run's settings: recorded on a fresh start, checked on a resume (the shard layout comes from disk)."""
+    run_path = work / RUN_FILE
     if state == "interrupted" and run_path.is_file():
-        run = read_json(run_path, "generation settings")
+        run = read_run_record(work)
         _check_same_run(run, cfg, run["env"])
         if cfg.tasks and cfg.tasks != run["tasks"]:
             raise ConfigError(f"--resume with --tasks {cfg.tasks} but the run on disk has {run['tasks']} shards")
-    else:
-        if work.exists():  # killed before the settings were written: nothing in it is usable
-            shutil.rmtree(work)
-        run = cfg.run_record(cfg.tasks or cfg.auto_tasks(workers))
-        write_json_atomic(run_path, run)
+        return run
+    if work.exists():  # killed before the settings were written: nothing in it is usable
+        shutil.rmtree(work)
+    run = cfg.run_record(cfg.tasks or cfg.auto_tasks(workers))
+    write_json_atomic(run_path, run)
+    return run
+
+
+def _run(cfg: GenerateConfig, root: Path, state: str, t_start: float) -> dict:
+    work = root / WORK_DIR
+    workers = cfg.workers or default_workers()
+    run = _run_settings(cfg, work, state, workers)
     tasks = run["tasks"]
     logs = Path(cfg.logging_dir).resolve() if cfg.logging_dir else None
     if cfg.executor == "slurm":
-        try:
-            return _submit(cfg, root, run, logs or root.with_name(root.name + ".logs"))
-        except DatasetError:
-            if state == "empty":  # nothing of this run was submitted: leave the root as it was (no run.json)
-                shutil.rmtree(work, ignore_errors=True)
-            raise
+        return _submit(cfg, root, run, logs or root.with_name(root.name + ".logs"))
     logs = logs or work / "logs"
 
     # Completed ranks whose shard does not validate (or stale records) are redone.
@@ -236,6 +276,8 @@ def _generate_locked(cfg: GenerateConfig, root: Path, t_start: float) -> dict:
             try:
                 run_local(shard_step, tasks, workers, logs)
             except DatasetError as err:
+                if state == "empty" and not episodes_recorded(work) and logs.is_relative_to(work):
+                    raise  # nothing to resume: the work folder goes, and its logs with it
                 raise DatasetError(f"{err} (task logs: {logs}/logs)") from None
         sim_wall = time.perf_counter() - t_sim
         t_merge = time.perf_counter()
@@ -257,6 +299,7 @@ def _generate_locked(cfg: GenerateConfig, root: Path, t_start: float) -> dict:
 
 
 def _check_same_run(recorded: dict, cfg: GenerateConfig, recorded_env: dict) -> None:
+    """OtherSettingsError naming each content setting on disk that differs from ``cfg``'s."""
     mine = cfg.run_record(0)
     recorded = {**recorded, "env": {k: v for k, v in recorded_env.items() if k != "type"}}
     diff = {k: (recorded.get(k), mine[k]) for k in _CONTENT_FIELDS if _norm(recorded.get(k)) != _norm(mine[k])}
@@ -265,7 +308,7 @@ def _check_same_run(recorded: dict, cfg: GenerateConfig, recorded_env: dict) -> 
             a, b = diff.pop("env")
             diff.update({f"env.{k}": (a.get(k), b[k]) for k in b if _norm(a.get(k)) != _norm(b[k])})
         details = ", ".join(f"{k}: on disk {a!r} vs requested {b!r}" for k, (a, b) in diff.items())
-        raise ConfigError(
+        raise OtherSettingsError(
             f"--resume with different settings than the run on disk ({details}); use the same settings or --overwrite"
         )
 
@@ -298,10 +341,12 @@ def _drop_invalid_completions(work: Path, logs: Path, num_episodes: int, tasks: 
 
 
 def _slurm_jobs(work: Path) -> list[str]:
+    """The SLURM job ids a submission recorded; only numeric ids are read (they go to ``squeue -j``)."""
     try:
-        return json.loads((work / "slurm.json").read_text())["job_ids"]
-    except (OSError, ValueError, KeyError):
+        ids = json.loads((work / "slurm.json").read_text())["job_ids"]
+    except (OSError, ValueError, KeyError, TypeError):
         return []
+    return [i for i in ids if isinstance(i, str) and i.isdigit()] if isinstance(ids, list) else []
 
 
 def _submit(cfg: GenerateConfig, root: Path, run: dict, logs: Path) -> dict:

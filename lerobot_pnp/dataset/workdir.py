@@ -22,13 +22,24 @@ import os
 import shutil
 from pathlib import Path
 
-from lerobot_pnp.dataset.layout import is_dataset
+from lerobot_pnp.dataset.layout import is_dataset, read_json
 from lerobot_pnp.dataset.validation import WORK_DIR
 from lerobot_pnp.errors import DatasetError
 
 TRASH_DIR = ".pnp_work.trash"
 DATASET_ENTRIES = ("meta", "data", "videos")  # what LeRobot writes into a dataset root
 LOCK_FILE = ".pnp_lock"  # only where a directory cannot be flock-ed (NFS); never deleted while in use
+RUN_FILE = "run.json"  # in the work folder: the settings of the run (``GenerateConfig.run_record``)
+# The fields of a run record and their JSON types: what a resume compares and the shard layout it continues
+RUN_FIELDS: dict[str, type | tuple[type, ...]] = {
+    "repo_id": str,
+    "seed": int,
+    "num_episodes": int,
+    "max_retries": int,
+    "train_fraction": (int, float),
+    "env": dict,
+    "tasks": int,
+}
 
 
 def disk_error(root: Path, err: OSError) -> DatasetError:
@@ -130,3 +141,45 @@ def remove_partial_commit(root: Path) -> None:
             shutil.rmtree(root / name)
     if (root / TRASH_DIR).exists():
         shutil.rmtree(root / TRASH_DIR)
+
+
+def read_run_record(work: Path) -> dict:
+    """The settings of the interrupted run in ``work`` (``run.json``), checked field by field before anything
+    is read, deleted or run by them: a damaged or hand-edited record is refused in one line naming the field."""
+    path = Path(work) / RUN_FILE
+    run = read_json(path, "generation settings")
+    why = _run_record_problem(run)
+    if why is not None:
+        raise DatasetError(
+            f"{path} is not a generation record this package wrote ({why}); restore it, or start over with --overwrite"
+        )
+    return run
+
+
+def _run_record_problem(run) -> str | None:
+    if not isinstance(run, dict):
+        return f"expected a JSON object, got {type(run).__name__}"
+    for field, kind in RUN_FIELDS.items():
+        if field not in run:
+            return f"{field!r} is missing"
+        if isinstance(run[field], bool) or not isinstance(run[field], kind):
+            return f"{field} {run[field]!r} is not of type {getattr(kind, '__name__', 'number')}"
+    if run["num_episodes"] < 1 or run["seed"] < 0 or run["max_retries"] < 0:
+        return "num_episodes must be >= 1, seed and max_retries >= 0"
+    if not 1 <= run["tasks"] <= run["num_episodes"]:
+        return f"tasks {run['tasks']} is not in [1, num_episodes {run['num_episodes']}]"
+    if not 0 < run["train_fraction"] <= 1:
+        return f"train_fraction {run['train_fraction']} is not in (0, 1]"
+    return None
+
+
+def episodes_recorded(work: Path) -> bool:
+    """Whether the run in ``work`` wrote an episode: a rank counted one (``progress/``) or finished its shard."""
+    work = Path(work)
+    for path in (work / "progress").glob("*"):
+        try:
+            if int(path.read_text().split()[0]) > 0:
+                return True
+        except (OSError, ValueError, IndexError):
+            return True  # unreadable: assume there is work worth keeping
+    return any(not p.name.endswith(".tmp") for p in (work / "shards").glob("shard-*"))

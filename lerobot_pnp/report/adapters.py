@@ -1,6 +1,6 @@
 """The study's only calls into the dataset generator and the fast trainer.
 
-Kept in one place on purpose: when the generator's or the trainer's config changes, only this module changes. Everything else in ``lerobot_pnp.report`` talks to these three functions and to
+Kept in one place on purpose: when the generator's or the trainer's config changes, only this module changes. Everything else in ``lerobot_pnp.report`` talks to these functions and to
 LeRobot's own dataset/policy APIs.
 """
 
@@ -36,12 +36,28 @@ def generate_dataset(
     control rate (ACT's training data); ``env_changes`` sets env fields on top of the preset (e.g.
     ``observe_phase``: the same demonstrations with the phase one-hot observed; a ``control_mode`` there wins).
     """
-    from lerobot_pnp.dataset import GenerateConfig, generate
+    from lerobot_pnp.dataset import generate
+
+    # an existing dataset is resumed or, when complete, verified against its record of how it was made (an
+    # OtherSettingsError names the setting that differs)
+    return generate(dataset_config(root, num_episodes, seed, workers, preset, control_mode, env_changes))
+
+
+def dataset_config(
+    root: Path,
+    num_episodes: int,
+    seed: int,
+    workers: int = 0,
+    preset: str = "paper",
+    control_mode: str = "keyframe",
+    env_changes: dict | None = None,
+):
+    """The generator's config of ``generate_dataset`` (a ConfigError for an invalid value, before any file is
+    touched)."""
+    from lerobot_pnp.dataset import GenerateConfig
     from lerobot_pnp.env_config import BaxterPnPEnvConfig
 
-    # an existing dataset is resumed or, when complete, verified against its record of how it was made (a
-    # ConfigError names the setting that differs)
-    cfg = GenerateConfig(
+    return GenerateConfig(
         repo_id=f"local/{root.name}",
         root=str(root),
         num_episodes=num_episodes,
@@ -51,7 +67,6 @@ def generate_dataset(
         progress=True,
         env=BaxterPnPEnvConfig(preset=preset, **{"control_mode": control_mode, **(env_changes or {})}),
     )
-    return generate(cfg)
 
 
 def train_pnp_lstm(

@@ -85,17 +85,25 @@ def run_study(cfg: StudyConfig) -> dict:
     with ExitStack() as stack:
         for c in cfgs:  # every folder locked before any is cleared or written: a held one stops the run at once
             stack.enter_context(lock_output(Path(c.output_dir), "lerobot-pnp report/demo"))
-        runs = []
-        for c in cfgs:
-            out = Path(c.output_dir)
-            manifest = Manifest(out, "lerobot-pnp report/demo")
-            if not manifest.path.exists() and StudyLayout(out).config.is_file():
-                manifest.claim(*(p.name for p in out.iterdir() if written_by_the_study(p.name)))  # an older study
+        manifests = [_manifest(Path(c.output_dir), c.fresh) for c in cfgs]  # every one read and checked first
+        for c, manifest in zip(cfgs, manifests, strict=True):
             if c.fresh:
                 manifest.clear()
-            runs.append(_prepare(c, StudyLayout(out), manifest))
+        runs = [_prepare(c, StudyLayout(Path(c.output_dir)), m) for c, m in zip(cfgs, manifests, strict=True)]
         summaries = _run_prepared(runs)
     return summaries[0] if len(summaries) == 1 else {**summaries[0], "alongside": summaries[1:]}
+
+
+def _manifest(out: Path, fresh: bool) -> Manifest:
+    """The study's manifest of ``out`` (refused in one line when it is not one), with what a study folder
+    written before manifests provably holds of the study's claimed into it; with ``fresh``, a folder holding
+    anything else is refused here, before any folder of the run is cleared."""
+    manifest = Manifest(out, "lerobot-pnp report/demo")
+    if not manifest.path.exists() and StudyLayout(out).config.is_file():
+        manifest.claim(*(p.name for p in out.iterdir() if written_by_the_study(p)))  # an older study
+    if fresh and (foreign := manifest.foreign()):
+        manifest.refuse_fresh(foreign)
+    return manifest
 
 
 def load_study_config(path: str) -> StudyConfig:

@@ -7,31 +7,66 @@ and, for an evaluation whose count the episode rule chooses (``config.EpisodeRul
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 from lerobot_pnp.cache import STAGE_FILE, Stage, code_versions, same_env_configs
+from lerobot_pnp.dataset.merge import GENERATION_FILE
 from lerobot_pnp.dataset.workdir import remove_generation
-from lerobot_pnp.errors import ConfigError
+from lerobot_pnp.errors import OtherSettingsError
 from lerobot_pnp.report import adapters
 from lerobot_pnp.report.methods import train_stage
 
-# What a study wrote before it kept a manifest (its folder holds study_config.json)
-STUDY_ENTRIES = (
-    "study_config.json",
-    "dataset",
-    "train",
-    "evals",
-    "lerobot_eval_cli",
-    "report.md",
-    "summary.json",
-    "figures",
-)
+# The files a study writes at the top of its folder: every run rewrites them, so claiming one into the manifest of
+# a folder written before manifests loses nothing the study would not overwrite anyway
+STUDY_FILES = ("study_config.json", "report.md", "summary.json")
+# Its folders, and where each holds the stage records that prove the study wrote it
+STUDY_RECORDS = {"train": "*/*/stage.json", "evals": "*/*/*.json", "lerobot_eval_cli": "*/stage.json"}
 # The eval batch size of every evaluation recorded before it was a key part (StudyConfig's default then and now)
 EVAL_BATCH_SIZE_BEFORE = {"eval_batch_size": 50}
 
 
-def written_by_the_study(name: str) -> bool:
-    return name in STUDY_ENTRIES or name.removesuffix(".tmp") in STUDY_ENTRIES or name.startswith("dataset_")
+def written_by_the_study(entry: Path) -> bool:
+    """Whether a top-level entry of a study folder written before manifests is provably the study's (and may
+    be claimed, so that ``--fresh`` deletes it): its files by name; a folder only by what it holds, never by
+    its name alone: a dataset by its stage record or by its generator's record naming it as the study names
+    its datasets (``adapters.dataset_config``), train, evals and the cross-check by a stage record, the figures
+    when the study's ``summary.json`` lists every file in them. A link is never the study's."""
+    if entry.is_symlink():
+        return False
+    if entry.name in STUDY_FILES:
+        return entry.is_file()
+    if not entry.is_dir():
+        return False
+    if entry.name == "dataset" or entry.name.startswith("dataset_"):
+        made = _json(entry / GENERATION_FILE)
+        made = made.get("generation") if isinstance(made, dict) else None
+        return _is_record(entry / STAGE_FILE, "dataset") or (
+            isinstance(made, dict) and made.get("repo_id") == f"local/{entry.name}"
+        )
+    if entry.name in STUDY_RECORDS:
+        return any(_is_record(p) for p in entry.glob(STUDY_RECORDS[entry.name]))
+    if entry.name == "figures":
+        summary = _json(entry.parent / "summary.json")
+        drawn = summary.get("figures") if isinstance(summary, dict) else None
+        files = list(entry.iterdir())
+        return isinstance(drawn, list) and bool(files) and all(p.is_file() and p.name in drawn for p in files)
+    return False
+
+
+def _json(path: Path):
+    try:
+        return json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+
+
+def _is_record(path: Path, stage: str | None = None) -> bool:
+    """Whether ``path`` is a stage record (``cache.Stage``), of ``stage`` when given."""
+    data = _json(path) if not path.is_symlink() else None
+    if not isinstance(data, dict) or not isinstance(data.get("key"), str) or not isinstance(data.get("parts"), dict):
+        return False
+    return stage is None or data["parts"].get("stage") == stage
 
 
 def dataset_parts(cfg, changes: dict | None = None) -> dict:
@@ -53,8 +88,9 @@ def dataset_stage(out: Path, name: str, cfg, changes: dict | None = None) -> tup
     """Generate (or finish, or reuse) the recording ``name``, keyed by what determines it; (summary, key).
 
     A dataset of other settings (or one without a record) is verified by the generator against its own
-    record of how it was made, and replaced when that differs; with ``report_only`` it is left as it is (the
-    summary says so, and every stage keyed on it is then left out of the report)."""
+    record of how it was made, and replaced only when that differs (``OtherSettingsError``); any other
+    configuration error is the command's, found before anything is deleted. With ``report_only`` it is left as
+    it is (the summary says so, and every stage keyed on it is then left out of the report)."""
     root = out / name
     stage = Stage(root / STAGE_FILE, dataset_parts(cfg, changes))
     if stage.done(f"dataset {name}"):
@@ -63,11 +99,12 @@ def dataset_stage(out: Path, name: str, cfg, changes: dict | None = None) -> tup
         changed = stage.changes()
         status = "missing" if changed is None else f"stale ({', '.join(changed)})"
         return {"root": str(root), "status": f"{status}: not generated (report_only)"}, stage.key
-    stage.invalidate()
     args = (root, cfg.num_episodes, cfg.dataset_seed, cfg.workers, cfg.task_preset)
+    adapters.dataset_config(*args, env_changes=changes)  # a mistyped flag stops here, with the dataset untouched
+    stage.invalidate()
     try:
         summary = adapters.generate_dataset(*args, env_changes=changes)
-    except ConfigError as err:  # made with other settings: not this study's dataset any more
+    except OtherSettingsError as err:  # made with other settings: not this study's dataset any more
         print(f"  dataset {name}: regenerated ({err})", flush=True)
         remove_generation(root)
         summary = adapters.generate_dataset(*args, env_changes=changes)
