@@ -248,6 +248,22 @@ def _changes(changes: dict, base: dict) -> str:
     return ", ".join(f"`{k}={fmt(v)}`" for k, v in shown.items()) or "none"
 
 
+def presets_table(base: str) -> str:
+    """The task fields where the two presets differ, with each preset's value and the field's description."""
+    from lerobot_pnp.cli_help import field_doc
+    from lerobot_pnp.env_config import BaxterPnPEnvConfig
+    from lerobot_pnp.presets import FULL_TASK, PAPER_TASK
+
+    lines = ["| field | `paper` | `full` | what it is |", "|---|---|---|---|"]
+    for k, v in FULL_TASK.items():
+        if PAPER_TASK[k] != v:
+            doc = field_doc(BaxterPnPEnvConfig, k).split(". ")[0].replace("|", "\\|")
+            lines.append(f"| `{k}` | {_changes({k: PAPER_TASK[k]}, {})[len(k) + 2 : -1]} | "
+                         f"{_changes({k: v}, {})[len(k) + 2 : -1]} | {doc} |")  # fmt: skip
+    same = sum(PAPER_TASK[k] == v for k, v in FULL_TASK.items())
+    return "\n".join([*lines, "", f"The other {same} task fields are the same in both presets."])
+
+
 def suite_catalogue(base: str) -> str:
     """Every suite of ``evaluation/suites.py``, grouped as the studies use them, with what it changes."""
     from lerobot_pnp.evaluation.suites import HELD_OUT_AXES, SUITES
@@ -334,6 +350,7 @@ BLOCKS = {
     "memory-table": memory_table,
     "planner-table": planner_table,
     "cost": cost_lines,
+    "presets": presets_table,
     "suite-catalogue": suite_catalogue,
     "cli-help": cli_help,
     "env-fields": env_fields,
