@@ -1,10 +1,10 @@
 # Two entry points do all the set-up on a fresh machine (see README):
 #   make demo   the end-to-end job: generate expert data, train the LSTM planner, evaluate it closed loop; beside
 #               it the recovering planner on the full task, on a recovery suite and two held-out ones
-#   make test   the test suite (what CI runs)
-#   make study  the whole study behind docs/results.md: the paper task and the held-out-disturbance protocol
-#               on the full task (every method, 3 training seeds; resumable): 1 h 04 min on 2 cores of an
-#               AVX-512 Xeon, about 2.1 h on 2 AMD EPYC (AVX2) cores (README's cost note)
+#   make test   ruff, the test suite and the strict documentation build (what CI runs)
+#   make study  the whole study behind docs/results/: the paper task and the held-out-disturbance protocol
+#               on the full task (every method, 3 training seeds; resumable; its measured cost: README)
+#   make docs   the documentation site into site/
 # Python 3.12 comes from pyenv when present (LeRobot 0.6 needs >= 3.12), else python3.12 on PATH.
 PYTHON ?= $(shell p=$$(pyenv prefix 3.12.1 2>/dev/null) && echo $$p/bin/python || command -v python3.12)
 VENV := .venv
@@ -13,7 +13,7 @@ export OMP_NUM_THREADS ?= 1
 export MUJOCO_GL ?= egl
 export HF_HUB_OFFLINE ?= 1
 
-.PHONY: demo test study install clean
+.PHONY: demo test study install docs clean
 
 $(STAMP): pyproject.toml
 	@test -n "$(PYTHON)" || { echo "Python 3.12 not found (pyenv install 3.12.1, or set PYTHON=...)"; exit 1; }
@@ -37,6 +37,11 @@ test: $(STAMP)
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/ruff format --check .
 	$(VENV)/bin/python -m pytest -q -n 2 --dist loadfile  # both cores; a test file stays on one worker
+	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict --quiet  # a page off the nav, a broken link or anchor fails
+
+# the documentation site from docs/ (mkdocs.yml) into site/: open site/index.html, no server needed
+docs: $(STAMP)
+	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict
 
 clean:
-	rm -rf $(VENV) outputs build *.egg-info
+	rm -rf $(VENV) outputs build site *.egg-info
