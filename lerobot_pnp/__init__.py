@@ -1,9 +1,9 @@
 """lerobot_pnp: Baxter pick-and-place in MuJoCo, a scripted FSM expert and an LSTM task planner for LeRobot.
 
 Importing the package registers the gymnasium env ``lerobot_pnp/BaxterPnP-v0`` and nothing heavier (no torch,
-LeRobot or MuJoCo). LeRobot's env config ``baxter_pnp`` and policy ``pnp_lstm`` register with their modules;
-``registration.register_all`` registers everything (LeRobot's plugin discovery runs it, see
-``lerobot_policy_pnp_lstm``).
+LeRobot or MuJoCo) and sets no environment variable. LeRobot's env config ``baxter_pnp`` and policy ``pnp_lstm``
+register with their modules; LeRobot's plugin discovery runs ``registration.register_plugin`` (see
+``lerobot_policy_pnp_lstm``), our own entry points ``registration.register_all``.
 """
 
 from lerobot_pnp.registration import register_gym

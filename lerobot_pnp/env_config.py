@@ -26,7 +26,7 @@ import logging
 from dataclasses import dataclass, field, fields
 from typing import ClassVar
 
-from lerobot.configs import FeatureType, PolicyFeature
+from lerobot.configs.types import FeatureType, PolicyFeature
 from lerobot.envs.configs import EnvConfig
 from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_IMAGES, OBS_STATE
 
@@ -44,6 +44,7 @@ from lerobot_pnp.presets import (
     TASK_FIELDS,
 )
 from lerobot_pnp.recorded_task import read_recorded
+from lerobot_pnp.registration import default_mujoco_gl
 
 MAX_EPISODE_LENGTH = 100_000  # env steps: every episode's arrays are held in memory (recorder, datasets)
 KEYFRAME_FPS = robot.KEYFRAME_FPS
@@ -70,7 +71,7 @@ class BaxterPnPEnvConfig(EnvConfig):
     preset: str | None = None
     # A dataset folder or checkpoint whose recorded task to use (default: from the command line, see above).
     task_source: str | None = None
-    command_line_source: ClassVar[str | None] = None  # that default, handed over by registration.register_all
+    command_line_source: ClassVar[str | None] = None  # that default, handed over by registration (stock scripts)
     # keyframe (one step = move to a joint keyframe) | dense (one control period); None = the recorded one, else keyframe
     control_mode: str | None = None
     episode_length: int | None = None  # env steps before truncation; default keyframe_budget (dense: 1 s per keyframe)
@@ -238,6 +239,7 @@ class BaxterPnPEnvConfig(EnvConfig):
                 n_envs,
             )
             use_async_envs = False
+        default_mujoco_gl()  # before this process or its env workers import MuJoCo
         return super().create_envs(n_envs, use_async_envs=use_async_envs)
 
     @property
@@ -283,6 +285,7 @@ def make_env(config: BaxterPnPEnvConfig | dict | None = None, render_mode: str |
     """The one factory: a gymnasium env (with the time limit) for ``config`` (default: the paper's task)."""
     import gymnasium as gym
 
+    default_mujoco_gl()
     if config is None:
         config = BaxterPnPEnvConfig.from_dict({}, **changes)
     elif isinstance(config, dict):

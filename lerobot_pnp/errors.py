@@ -126,8 +126,9 @@ def install_cli_excepthook() -> None:
     LeRobot's CLIs have no error hook of their own, so an uncaught ``PnPError`` (or an offline miss, see
     ``one_line_message``) would end in a 50-250-line traceback with our message at the bottom. This hook prints
     ``lerobot-train: error: <message>`` instead (exit status 1, as Python gives any uncaught error); every other
-    exception goes to the previous hook unchanged. Scoped: only installed when the program is a ``lerobot-*``
-    script, and ``LEROBOT_PNP_DEBUG=1`` restores the full traceback.
+    exception goes to the previous hook unchanged. Scoped: installed only in a ``lerobot-*`` script whose run is
+    ours (``registration.install_stock_hooks``: our env, policy or data), and ``LEROBOT_PNP_DEBUG=1`` restores
+    the full traceback.
     """
     import os
     import sys

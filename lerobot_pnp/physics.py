@@ -10,15 +10,19 @@ set the whole state, displace the object). The task (``task.py``) decides what h
 from __future__ import annotations
 
 import math
-import os
 
-import mujoco
 import numpy as np
 
 from lerobot_pnp import robot
 from lerobot_pnp.errors import PhysicsError
-from lerobot_pnp.ik import ArmIK
 from lerobot_pnp.interpolation import joint_trajectory
+from lerobot_pnp.registration import default_mujoco_gl
+
+default_mujoco_gl()  # MuJoCo reads MUJOCO_GL once, when imported: headless EGL on Linux unless the user chose
+
+import mujoco  # noqa: E402
+
+from lerobot_pnp.ik import ArmIK  # noqa: E402  (imports MuJoCo too)
 
 CONTROL_DT = 0.01  # interpolator update period in keyframe mode (100 Hz)
 _FINGER_JOINTS = ("l_gripper_l_finger_joint", "l_gripper_r_finger_joint")
@@ -284,10 +288,9 @@ class BaxterPhysics:
 
     # ------------------------------------------------------------------ rendering
     def render(self, camera: str, height: int, width: int) -> np.ndarray:
-        """An RGB image (HxWx3 uint8) from a named MJCF camera (headless EGL by default)."""
+        """An RGB image (HxWx3 uint8) from a named MJCF camera (headless EGL on Linux by default)."""
         key = (height, width)
         if key not in self._renderers:
-            os.environ.setdefault("MUJOCO_GL", "egl")
             self._renderers[key] = mujoco.Renderer(self.model, height=height, width=width)
         renderer = self._renderers[key]
         renderer.update_scene(self.data, camera=camera)

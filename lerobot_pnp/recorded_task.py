@@ -3,9 +3,10 @@
 A dataset folder holds it in ``meta/baxter_pnp_env.json`` (``write_recorded``), a checkpoint's
 ``pretrained_model`` folder in ``baxter_pnp_env.json`` (``write_checkpoint_task``, ``copy_recorded``). Whoever
 replays, trains on or evaluates the data reads it back (``read_recorded``; the env config's ``task_source``).
-A record is validated wherever it is read or copied: a JSON object of this env's type, every number finite, the
-whole a valid config. The config is LeRobot's registered ``baxter_pnp`` env config (``env_config`` registers it
-when imported, and reads records through this module, so this module does not import it).
+A record is validated wherever it is read or copied, by one rule (``check_recorded``): a JSON object of this
+env's type, no field the env config does not know (a newer version's record, or a hand edit, is refused naming
+the fields, not half-read), every number finite, the whole a valid config. ``env_config`` reads records through
+this module, which imports it only when a record is checked.
 """
 
 from __future__ import annotations
@@ -22,6 +23,9 @@ from lerobot_pnp.presets import ENV_TYPE
 
 RECORDED_FILE = "meta/baxter_pnp_env.json"  # in a dataset folder
 CHECKPOINT_RECORDED_FILE = "baxter_pnp_env.json"  # the task a checkpoint was trained in, in pretrained_model/
+# Fields a record may hold that the env config no longer has: ignored when read (a field's removal must be listed
+# here, or every dataset recorded before it would be refused as unknown)
+RETIRED_FIELDS: frozenset[str] = frozenset()
 
 
 def write_recorded(config: Any, root: str | Path) -> Path:
@@ -35,32 +39,38 @@ def write_recorded(config: Any, root: str | Path) -> Path:
 
 
 def check_recorded(data: Any, path: str | Path) -> dict:
-    """A recorded task, validated: a JSON object of this env's type, every number finite, the whole a valid
-    config (a contradictory or corrupt record is one ConfigError naming the file)."""
+    """A recorded task, validated: a JSON object of this env's type, every key a field of the env config (or
+    one of ``RETIRED_FIELDS``, dropped), every number finite, the whole a valid config (a contradictory, corrupt
+    or unknown record is one ConfigError naming the file). The one rule of every reader and copier."""
     if not isinstance(data, dict) or data.get("type", ENV_TYPE) != ENV_TYPE:
         raise ConfigError(f"the recorded env config {path} is not a {ENV_TYPE} env config")
+    config_cls = _config_class()
+    valid = {f.name for f in fields(config_cls)}  # features / features_map: in a train_config's env, derived
+    unknown = sorted(set(data) - valid - RETIRED_FIELDS - {"type"})
+    if unknown:
+        from lerobot_pnp import __version__
+
+        raise ConfigError(
+            f"the recorded env config {path} has field(s) {unknown} that lerobot_pnp {__version__} does not know: "
+            f"a newer lerobot_pnp wrote it (upgrade this one to read it) or it was edited by hand; valid fields: "
+            f"{sorted(valid)}"
+        )
+    data = {k: v for k, v in data.items() if k not in RETIRED_FIELDS}
     bad = sorted(k for k, v in data.items() if _not_finite(v))
     if bad:
         raise ConfigError(f"the recorded env config {path} has non-finite values in {bad}")
-    config_cls = _config_class()
     try:
-        known = {f.name for f in fields(config_cls)}  # a field removed since is not a contradiction
-        config_cls.from_dict({k: v for k, v in data.items() if k in known} | {"preset": data.get("preset") or "paper"})
+        config_cls.from_dict({k: v for k, v in data.items() if k != "type"} | {"preset": data.get("preset") or "paper"})
     except (ConfigError, TypeError) as err:
         raise ConfigError(f"the recorded env config {path} is invalid: {err}") from None
     return data
 
 
 def _config_class():
-    """``BaxterPnPEnvConfig``, from LeRobot's env-config registry (filled when ``env_config`` is imported)."""
-    from lerobot.envs.configs import EnvConfig
+    """``BaxterPnPEnvConfig`` (imported here: ``env_config`` reads records through this module)."""
+    from lerobot_pnp.env_config import BaxterPnPEnvConfig
 
-    try:
-        return EnvConfig.get_choice_class(ENV_TYPE)
-    except KeyError:
-        raise ConfigError(
-            f"the {ENV_TYPE} env config is not registered: import lerobot_pnp.env_config before reading a task"
-        ) from None
+    return BaxterPnPEnvConfig
 
 
 def _not_finite(value: Any) -> bool:

@@ -1,4 +1,4 @@
-"""Every stock ``lerobot-train`` checkpoint records the task it was trained in, whatever the policy.
+"""Every stock ``lerobot-train`` checkpoint of a run on our task records that task, whatever the policy.
 
 ``pnp_lstm`` writes ``pretrained_model/baxter_pnp_env.json`` in its own ``_save_pretrained``. Another policy
 (ACT, Diffusion) trained on one of our datasets has no such hook, and LeRobot offers plugins none: without the
@@ -38,7 +38,7 @@ def install_stock_checkpoint_hook() -> bool:
 
 def record_task(checkpoint_dir: Path, cfg) -> Path | None:
     """Write the task of training run ``cfg`` into ``checkpoint_dir/pretrained_model`` (None: not our task)."""
-    from lerobot.utils.constants import HF_LEROBOT_HOME, PRETRAINED_MODEL_DIR
+    from lerobot.utils.constants import PRETRAINED_MODEL_DIR
 
     from lerobot_pnp.presets import ENV_TYPE
     from lerobot_pnp.recorded_task import CHECKPOINT_RECORDED_FILE, dataset_task, write_checkpoint_task
@@ -46,10 +46,37 @@ def record_task(checkpoint_dir: Path, cfg) -> Path | None:
     directory = checkpoint_dir / PRETRAINED_MODEL_DIR
     if not directory.is_dir() or (directory / CHECKPOINT_RECORDED_FILE).is_file():
         return None
-    dataset = getattr(cfg, "dataset", None)
-    root = getattr(dataset, "root", None) or (HF_LEROBOT_HOME / dataset.repo_id if dataset else None)
+    root = dataset_root(cfg)
     task = dataset_task(root) if root is not None else None
     env = getattr(cfg, "env", None)
     if task is None and getattr(env, "type", None) == ENV_TYPE:
         task = {"type": ENV_TYPE, **env.to_dict()}
     return None if task is None else write_checkpoint_task(task, directory)
+
+
+def dataset_root(cfg) -> Path | None:
+    """The local folder of training run ``cfg``'s dataset (``--dataset.root``, else LeRobot's cache folder of its
+    repo id), None without a dataset."""
+    from lerobot.utils.constants import HF_LEROBOT_HOME
+
+    dataset = getattr(cfg, "dataset", None)
+    root = getattr(dataset, "root", None)
+    if root:
+        return Path(root)
+    repo_id = getattr(dataset, "repo_id", None)
+    return HF_LEROBOT_HOME / repo_id if isinstance(repo_id, str) and repo_id else None
+
+
+def run_config_is_ours(cfg) -> bool:
+    """Whether training run ``cfg`` trains our policy, evaluates in our env, or reads a dataset that records our
+    task (what the hooks check before they act)."""
+    from lerobot_pnp.presets import ENV_TYPE
+    from lerobot_pnp.recorded_task import RECORDED_FILE
+    from lerobot_pnp.stock_cli import POLICY_TYPE
+
+    if getattr(getattr(cfg, "policy", None), "type", None) == POLICY_TYPE:
+        return True
+    if getattr(getattr(cfg, "env", None), "type", None) == ENV_TYPE:
+        return True
+    root = dataset_root(cfg)
+    return root is not None and (root / RECORDED_FILE).is_file()

@@ -1,4 +1,11 @@
-"""Inside a stock ``lerobot-train`` process only: hooks on how that script builds its training dataset.
+"""Inside a stock ``lerobot-train`` process on our task only: hooks on how that script builds its training dataset.
+
+Each hook acts only for a run on our policy, env or data (``stock_checkpoints.run_config_is_ours``); any other
+run sees LeRobot's functions unchanged.
+
+**The recorded task, checked at start-up.** A dataset that records an invalid task (``meta/baxter_pnp_env.json``
+with a NaN, an unknown field ...) is refused in one line before the dataset is loaded (``check_recorded_task``),
+not at the first checkpoint, which copies it.
 
 **Per-frame phase labels for the recovering policy.** The fast path gives ``pnp_lstm`` each episode's
 ``phase.index`` / ``phase.subtask`` labels, which the recovering mode needs for a late episode's blind frames
@@ -30,7 +37,7 @@ import sys
 from collections.abc import Callable
 
 from lerobot_pnp.errors import ConfigError
-from lerobot_pnp.stock_checkpoints import TRAIN_MODULE
+from lerobot_pnp.stock_checkpoints import TRAIN_MODULE, dataset_root, run_config_is_ours
 
 FACTORY_MODULE = "lerobot.datasets.factory"
 
@@ -58,6 +65,9 @@ def _wrap_once(module_name: str, name: str, make: Callable[[Callable], Callable]
 
 def _prepared(original):
     def make_train_eval_datasets(cfg, *args, **kwargs):
+        if not run_config_is_ours(cfg):
+            return original(cfg, *args, **kwargs)
+        check_recorded_task(cfg)
         datasets = original(cfg, *args, **kwargs)
         for dataset in datasets if isinstance(datasets, tuple) else (datasets,):
             check_stream(dataset, getattr(cfg, "num_workers", None))
@@ -65,6 +75,16 @@ def _prepared(original):
         return datasets
 
     return make_train_eval_datasets
+
+
+def check_recorded_task(cfg) -> None:
+    """The task the run's dataset records, validated before anything is loaded (a ``ConfigError`` naming the
+    file): every checkpoint copies it, so an invalid one would otherwise stop the run at its first checkpoint."""
+    from lerobot_pnp.recorded_task import dataset_task
+
+    root = dataset_root(cfg)
+    if root is not None:
+        dataset_task(root)
 
 
 def _with_phase_windows(original):

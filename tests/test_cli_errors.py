@@ -116,7 +116,7 @@ from lerobot_pnp.errors import ConfigError
 try:
     raise ConfigError("env.speed must be in (0, 1], got 7")
 except ConfigError as err:
-    if sys.argv[1:] == ["other"]:
+    if sys.argv[1:] == ["--env.type=baxter_pnp", "other"]:
         raise ValueError("not ours") from None
     raise RuntimeError("LeRobot wrapped it") from err
 """
@@ -129,13 +129,15 @@ except ConfigError as err:
         ("lerobot-fake", {"LEROBOT_PNP_DEBUG": "1"}, "ours", False),  # the debug switch keeps the traceback
         ("lerobot-fake", {}, "other", False),  # an error that is not ours keeps its traceback
         ("my_script.py", {}, "ours", False),  # only stock lerobot-* scripts are affected
+        ("lerobot-fake", {}, "unrelated", False),  # a run on no env, policy or data of ours: no hook at all
     ],
 )
 def test_our_errors_are_one_line_in_a_lerobot_script(tmp_path, script, extra_env, arg, one_line):
     path = tmp_path / script
     path.write_text(_FAKE_CLI)
     env = {**ENV, **extra_env, "PYTHONPATH": os.pathsep.join(sys.path)}
-    proc = subprocess.run([sys.executable, str(path), arg], cwd=tmp_path, env=env, capture_output=True, text=True)
+    args = [] if arg == "unrelated" else ["--env.type=baxter_pnp", *([arg] if arg == "other" else [])]
+    proc = subprocess.run([sys.executable, str(path), *args], cwd=tmp_path, env=env, capture_output=True, text=True)
     assert proc.returncode == 1
     if one_line:
         assert "Traceback" not in proc.stderr, proc.stderr

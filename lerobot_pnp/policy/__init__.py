@@ -13,12 +13,28 @@ This package knows tensors and LeRobot features only: it never imports the simul
 the package's error classes from ``lerobot_pnp.errors``).
 """
 
-from .clocked import ClockedPlanner, PnpLstm
 from .configuration_pnp_lstm import PnpLstmConfig
-from .modeling_pnp_lstm import PnpLstmPolicy
-from .planner import Planner, PlannerState
-from .processor_pnp_lstm import make_pnp_lstm_pre_post_processors
-from .recovering import RecoveringPlanner
+
+# The modeling side (torch modules) loads on first use: LeRobot imports this package wherever it parses a policy
+# config (its plugin discovery registers ``pnp_lstm``), and finds the policy by module name when it builds one.
+_LAZY = {
+    "ClockedPlanner": ".clocked",
+    "PnpLstm": ".clocked",
+    "PnpLstmPolicy": ".modeling_pnp_lstm",
+    "Planner": ".planner",
+    "PlannerState": ".planner",
+    "make_pnp_lstm_pre_post_processors": ".processor_pnp_lstm",
+    "RecoveringPlanner": ".recovering",
+}
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        import importlib
+
+        return getattr(importlib.import_module(_LAZY[name], __name__), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 __all__ = [
     "ClockedPlanner",
