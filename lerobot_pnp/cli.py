@@ -53,6 +53,11 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
         "lerobot_pnp.report.run:run_study",
         "the reproduction study (methods x suites x seeds -> report.md; --full: the whole study, resumable)",
     ),
+    "compare": (
+        "lerobot_pnp.evaluation.compare:CompareConfig",
+        "lerobot_pnp.evaluation.compare:run_compare",
+        "compare lerobot-eval runs (RUN or NAME=RUN1,RUN2 ...): intervals, control arm, paired verdicts",
+    ),
 }
 
 
@@ -187,6 +192,8 @@ def main(argv: list[str] | None = None) -> int:
     register_all()
     try:
         config_cls, func = _load(config_ref), _load(func_ref)
+        if name == "compare":  # its runs are positional: RUN_A RUN_B ...
+            args = _load("lerobot_pnp.evaluation.compare:positional_runs")(args)
         if "-h" in args or "--help" in args:
             from lerobot_pnp.cli_help import command_help
 

@@ -104,3 +104,21 @@ def paired_comparison(a: dict[int, bool], b: dict[int, bool]) -> PairedCompariso
     a_only = sum(1 for s in seeds if a[s] and not b[s])
     b_only = sum(1 for s in seeds if b[s] and not a[s])
     return PairedComparison(len(seeds), a_only, b_only, sign_test_p(a_only, b_only))
+
+
+def paired_difference_interval(both: int, a_only: int, b_only: int, neither: int) -> tuple[float, float]:
+    """95 % interval of rate(A) - rate(B) from paired outcomes (Newcombe 1998, method 10: each rate's Wilson
+    interval, combined with the correlation of the pairs). Same seeds make the pairs: an interval for two
+    independent rates would be far wider than what the seeds allow."""
+    n = both + a_only + b_only + neither
+    if n <= 0:
+        raise ValueError("paired_difference_interval needs at least one pair")
+    p1, p2 = (both + a_only) / n, (both + b_only) / n
+    l1, u1 = wilson_interval(both + a_only, n)
+    l2, u2 = wilson_interval(both + b_only, n)
+    margins = (both + a_only) * (b_only + neither) * (both + b_only) * (a_only + neither)
+    phi = (both * neither - a_only * b_only) / math.sqrt(margins) if margins else 0.0
+    d = p1 - p2
+    below = math.sqrt(max(0.0, (p1 - l1) ** 2 - 2 * phi * (p1 - l1) * (u2 - p2) + (u2 - p2) ** 2))
+    above = math.sqrt(max(0.0, (u1 - p1) ** 2 - 2 * phi * (u1 - p1) * (p2 - l2) + (p2 - l2) ** 2))
+    return max(-1.0, d - below), min(1.0, d + above)
