@@ -65,7 +65,8 @@ def dense_episode_length(keyframe_budget: int, fps: int = DENSE_FPS) -> int:
 class BaxterPnPEnvConfig(EnvConfig):
     """``--env.type=baxter_pnp``: Baxter pick-and-place, the whole task in one place (see module doc)."""
 
-    task: str | None = GYM_TASK  # gymnasium id suffix (LeRobot builds ``lerobot_pnp/<task>``)
+    # gymnasium id suffix (the one task), or evaluation suites, comma-separated: heldout, paper, drop,... (stock_suites)
+    task: str | None = GYM_TASK
     fps: int | None = None  # keyframe: 1 (one FSM state per step); dense: control rate, default 20
     # Named task preset: "paper" (the paper's setting) or "full" (everything on). None = the recorded task, else paper
     preset: str | None = None
@@ -164,6 +165,9 @@ class BaxterPnPEnvConfig(EnvConfig):
                 type=FeatureType.VISUAL, shape=(self.image_height, self.image_width, 3)
             )
             self.features_map[f"pixels/{cam}"] = f"{OBS_IMAGES}.{cam}"
+        from lerobot_pnp.evaluation.stock_suites import check_task
+
+        check_task(self)  # --env.task naming suites: every name known, every suite applicable to this task
 
     # ------------------------------------------------------------------ resolution and validation
     def _resolve_task(self) -> None:
@@ -240,7 +244,10 @@ class BaxterPnPEnvConfig(EnvConfig):
             )
             use_async_envs = False
         default_mujoco_gl()  # before this process or its env workers import MuJoCo
-        return super().create_envs(n_envs, use_async_envs=use_async_envs)
+        from lerobot_pnp.evaluation.stock_suites import create_suite_envs
+
+        suites = create_suite_envs(self, n_envs, use_async_envs)  # --env.task naming suites: one entry each
+        return suites if suites is not None else super().create_envs(n_envs, use_async_envs=use_async_envs)
 
     @property
     def gym_kwargs(self) -> dict:
