@@ -70,8 +70,8 @@ PAPER_TASK: dict[str, Any] = {
 # The reachable table region (IK gripper-down at hover and grasp height, any grasp yaw, clear of the table edge):
 # where a disturbed object may land in `full` so that a recovery may begin anywhere the arm can re-pick it.
 REACHABLE_LOW, REACHABLE_HIGH = (0.45, -0.15), (0.75, 0.60)
-# The perturbations as distributions before issue 19: each one trigger at one moment with one size (the paper
-# defaults of the distribution fields). `{**FULL_TASK, **NARROW_FULL_DISTURBANCES}` is the `full` of before.
+# Narrow perturbations: each one trigger at one moment with one size (the paper defaults of the distribution
+# fields). `{**FULL_TASK, **NARROW_FULL_DISTURBANCES}` is `full` with every disturbance narrowed that way.
 NARROW_FULL_DISTURBANCES: dict[str, Any] = {
     k: PAPER_TASK[k]
     for k in PAPER_TASK

@@ -157,7 +157,7 @@ class ClockedPlanner(nn.Module):
         return onehot
 
 
-# The clocked planner's name before the planners became two classes behind one interface (issue 21).
+# Another name of the clocked planner, kept for code that imports it by that name.
 PnpLstm = ClockedPlanner
 
 

@@ -203,7 +203,7 @@ PRESETS: dict[str, dict] = {
             half_width=0.1, block=50, fixed_methods=("expert", "lookup_table", "clocked_lstm")
         ),
     },
-    # The held-out-disturbance protocol (issue 19): demonstrations of the `full` task (wide disturbance
+    # The held-out-disturbance protocol: demonstrations of the `full` task (wide disturbance
     # distributions, recoveries in the demonstrations), evaluated on nominal and on every suite of every axis
     # (in distribution and held out). 200 episodes per suite, split over the 3 seeds of a learned method (100
     # each, 300 pooled); the counts are explained above PRESETS. The clocked planners cannot train on this data (see methods.py), nor can the

@@ -75,7 +75,7 @@ def write_report(layout: StudyLayout, study: StudyInputs) -> dict:
         "suite_aliases": study.aliases,  # suite -> the suite of the same conditions whose evaluation it shows
     }
     held_out = held_out_axes(table, methods)
-    if held_out:  # only a study that ran every suite of an axis (the held-out protocol, issue 19)
+    if held_out:  # only a study that ran every suite of an axis (the held-out protocol)
         summary["held_out_axes"] = [r.to_json() for r in held_out]
     layout.summary.write_text(json.dumps(summary, indent=1, default=str))
     text = markdown.render(layout, cfg, methods, results, suite_names, table, comparisons, figs, summary,

@@ -1,0 +1,89 @@
+"""The README's and the docs' generated tables equal what their sources give today.
+
+Every result table is regenerated from the committed summaries under docs/results/ and every reference table
+from the code (suite catalogue, CLI help, config fields); a page that differs means a source changed without
+``python scripts/docs_tables.py`` being run, or a page was edited by hand inside a generated block.
+"""
+
+import importlib.util
+import re
+from pathlib import Path
+
+import pytest
+import yaml
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _docs_tables():
+    spec = importlib.util.spec_from_file_location("docs_tables", ROOT / "scripts" / "docs_tables.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture(scope="module")
+def regenerated():
+    return _docs_tables().regenerate()
+
+
+def test_every_generated_block_matches_its_source(regenerated):
+    stale = [str(p.relative_to(ROOT)) for p, (old, new) in regenerated.items() if old != new]
+    assert not stale, f"run `python scripts/docs_tables.py`: generated blocks differ in {stale}"
+
+
+def test_every_block_is_used_and_the_headline_pages_hold_theirs(regenerated):
+    dt = _docs_tables()
+    used = {name for old, _ in regenerated.values() for name in re.findall(r"<!-- begin generated: ([\w-]+) -->", old)}
+    assert used == set(dt.BLOCKS)
+    readme = (ROOT / "README.md").read_text()
+    for name in ("paper-table", "heldout-verdicts", "cost"):
+        assert f"<!-- begin generated: {name} -->" in readme
+
+
+def test_a_hand_edited_number_is_caught():
+    dt = _docs_tables()
+    page = ROOT / "README.md"
+    text = page.read_text()
+    block = re.search(r"<!-- begin generated: heldout-verdicts -->\n(.*?)<!-- end", text, re.S).group(1)
+    edited = text.replace(block, block.replace("%", " percent", 1))
+    assert edited != text
+    assert dt.render(page, edited, {}) == dt.render(page, text, {})
+
+
+def test_an_unknown_block_is_an_error():
+    dt = _docs_tables()
+    with pytest.raises(SystemExit, match="unknown generated block 'nope'"):
+        dt.render(ROOT / "README.md", "<!-- begin generated: nope -->\nx\n<!-- end generated: nope -->\n", {})
+
+
+def test_every_result_table_names_its_run(regenerated):
+    for name in ("paper-table", "heldout-verdicts", "heldout-suites", "gate-table", "memory-table", "planner-table"):
+        text = _docs_tables().BLOCKS[name]("docs/results/")
+        assert re.search(r"commit `[0-9a-f]{7,}`, \d{4}-\d{2}-\d{2}", text), name
+
+
+def _nav_pages(nav) -> list[str]:
+    out = []
+    for item in nav:
+        value = next(iter(item.values())) if isinstance(item, dict) else item
+        out += _nav_pages(value) if isinstance(value, list) else [value]
+    return out
+
+
+def test_the_site_nav_holds_every_page():
+    """mkdocs --strict fails on a page off the nav (make test builds it); this names the page without a build."""
+    config = yaml.safe_load((ROOT / "mkdocs.yml").read_text())
+    nav = set(_nav_pages(config["nav"]))
+    pages = {str(p.relative_to(ROOT / "docs")) for p in (ROOT / "docs").rglob("*.md")}
+    assert pages - nav == set(), "pages missing from mkdocs.yml's nav"
+    assert nav - pages == set(), "nav entries without a page"
+    assert config.get("not_in_nav", "") == ""
+
+
+def test_readme_is_a_front_door_and_its_links_resolve():
+    text = (ROOT / "README.md").read_text()
+    assert len(text.splitlines()) <= 200
+    for target in re.findall(r"\]\(([^)#\s]+)(?:#[^)]*)?\)", text):
+        if not target.startswith(("http://", "https://")):
+            assert (ROOT / target).exists(), f"README links to a missing file: {target}"
