@@ -13,7 +13,7 @@ method's records (mean wall time and mean share), and counted as such. The study
 and without the rule: single-core seconds (every stage summed: the two dataset recordings, given on the command
 line because a reused dataset records no time, the trainings' ``study_train_time.json`` and the evaluations),
 and the wall clock of the study's job pool on 2 cores (jobs in the study's order, each to the first free
-process, as ``run._run_jobs`` does; the dense recording counted at half its single-worker time).
+process, as ``schedule.run_jobs`` does; the dense recording counted at half its single-worker time).
 
 ``--verify METHOD/TAG/SUITE`` checks the premise of reusing a fixed-n record by truncation on a real trained
 policy: the stage evaluated again with the current code, once as the fixed run (one call of n episodes) and once
@@ -35,9 +35,9 @@ from lerobot_pnp.env_config import BaxterPnPEnvConfig  # noqa: E402
 from lerobot_pnp.recorded_task import read_recorded  # noqa: E402
 from lerobot_pnp.report import coverage  # noqa: E402
 from lerobot_pnp.report.config import StudyConfig  # noqa: E402
+from lerobot_pnp.report.job import suites_for  # noqa: E402
 from lerobot_pnp.report.layout import StudyLayout  # noqa: E402
 from lerobot_pnp.report.methods import get_methods  # noqa: E402
-from lerobot_pnp.report.run import _suites_for  # noqa: E402
 from lerobot_pnp.report.stages import share_of_time  # noqa: E402
 
 
@@ -67,14 +67,15 @@ def verify(cfg: StudyConfig, layout: StudyLayout, what: str) -> dict:
 
     from lerobot_pnp.evaluation.suites import get_suites
     from lerobot_pnp.report.config import EpisodeRule
+    from lerobot_pnp.report.job import evaluate, train_context
     from lerobot_pnp.report.methods import keyed_train, train_stage
-    from lerobot_pnp.report.run import Job, _context, _evaluate
+    from lerobot_pnp.report.schedule import Job
 
     name, tag, suite_name = what.split("/")
     (method,) = get_methods([name])
     roots = {r: layout.dataset(r) for r in dict.fromkeys(["keyframe", method.data])}
     keys = {r: json.loads((root / "stage.json").read_text())["key"] for r, root in roots.items()}
-    ctx = _context(Job(name, tag, None), method, cfg, layout, roots, keys)
+    ctx = train_context(Job(name, tag, None), method, cfg, layout, roots, keys)
     if method.learned and not train_stage(method, ctx).done():
         raise SystemExit(f"--verify {what}: its training is not finished in {layout.out}")
     artifact, _ = keyed_train(method, ctx)  # the finished training's artefact (nothing is trained)
@@ -84,7 +85,7 @@ def verify(cfg: StudyConfig, layout: StudyLayout, what: str) -> dict:
     n = stored["parts"]["n_episodes"]
     every_block = EpisodeRule(half_width=1e-9, block=cfg.eval_batch_size, fixed_methods=())  # never decided
     runs = {
-        k: _evaluate(method, artifact, ctx, suite, n, base, cfg, r)
+        k: evaluate(method, artifact, ctx, suite, n, base, cfg, r)
         for k, r in (("fixed", None), ("blocks", every_block))
     }
     episodes = {k: d["episodes"] for k, d in runs.items()}
@@ -108,7 +109,7 @@ def _jobs(cfg: StudyConfig) -> list[tuple[str, str]]:
 def collect(cfg: StudyConfig, layout: StudyLayout) -> tuple[dict, dict]:
     """(method, tag) -> suite -> row (measured, or extrapolated: ``extrapolated`` True); (method, tag) -> train s."""
     base = BaxterPnPEnvConfig.from_dict(read_recorded(layout.dataset()) or {})
-    pairs = _suites_for(cfg, None)
+    pairs = suites_for(cfg, None)
     planned = [s.name for s, _ in pairs if coverage.suite_aliases(pairs, base)[s.name] == s.name]
     rule, rows, train = cfg.episodes_rule, {}, {}
     for method, tag in _jobs(cfg):

@@ -1,6 +1,6 @@
 """The wall clock a study would take from scratch, replayed from the job times a finished study recorded.
 
-The study's pool (``report.run``) runs each study's datasets first, then every training and every suite's
+The study's pool (``report.schedule``) runs each study's datasets first, then every training and every suite's
 evaluation as a job on one core each, in ``longest_first`` order, a job starting once the one it waits for
 (``Job.after``: its training, or the training it continues) has finished. This script replays that schedule
 on the recorded times: each training's ``study_train_time.json``, each evaluation record's ``wall_s`` and the
@@ -25,7 +25,7 @@ import json
 from pathlib import Path
 
 from lerobot_pnp.report.methods import get_methods
-from lerobot_pnp.report.run import ALL, TRAINING, Job, longest_first
+from lerobot_pnp.report.schedule import ALL, TRAINING, Job, longest_first
 
 TRAIN_TIME = "study_train_time.json"
 

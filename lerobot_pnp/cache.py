@@ -310,9 +310,10 @@ class Manifest:
 
     def refuse_fresh(self, foreign: list[str]) -> None:
         """The one line refusing ``--fresh`` on a folder that holds ``foreign`` entries."""
+        names = ", ".join(foreign[:5]) + (f" and {len(foreign) - 5} more" if len(foreign) > 5 else "")
         raise ConfigError(
-            f"--fresh: {self.out} holds {self.out / foreign[0]}, which `{self.command}` did not write "
-            f"({len(foreign)} such entr{'y' if len(foreign) == 1 else 'ies'}); move it or choose another --output_dir"
+            f"--fresh: {self.out} holds {names}, which `{self.command}` did not write; move "
+            f"{'it' if len(foreign) == 1 else 'them'} or choose another --output_dir"
         )
 
     def clear(self) -> None:

@@ -228,9 +228,9 @@ _ORPHANS = """
 import sys, time
 sys.path.insert(0, {tests!r})
 from test_caches import _sleeping_job
-from lerobot_pnp.report.run import Job, _run_jobs
+from lerobot_pnp.report.schedule import Job, run_jobs
 if __name__ == "__main__":
-    list(_run_jobs([Job("clocked_lstm", "1", None), Job("lookup_table", "-", None)], ({log!r},), 2, fn=_sleeping_job))
+    list(run_jobs([Job("clocked_lstm", "1", None), Job("lookup_table", "-", None)], ({log!r},), 2, fn=_sleeping_job))
 """
 
 

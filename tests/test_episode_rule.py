@@ -16,8 +16,9 @@ from lerobot_pnp.evaluation.stats import wilson_interval
 from lerobot_pnp.recorded_task import read_recorded
 from lerobot_pnp.report import methods
 from lerobot_pnp.report.config import EpisodeRule, StudyConfig, SuiteSpec
+from lerobot_pnp.report.job import run_job
 from lerobot_pnp.report.layout import StudyLayout
-from lerobot_pnp.report.run import Job, run_job
+from lerobot_pnp.report.schedule import Job
 from lerobot_pnp.report.stages import dataset_stage, eval_stage
 
 RULE = EpisodeRule(half_width=0.1, block=50, fixed_methods=())
@@ -190,14 +191,14 @@ def test_the_report_states_the_rule_under_intervals_and_nothing_when_it_is_off()
 
 
 def test_a_split_suite_gives_each_seed_its_share_in_whole_batches_and_an_unseeded_method_all_of_it():
-    from lerobot_pnp.report.run import _suites_for
+    from lerobot_pnp.report.job import suites_for
 
     heldout, full = StudyConfig(preset="heldout"), StudyConfig(preset="full")
     expert, recovering = methods.get_methods(["expert", "recovering"])
-    assert {n for _, n in _suites_for(heldout, None, recovering)} == {100}  # 200 / 3 -> 67 -> two batches of 50
-    assert {n for _, n in _suites_for(heldout, None, expert)} == {200}
-    assert {n for _, n in _suites_for(heldout, 30, recovering)} == {200}  # a data-efficiency run: not split
-    off = [(s.name, n) for s, n in _suites_for(full, None, recovering)]
-    assert off == [(s.name, n) for s, n in _suites_for(full, None)] and ("nominal", 300) in off  # off: n per seed
+    assert {n for _, n in suites_for(heldout, None, recovering)} == {100}  # 200 / 3 -> 67 -> two batches of 50
+    assert {n for _, n in suites_for(heldout, None, expert)} == {200}
+    assert {n for _, n in suites_for(heldout, 30, recovering)} == {200}  # a data-efficiency run: not split
+    off = [(s.name, n) for s, n in suites_for(full, None, recovering)]
+    assert off == [(s.name, n) for s, n in suites_for(full, None)] and ("nominal", 300) in off  # off: n per seed
     assert StudyConfig(preset="heldout", train_seeds=[1, 2, 3, 4, 5]).seed_episodes(200) == 40  # one short batch
     assert StudyConfig(preset="heldout", split_over_seeds=False).seed_episodes(200) == 200

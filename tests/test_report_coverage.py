@@ -14,7 +14,7 @@ from lerobot_pnp.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.evaluation.suites import get_suites
 from lerobot_pnp.report import coverage, methods
 from lerobot_pnp.report.config import StudyConfig
-from lerobot_pnp.report.run import _suites_for
+from lerobot_pnp.report.job import suites_for
 from lerobot_pnp.report.stages import eval_stage
 
 
@@ -28,7 +28,7 @@ def test_suites_of_the_same_conditions_on_the_task_are_aliases():
     other_n = [(get_suites(["nominal"])[0], 4), (get_suites(["quiet"])[0], 5)]  # other episodes: other evaluations
     assert coverage.suite_aliases(other_n, paper) == {"nominal": "nominal", "quiet": "quiet"}
     heldout = StudyConfig(preset="heldout")
-    aliases = coverage.suite_aliases(_suites_for(heldout, None), full)
+    aliases = coverage.suite_aliases(suites_for(heldout, None), full)
     assert {a: of for a, of in aliases.items() if a != of} == {"train_nudge": "nominal", "train_mixture": "nominal"}
 
 

@@ -171,12 +171,13 @@ def test_the_paper_study_trains_the_recipe_with_its_changes(tmp_path, monkeypatc
 
     from lerobot_pnp import dagger
     from lerobot_pnp.report import builders, preamble, training
+    from lerobot_pnp.report.job import train_context
     from lerobot_pnp.report.layout import StudyLayout
-    from lerobot_pnp.report.run import Job, _context
+    from lerobot_pnp.report.schedule import Job
 
     paper, heldout = StudyConfig(preset="full"), StudyConfig(preset="heldout")
     assert paper.recipe_changes == {"num_layers": 1} and heldout.recipe_changes == {}
-    ctx = _context(Job("recovering", "1000", None), methods.METHODS["recovering"], paper, StudyLayout(tmp_path),
+    ctx = train_context(Job("recovering", "1000", None), methods.METHODS["recovering"], paper, StudyLayout(tmp_path),
                    {"keyframe": tmp_path}, {"keyframe": "k"})  # fmt: skip
     assert ctx.recipe_changes == {"num_layers": 1}
     shipped = replace(ctx, recipe_changes={})

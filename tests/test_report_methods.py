@@ -129,10 +129,10 @@ def _timed_job(job, log_dir):
 
 
 def test_parallel_jobs_run_dagger_after_the_recovering_run_it_continues(tmp_path):
-    from lerobot_pnp.report.run import Job, _run_jobs
+    from lerobot_pnp.report.schedule import Job, run_jobs
 
     jobs = [Job("recovering_dagger", "1", None), Job("recovering", "1", None), Job("clocked_lstm", "1", None)]
-    out = dict(_run_jobs(jobs, (str(tmp_path),), 2, fn=_timed_job))
+    out = dict(run_jobs(jobs, (str(tmp_path),), 2, fn=_timed_job))
     assert {j.method for j in out} == {j.method for j in jobs} and all(out[j] == j.method for j in jobs)
     start = {p.name: [float(v) for v in p.read_text().split()] for p in tmp_path.iterdir() if not p.suffix}
     assert start["recovering_dagger_1"][0] >= start["recovering_1"][1]  # waited for its round 0
@@ -143,7 +143,7 @@ def test_a_pool_evaluates_each_suite_once_its_training_is_done(tmp_path):
     """Split for a pool, a method x seed is its training and one job per suite: the suites wait for the training
     (and DAgger's training for the run it continues), an untrained method's suites start at once, and two
     suites of one trained method run side by side."""
-    from lerobot_pnp.report.run import TRAINING, Job, _run_jobs, split_jobs
+    from lerobot_pnp.report.schedule import TRAINING, Job, run_jobs, split_jobs
 
     whole = [Job("recovering", "1", None), Job("recovering_dagger", "1", None), Job("expert", "-", None)]
     jobs = split_jobs(whole, {whole[0]: ["nominal", "drop"], whole[1]: ["nominal"], whole[2]: ["nominal"]})
@@ -156,7 +156,7 @@ def test_a_pool_evaluates_each_suite_once_its_training_is_done(tmp_path):
     assert after[("recovering_dagger", "1", TRAINING, 0)] == ("recovering", "1", TRAINING, 0)
     assert after[("recovering", "1", TRAINING, 0)] is None and after[("expert", "-", "nominal", 0)] is None
 
-    out = dict(_run_jobs(jobs, (str(tmp_path),), 2, fn=_logged_job))
+    out = dict(run_jobs(jobs, (str(tmp_path),), 2, fn=_logged_job))
     assert set(out) == set(jobs)
     span = {p.stem: [float(v) for v in p.read_text().split()] for p in tmp_path.glob("*.log")}
     trained = span["recovering_1_training"][1]
@@ -191,7 +191,7 @@ def test_a_pool_takes_the_likely_longest_jobs_first():
     """Dense-control (ACT) jobs, then the runs DAgger/DART continue, then the recovering recipe's trainings,
     then other trainings, then evaluation-only jobs: in the listed order (ACT last) two workers would leave the
     last ACT job running alone on one core."""
-    from lerobot_pnp.report.run import Job, longest_first
+    from lerobot_pnp.report.schedule import Job, longest_first
 
     jobs = [Job("expert", "-", None), Job("lookup_table", "-", None), Job("clocked_lstm", "1", None),
             Job("recovering_dagger", "1", None), Job("recovering", "1", None), Job("act", "1", None),

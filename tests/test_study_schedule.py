@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from lerobot_pnp.report.run import TRAINING
+from lerobot_pnp.report.schedule import TRAINING
 
 
 @pytest.fixture(scope="module")

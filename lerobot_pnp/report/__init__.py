@@ -3,7 +3,8 @@
 One job per module: ``methods`` (what is compared: how each is trained and evaluated), ``baselines`` (the
 open-loop lookup table), ``adapters`` (the only calls into the dataset generator and the fast trainer),
 ``config`` (``StudyConfig`` and its presets), ``layout`` (every path of a study), ``run`` (the stages, cached
-on disk and resumable), ``results`` (pooled rates and paired comparisons), ``figures`` / ``plots``,
+on disk and resumable; ``schedule``: its jobs and their pool, ``job``: what one job does, ``cross_check``: the
+`lerobot-eval` cross-check), ``results`` (pooled rates and paired comparisons), ``figures`` / ``plots``,
 ``claims`` and ``markdown`` (the text), ``writer`` (``report.md`` and ``summary.json``). Suites, statistics
 and the evaluators live in ``lerobot_pnp.evaluation``.
 """
