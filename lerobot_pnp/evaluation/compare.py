@@ -265,7 +265,9 @@ def markdown(result: dict, cfg: CompareConfig) -> str:
 
 
 def _diff_json(c: dict) -> dict:
-    return {"n": c["n"], "difference": c["difference"], "interval": list(c["interval"]), **c["study"].to_json()}
+    """The pooled pairs' difference and interval; ``study``: the study's per-seed comparison (mean difference over
+    training seeds, the largest p, each seed's test)."""
+    return {"n": c["n"], "difference": c["difference"], "interval": list(c["interval"]), "study": c["study"].to_json()}
 
 
 def to_json(result: dict, cfg: CompareConfig) -> dict:

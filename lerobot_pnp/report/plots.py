@@ -157,7 +157,8 @@ def rate_bars(rates: dict[str, dict[str, Rate]], path: Path, provenance: str, ti
         hi = np.array([100 * per[s].interval[1] for s in suites if s in per])
         ax.bar(xs, r, width, color=colors[i], label=name)
         ax.errorbar(xs, r, yerr=np.vstack([r - lo, hi - r]), fmt="none", capsize=2, ecolor="0.25", lw=0.8)
-    ax.set_xticks(range(len(suites)), suites)
+    slanted = len(suites) > 4  # long suite names overlap side by side
+    ax.set_xticks(range(len(suites)), suites, rotation=35 if slanted else 0, ha="right" if slanted else "center")
     ax.set_ylim(0, 103)
     ax.set_ylabel("success (%) with 95 % Wilson interval")
     ax.set_title(title)

@@ -1,0 +1,146 @@
+"""``lerobot-pnp compare`` over eval_info.json files: the study's own numbers for the same evaluations (pooled
+training seeds, paired tests against the lookup table, the held-out verdict), and refusals in one line."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from lerobot_pnp import cli
+from lerobot_pnp.errors import ConfigError
+from lerobot_pnp.evaluation.compare import CompareConfig, read_eval_info, run_compare
+from lerobot_pnp.evaluation.records import EpisodeRecord
+from lerobot_pnp.evaluation.stats import paired_difference_interval, wilson_interval
+from lerobot_pnp.evaluation.suites import HELD_OUT_AXES
+from lerobot_pnp.report import results as study
+
+AXIS = next(a for a in HELD_OUT_AXES if a.name == "latency")
+SUITES = ("nominal", *AXIS.in_distribution, *AXIS.held_out)
+N, SEED = 40, 100_000
+RATES = {"lookup_table": 0.5, "recovering": 0.98, "memoryless_mlp": 0.75}  # success probability per episode
+
+
+def _study_results() -> dict:
+    """method -> training seed -> suite -> records, as the study holds them (the lookup table trains nothing)."""
+    rng = np.random.default_rng(0)
+    tags = {"lookup_table": ["-"], "recovering": ["1000", "1001"], "memoryless_mlp": ["1000", "1001"]}
+    return {
+        m: {t: {s: [EpisodeRecord(SEED + i, bool(rng.random() < p), "", -1, "", 1, 0.0, 0.0) for i in range(N)]
+                for s in SUITES} for t in tags[m]}
+        for m, p in RATES.items()
+    }  # fmt: skip
+
+
+def eval_info(per_suite: dict[str, list[bool]]) -> dict:
+    """A stock lerobot-eval eval_info.json: one task per suite (as --env.task writes it)."""
+    per_task = [{"task_group": s, "task_id": 0, "metrics": {"sum_rewards": [float(x) for x in ok],
+                 "max_rewards": [float(x) for x in ok], "successes": ok, "video_paths": []}}
+                for s, ok in per_suite.items()]  # fmt: skip
+    per_group = {s: {"pc_success": 100 * np.mean(ok), "n_episodes": len(ok)} for s, ok in per_suite.items()}
+    return {"per_task": per_task, "per_group": per_group, "overall": {"n_episodes": sum(map(len, per_suite.values()))}}
+
+
+def _write_runs(results: dict, root: Path) -> list[str]:
+    specs = []
+    for method, runs in results.items():
+        paths = []
+        for tag, suites in runs.items():
+            path = root / method / tag
+            path.mkdir(parents=True)
+            outcomes = {s: [r.success for r in sorted(recs, key=lambda r: r.seed)] for s, recs in suites.items()}
+            (path / "eval_info.json").write_text(json.dumps(eval_info(outcomes)))
+            paths.append(str(path))
+        specs.append(f"{method}={','.join(paths)}")
+    return specs
+
+
+def test_compare_reproduces_the_studys_pooled_rates_paired_tests_and_axis_verdict(tmp_path, capsys):
+    results = _study_results()
+    methods = [SimpleNamespace(name=m) for m in results]
+    table = study.build_table(results, methods, SUITES)
+    comparisons = study.build_comparisons(results, methods, SUITES)
+    specs = _write_runs(results, tmp_path / "runs")
+    assert cli.main(["compare", *specs, f"--output_dir={tmp_path / 'out'}"]) == 0
+    out = json.loads((tmp_path / "out" / "compare.json").read_text())
+    assert (tmp_path / "out" / "compare.png").stat().st_size > 0
+    assert (
+        "## Held-out axes" in (tmp_path / "out" / "compare.md").read_text()
+        and "## Pairs of runs" in capsys.readouterr().out
+    )
+
+    for s in SUITES:
+        for m in results:
+            assert out["success"][s][m] == json.loads(json.dumps(table[s][m].to_json()))
+    pairs = {(p["run"], p["reference"], p["suite"]): p for p in out["pairs"]}
+    for m in ("recovering", "memoryless_mlp"):
+        for s in SUITES:
+            ours, theirs = pairs[(m, "lookup_table", s)], comparisons[m][s]
+            assert ours["study"] == json.loads(json.dumps(theirs.to_json()))
+            assert ours["n"] == 2 * N and ours["verdict"] in ("improved", "held", "underpowered", "regressed")
+    axes = {(a["axis"], a["method"]): a for a in out["held_out_axes"]}
+    for m in results:
+        assert axes[(AXIS.name, m)] == json.loads(json.dumps(study.axis_result(AXIS, m, table).to_json()))
+    assert axes[(AXIS.name, "recovering")]["verdict"] == "generalises"
+    two_methods = pairs[("memoryless_mlp", "recovering", "nominal")]  # two seeds each: paired seed by seed
+    assert two_methods["n"] == 2 * N and len(two_methods["study"]["per_seed"]) == 2
+    control = out["control"]["recovering"]["train_latency"]  # beside nominal on the same seeds and training seeds
+    assert control["n"] == 2 * N and set(out["control"]["recovering"]) == set(SUITES) - {"nominal"}
+
+
+def test_verdicts_and_the_paired_difference_interval():
+    lo, hi = paired_difference_interval(both=50, a_only=20, b_only=2, neither=28)
+    assert lo < 0.18 < hi and lo > 0  # a clear improvement: the interval excludes 0
+    lo, hi = paired_difference_interval(both=95, a_only=0, b_only=0, neither=5)
+    assert -0.05 < lo < 0 < hi < 0.05  # identical outcomes: a narrow interval around 0
+    # paired episodes give a narrower interval than two independent samples of the same rates (Newcombe's hybrid)
+    l1, u1 = wilson_interval(70, 100)
+    l2, u2 = wilson_interval(52, 100)
+    independent = 0.18 - np.hypot(0.7 - l1, u2 - 0.52), 0.18 + np.hypot(u1 - 0.7, 0.52 - l2)
+    lo, hi = paired_difference_interval(both=50, a_only=20, b_only=2, neither=28)
+    assert independent[0] < lo and hi < independent[1]
+
+
+def _bad(tmp_path: Path, name: str, content) -> str:
+    path = tmp_path / name
+    path.mkdir(parents=True)
+    (path / "eval_info.json").write_text(content if isinstance(content, str) else json.dumps(content))
+    return str(path)
+
+
+@pytest.mark.parametrize(
+    "make, message",
+    [
+        (lambda t: [_bad(t, "a", "{not json")], "is not JSON"),
+        (lambda t: [_bad(t, "a", {"results": [1, 2]})], "not a lerobot-eval eval_info.json"),
+        (lambda t: [_bad(t, "a", {**eval_info({"nominal": [True]}), "per_group": {"nominal": {"n_episodes": 7}}})],
+         "does not count"),
+        (lambda t: [_bad(t, "a", eval_info({"nominal": [True] * 4})), _bad(t, "b", eval_info({"nominal": [True] * 5}))],
+         "do not pair on ['nominal']"),
+        (lambda t: [_bad(t, "a", eval_info({"nominal": [True]})), _bad(t, "b", eval_info({"drop": [True]}))],
+         "share no suite"),
+        (lambda t: [str(t / "missing")], "no eval_info.json at"),
+        (lambda t: [f"x={_bad(t, 'a', eval_info({'nominal': [True]}))},{_bad(t, 'b', eval_info({'nominal': [0, 1]}))}"],
+         "does not hold the suites and episode counts"),
+    ],
+)  # fmt: skip
+def test_refusals_are_one_line_exit_2_and_write_nothing(tmp_path, capsys, make, message):
+    runs = make(tmp_path)
+    with pytest.raises(ConfigError) as err:
+        run_compare(CompareConfig(runs=runs, output_dir=str(tmp_path / "out")))
+    assert message in str(err.value) and "\n" not in str(err.value)
+    assert cli.main(["compare", *runs, f"--output_dir={tmp_path / 'out'}"]) == 2
+    assert message in capsys.readouterr().err and not (tmp_path / "out").exists()
+
+
+def test_reads_another_benchmarks_eval_info(tmp_path):
+    """LIBERO's layout: several tasks per suite, each from the same seeds; the tasks of a suite pool."""
+    data = eval_info({"libero_spatial": [True, False]})
+    data["per_task"].append({"task_group": "libero_spatial", "task_id": 1, "metrics": {"successes": [True, True]}})
+    data["per_group"]["libero_spatial"]["n_episodes"] = 4
+    path = _bad(tmp_path, "libero", data)
+    assert read_eval_info(path) == {"libero_spatial": {0: [True, False], 1: [True, True]}}
+    assert run_compare(CompareConfig(runs=[path])) == {"written": []}
