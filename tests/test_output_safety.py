@@ -315,3 +315,13 @@ def test_an_output_dir_that_is_a_file_or_read_only_gets_advice_the_command_has(t
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "cannot write" in err and "--resume" not in err, err
     assert list(folder.iterdir()) == []
+
+
+@pytest.mark.parametrize("text", ["{}", "[]", '{"wall_s": "1"}', '{"wall_s": NaN}', "{", '{"wall_s": true}'])
+def test_a_hand_edited_training_time_is_left_out_not_a_traceback(tmp_path, text):
+    from lerobot_pnp.report.job import TRAIN_TIME, train_time
+
+    (tmp_path / TRAIN_TIME).write_text(text)
+    assert train_time(tmp_path) is None
+    (tmp_path / TRAIN_TIME).write_text('{"wall_s": 12}')
+    assert train_time(tmp_path) == 12.0

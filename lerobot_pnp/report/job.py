@@ -6,6 +6,7 @@ study resumes; a fixed-n record is reused cut to where an episode rule stops, wh
 from __future__ import annotations
 
 import json
+import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -130,9 +131,19 @@ def run_job(job: Job, cfg: StudyConfig, layout: StudyLayout, roots: dict[str, Pa
             )
         timings[f"eval/{method.name}/{job.tag}/{suite.name}"] = data["wall_s"]  # once, not once per alias
         records.update(dict.fromkeys(names, records_from_json(data)))
-    if (ctx.train_dir / TRAIN_TIME).is_file():  # the time it took when it was trained (this run or earlier)
-        timings[f"train/{method.name}/{job.tag}"] = json.loads((ctx.train_dir / TRAIN_TIME).read_text())["wall_s"]
+    if (wall_s := train_time(ctx.train_dir)) is not None:  # the time it took when it was trained (this run or earlier)
+        timings[f"train/{method.name}/{job.tag}"] = wall_s
     return records, timings, left
+
+
+def train_time(train_dir: Path) -> float | None:
+    """How long the training in ``train_dir`` took (``TRAIN_TIME``); None when it is not recorded as a number."""
+    try:
+        wall_s = json.loads((train_dir / TRAIN_TIME).read_text()).get("wall_s")
+    except (OSError, ValueError, AttributeError):
+        return None
+    ok = isinstance(wall_s, int | float) and not isinstance(wall_s, bool) and math.isfinite(wall_s)
+    return float(wall_s) if ok else None
 
 
 def _first_cut(stages, rule, n_episodes: int, cfg: StudyConfig) -> dict | None:
