@@ -32,7 +32,7 @@ import torch
 
 from lerobot_pnp import robot
 from lerobot_pnp.env_config import BaxterPnPEnvConfig, make_env
-from lerobot_pnp.errors import ExpertFailure, PnPError, UnreachableError
+from lerobot_pnp.errors import ConfigError, ExpertFailure, PnPError, UnreachableError
 from lerobot_pnp.evaluation.checkpoints import IncompatiblePolicyError, LoadedPolicy, policy_action
 from lerobot_pnp.evaluation.records import EpisodeRecord
 
@@ -89,6 +89,8 @@ def eval_lerobot_policy(
 
     from lerobot_pnp.progress import quiet_rollout_bars
 
+    if not batch_size >= 1:
+        raise ConfigError(f"eval batch_size must be >= 1 (sub-envs evaluated at a time), got {batch_size!r}")
     batch_size = max(1, min(batch_size, n_episodes))
     vec = env_cfg.create_envs(n_envs=batch_size, use_async_envs=False)[env_cfg.type][0]
     sink: list[EpisodeRecord] = []

@@ -18,7 +18,8 @@ The train/test split is read from the dataset's ``meta/info.json`` ``splits`` (`
 (``lerobot_pnp.dataset.splits.train_test``).
 
 Modules: ``config`` (the validated config), ``data`` (load, check, split), ``loop`` (training and
-checkpoints), ``report`` (held-out keyframe error, loss curve).
+checkpoints), ``output`` (the output folder: locked for the run, replaced whole by ``--overwrite``), ``report``
+(held-out keyframe error, loss curve).
 
 Library use::
 

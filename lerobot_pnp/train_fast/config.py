@@ -20,6 +20,8 @@ from lerobot_pnp import robot
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.policy import PnpLstmConfig
 
+from .output import check_output
+
 
 @dataclass
 class TrainFastConfig:
@@ -46,9 +48,10 @@ class TrainFastConfig:
     """Seed of the initialisation and of the episode order."""
     output_dir: str = "outputs/train_fast/pnp_lstm"
     """Where the checkpoints, loss curve and held-out error are written; must not exist (or be empty) unless
-    ``overwrite``."""
+    ``overwrite``. Locked for the run: a second run into it fails at once."""
     overwrite: bool = False
-    """Allow an existing ``output_dir`` (its files are replaced)."""
+    """Replace the training run in an existing ``output_dir`` (its files are deleted first; a folder holding any
+    other file is refused)."""
     test_episodes: str | None = None
     """``"start:stop"``: held-out episodes, overriding the dataset's test split."""
     eval_every_epochs: int = 1
@@ -107,14 +110,7 @@ class TrainFastConfig:
         for ok, message in checks:
             if not ok:
                 raise ConfigError(message)
-        out = Path(self.output_dir)
-        if out.exists() and not out.is_dir():
-            raise ConfigError(f"output_dir {out} exists and is not a folder")
-        if out.is_dir() and any(out.iterdir()) and not self.overwrite:
-            raise ConfigError(
-                f"output_dir {out} already exists and is not empty; choose another folder or pass --overwrite "
-                "(its files are replaced)"
-            )
+        check_output(Path(self.output_dir), self.overwrite)
 
     @classmethod
     def from_train_config(cls, path: str | Path, **overrides: Any) -> TrainFastConfig:

@@ -28,6 +28,7 @@ from lerobot_pnp.registration import register_task_record
 
 from .config import TrainFastConfig
 from .data import load_keyframe_data
+from .output import clear_previous_run, locked_output
 from .report import action_names, keyframe_error, write_curve
 
 logger = logging.getLogger(__name__)
@@ -225,24 +226,22 @@ def _continue_from(policy: PnpLstmPolicy, ckpt: Path) -> tuple:
 
 
 def train_fast(cfg: TrainFastConfig) -> TrainFastResult:
-    """Train ``pnp_lstm`` on whole keyframe episodes; see the package docstring for what is written."""
-    from lerobot.policies.factory import make_policy, make_pre_post_processors
+    """Train ``pnp_lstm`` on whole keyframe episodes; see the package docstring for what is written.
 
+    The output folder is locked for the whole run (``output.locked_output``: a second run into it fails at
+    once) and a previous run there is deleted once the data and the policy are ready (``--overwrite``)."""
     register_task_record()  # its checkpoints record the dataset's task, as under stock lerobot-train
     if cfg.num_threads is not None:
         torch.set_num_threads(cfg.num_threads)
     out_dir = Path(cfg.output_dir)
-    seed_everything(cfg.seed)
+    with locked_output(out_dir, cfg.overwrite):
+        return _train(cfg, out_dir)
 
-    max_length = cfg.policy.max_episode_length if cfg.policy.recovering else None
-    ds, data = load_keyframe_data(cfg.dataset_repo_id, cfg.dataset_root, cfg.test_episodes, max_length)
-    logger.info(
-        "Keyframe dataset %s: %d train / %d test episodes (%s)",
-        cfg.dataset_repo_id,
-        len(data.train_idx),
-        len(data.test_idx),
-        data.split_source,
-    )
+
+def _policy_and_processors(cfg: TrainFastConfig, ds) -> tuple[PnpLstmPolicy, Any, Any]:
+    """The policy built from the dataset's features (as in lerobot-train) and its pre- and post-processors:
+    of the dataset's statistics, or of the checkpoint it continues (``init_from``)."""
+    from lerobot.policies.factory import make_policy, make_pre_post_processors
 
     policy_cfg = cfg.policy
     policy_cfg.input_features = {}  # derived from the dataset, as in lerobot-train
@@ -252,19 +251,44 @@ def train_fast(cfg: TrainFastConfig) -> TrainFastResult:
         preprocessor, postprocessor = make_pre_post_processors(policy_cfg, dataset_stats=ds.meta.stats)
     else:
         preprocessor, postprocessor = _continue_from(policy, Path(cfg.init_from))
-    device = next(policy.parameters()).device
+    return policy, preprocessor, postprocessor
 
+
+def _train(cfg: TrainFastConfig, out_dir: Path) -> TrainFastResult:
+    seed_everything(cfg.seed)
+    max_length = cfg.policy.max_episode_length if cfg.policy.recovering else None
+    ds, data = load_keyframe_data(cfg.dataset_repo_id, cfg.dataset_root, cfg.test_episodes, max_length)
+    logger.info(
+        "Keyframe dataset %s: %d train / %d test episodes (%s)",
+        cfg.dataset_repo_id,
+        len(data.train_idx),
+        len(data.test_idx),
+        data.split_source,
+    )
+    policy, preprocessor, postprocessor = _policy_and_processors(cfg, ds)
+    device = next(policy.parameters()).device
     train_all = _normalised(preprocessor, data, data.train_idx, device)
     test_all = _normalised(preprocessor, data, data.test_idx, device)
     assert train_all is not None  # train_test guarantees training episodes
+    run, n_epochs = _optimisation(cfg, out_dir, policy, preprocessor, postprocessor, len(data.train_idx))
 
-    n_train = len(data.train_idx)
-    run, n_epochs = _optimisation(cfg, out_dir, policy, preprocessor, postprocessor, n_train)
-    optimizer = run.optimizer
-
+    clear_previous_run(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     with open(out_dir / "train_fast_config.json", "w") as f, draccus.config_type("json"):
         draccus.dump(cfg, f, indent=4)
+    history, step = _fit(run, train_all, test_all, n_epochs, device)
+    policy.eval()
+    ckpt_dir = run.save(step)
+    return _final_report(run, ds, data, train_all, test_all, step, ckpt_dir, history)
+
+
+def _fit(
+    run: _Run, train_all: dict, test_all: dict | None, n_epochs: int, device
+) -> tuple[list[dict[str, float]], int]:
+    """The epochs of the run: the loss curve's points (before the first epoch, every ``eval_every_epochs`` and
+    after the last) and the extra checkpoints; returns the curve and the step count."""
+    cfg, policy, optimizer = run.cfg, run.policy, run.optimizer
+    n_train = len(train_all[OBS_STATE])  # training episodes
 
     def point(epoch: int, step: int, train_mse: float, elapsed: float) -> dict[str, float]:
         lr = optimizer.param_groups[0]["lr"]
@@ -302,6 +326,4 @@ def train_fast(cfg: TrainFastConfig) -> TrainFastResult:
             policy.train()
     if pbar is not None:
         pbar.close()
-    policy.eval()
-    ckpt_dir = run.save(step)
-    return _final_report(run, ds, data, train_all, test_all, step, ckpt_dir, history)
+    return history, step

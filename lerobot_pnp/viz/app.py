@@ -35,6 +35,9 @@ def visualize(cfg: VizConfig) -> dict:
             "no display to spawn the Rerun viewer on: pass --save out.rrd (open it with `rerun out.rrd`) "
             "or --screenshot out.png"
         )
+    for flag, path in (("save", cfg.save), ("screenshot", cfg.screenshot)):
+        if path is not None:
+            check_destination(flag, Path(path).expanduser())
     # Load and check everything before opening the recording, so bad input fails fast and writes nothing.
     episodes, replay_cfg = [], None
     if cfg.repo_id is not None:
@@ -86,6 +89,25 @@ def visualize(cfg: VizConfig) -> dict:
         if cfg.screenshot is not None:
             summary["screenshot"] = str(take_screenshot(rrd, cfg.screenshot, cfg.window))
     return summary
+
+
+def check_destination(flag: str, path: Path) -> None:
+    """Refuse, in one line, a file ``path`` that cannot be written, before any rollout runs (the recording is
+    written only after all of them): a folder, an existing file without write permission, or a place whose
+    nearest existing folder is a file, read-only or not writable by this user."""
+    if path.is_dir():
+        raise ConfigError(f"--{flag} {path} is a folder; give a file path")
+    if path.exists() and not os.access(path, os.W_OK):
+        raise ConfigError(f"--{flag} {path}: the file exists and cannot be written (read-only or permission denied)")
+    parent = path.parent
+    while not parent.exists() and parent != parent.parent:
+        parent = parent.parent
+    if not parent.is_dir():
+        raise ConfigError(f"--{flag} {path}: {parent} is a file, not a folder")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise ConfigError(
+            f"--{flag} {path}: cannot write into {parent} (read-only or permission denied); choose another place"
+        )
 
 
 def _posed_data(run):
