@@ -39,18 +39,8 @@ PAPER_METHODS = {
     "recovering_dart": "+ DART",
     "act": "ACT",
 }
-PAPER_SUITES = {
-    "nominal": "unseen positions (`nominal`)",
-    "outside_ring": "outside the training box (`outside_ring`)",
-    "nudge_0.03": "nudge 3 cm before the grasp (`nudge_0.03`)",
-    "nudge_0.05": "nudge 5 cm (`nudge_0.05`)",
-    "obs_noise_0.01": "observation noise 10 mm (`obs_noise_0.01`)",
-    "latency": "observations one step old (`latency`)",
-    "random_yaw": "random cube yaw, not observed (`random_yaw`)",
-    "grasp_miss": "missed grasp (`grasp_miss`)",
-    "drop": "drop in transport (`drop`)",
-    "displace": "displaced after release (`displace`)",
-}
+PAPER_SUITES = ("nominal", "outside_ring", "nudge_0.03", "nudge_0.05", "obs_noise_0.01", "latency", "random_yaw",
+                "grasp_miss", "drop", "displace")  # fmt: skip
 HELDOUT_METHODS = ("recovering", "expert", "memoryless_mlp", "act", "lookup_table")
 VERDICT_SHORT = {"generalises": "**generalises**", "degrades": "**only partly**", "fails": "**does not**"}
 
@@ -94,16 +84,17 @@ def paper_table(base: str) -> str:
     success = summary["success"]
     head = "| suite | " + " | ".join(PAPER_METHODS.values()) + " |"
     lines = [head, "|---" * (len(PAPER_METHODS) + 1) + "|"]
-    for suite, label in PAPER_SUITES.items():
+    for suite in PAPER_SUITES:
         cells = [_pct(success[suite][m]["rate"]) for m in PAPER_METHODS]
-        lines.append(f"| {label} | " + " | ".join(cells) + " |")
+        lines.append(f"| `{suite}` | " + " | ".join(cells) + " |")
     ns = [c["n"] for s in PAPER_SUITES for c in success[s].values()]
     seeds = summary["config"]["train_seeds"]
     return "\n".join(
         [
             *lines,
             "",
-            f"Success %, task `paper`, {len(seeds)} training seeds pooled, {min(ns)}-{max(ns)} episodes per cell "
+            f"Success %, task `paper`, {len(seeds)} training seeds pooled, {min(ns)}-{max(ns)} episodes per cell. "
+            f"Each suite is described in the [suite catalogue]({base}../benchmark/suites.md) "
             "(95 % intervals, per-seed ranges and paired tests: "
             f"[the paper-task report]({base}study/report_full/report.md)). " + study_source(),
         ]
