@@ -159,6 +159,13 @@ def test_an_eval_batch_below_one_is_refused(batch):
         eval_lerobot_policy(None, None, None, BaxterPnPEnvConfig(), 4, 0, batch)
 
 
+def test_a_training_batch_below_one_names_the_value_in_dagger():
+    from lerobot_pnp.dagger import DaggerConfig
+
+    with pytest.raises(ConfigError, match="batch_size must be >= 1 .*got 0"):
+        DaggerConfig(batch_size=0)
+
+
 def test_an_eval_batch_below_one_is_one_line_on_the_command_line(tmp_path, capsys):
     from lerobot_pnp.cli import main
 

@@ -184,7 +184,8 @@ class DaggerConfig:
                 "acts: set beta > 0 (1 for DART)",
             ),
             (self.eval_episodes >= 0, f"eval_episodes must be >= 0, got {self.eval_episodes}"),
-            (self.epochs >= 1 and self.batch_size >= 1, "epochs and batch_size must be >= 1"),
+            (self.epochs >= 1, f"epochs must be >= 1, got {self.epochs}"),
+            (self.batch_size >= 1, f"batch_size must be >= 1 (episodes per training batch), got {self.batch_size}"),
             (
                 isinstance(self.warm_start_epochs, int) and self.warm_start_epochs >= 0,
                 f"warm_start_epochs must be an integer >= 0 (0: retrain from scratch), got {self.warm_start_epochs!r}",
