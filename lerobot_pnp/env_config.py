@@ -50,7 +50,7 @@ MAX_EPISODE_LENGTH = 100_000  # env steps: every episode's arrays are held in me
 KEYFRAME_FPS = robot.KEYFRAME_FPS
 DENSE_FPS = 20
 # Dense episodes: 1 s of control (20 steps) per keyframe of the budget, the keyframe methods' budget at the pace
-# of the dense expert (15-18 steps per keyframe, docs/results/dense_budget.md) with a margin of a few steps.
+# of the dense expert (benchmarks/dense_pace.py measures its steps per keyframe) with a margin of a few steps.
 DENSE_SECONDS_PER_KEYFRAME = 1
 
 

@@ -78,7 +78,7 @@ class PnpLstmConfig(PreTrainedConfig):
     """LSTM hidden units."""
     num_layers: int = 1
     """Stacked LSTM layers (1 or 2). The recovering recipe stacks two: the second carries longer observation
-    latency (docs/results/heldout_protocol.md); the memoryless MLP control is then matched to both layers' size."""
+    latency (docs/changelog.md); the memoryless MLP control is then matched to both layers' size."""
     dropout: float = 0.0
     """Dropout between stacked LSTM layers and before the Linear head (training only)."""
     shared_network: bool = False
@@ -96,7 +96,7 @@ class PnpLstmConfig(PreTrainedConfig):
     """Training only: the probability that a training episode's observations are shown one step late (frame ``t``
     gets the observation of frame ``t-1``, frame 0 its own), with the actions unchanged. A policy trained on
     current observations only loses sync with its own history when they arrive a step late (the recovering LSTM then
-    fails nearly every episode under ``obs_latency=1``; docs/results/planner.md); with both kinds of episode it learns to tell them apart from the first two frames
+    fails nearly every episode under ``obs_latency=1``); with both kinds of episode it learns to tell them apart from the first two frames
     (a delayed episode shows the start pose twice) and to act on stale observations. Works for the fast path and
     for ``lerobot-train`` (it acts on the whole-episode windows)."""
     latency_augment_max: int = 1
@@ -192,15 +192,15 @@ class PnpLstmConfig(PreTrainedConfig):
     arm command and takes only the gripper from the network. Valid: the states the expert leaves without moving
     the arm (``STILL_ARM_PHASES``: the grasp's close 2, the hold before the place 4, the place's open 7, the hold
     after the retract 9). The recipe holds the place's open only: an open planned on an observation that misses
-    the place descent otherwise carries an arm move that drags the object off the target (measured in
-    docs/results/heldout_protocol.md, where holding the close as well lost recoveries)."""
+    the place descent otherwise carries an arm move that drags the object off the target (holding the close as
+    well loses recoveries)."""
     still_arm_tol: float = 0.0
     """With ``still_arm_phases``: the arm is held only where the network's own keyframe would move it by more than
     this (Euclidean norm in normalised units, as ``await_action_tol``); a smaller move is kept. The network's open
     comes with a small refinement of the place pose when its view shows the descent, and with a large move when
     the view misses moves (observations older than trained); holding every open cost recoveries on the `paper`
-    task under observation noise and large nudges, holding only the large moves does not (the recipe: 0.05;
-    docs/results/heldout_protocol.md). 0 holds every keyframe so labelled."""
+    task under observation noise and large nudges, holding only the large moves does not (the recipe: 0.05).
+    0 holds every keyframe so labelled."""
 
     balance_window_loss: bool = field(default=True, init=False, repr=False)
     """Retired, does nothing: neither a constructor argument nor a command-line option any more, only tolerated

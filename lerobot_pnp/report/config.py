@@ -1,8 +1,8 @@
 """The study's configuration: ``StudyConfig`` (the ``lerobot-pnp report`` / ``demo`` flags) and its presets.
 
 Presets (``preset``): ``demo`` (the README's main command), ``quick`` (CI-sized, a few minutes), ``full``
-(the whole study; its timings are in ``docs/results/report_full_summary.json``), all on the paper's task, and
-``heldout`` (the held-out-disturbance protocol of ``docs/results/heldout_protocol.md``: trained on the ``full``
+(the whole study; its timings are in its ``summary.json``, ``docs/results/study/``), all on the paper's task, and
+``heldout`` (the held-out-disturbance protocol of ``docs/benchmark/heldout.md``: trained on the ``full``
 task, evaluated on its training conditions and beyond them, per axis of ``suites.HELD_OUT_AXES``) with its cut
 ``recovery_demo`` (one seed, four suites: ``make demo``'s recovery headline). Fields left at None take the
 preset's value.
@@ -128,14 +128,14 @@ PROTOCOL_SUITES = tuple(dict.fromkeys(n for axis in HELD_OUT_AXES for n in axis.
 # method pools 3 training seeds (3 n episodes). The demo's headline gets 200 per seed (600 pooled: [99.4, 100]
 # at 100 %; the recovery demo's baselines run under the rule below, as in ``heldout``). The full study gives
 # 300 to nominal and 100 to each other suite: enough to separate 50 % from 80 %, or 100 % from 90 %, on the
-# paired test. Its stage timings from scratch: ``timings_s`` in docs/results/report_full_summary.json.
+# paired test. Its stage timings: ``timings_s`` in docs/results/study/report_full/summary.json.
 # ``heldout`` chooses its counts from the interval widths its cells need. A cell pools a learned method's seeds,
 # so its suites' n is split over the training seeds (``split_over_seeds``: 200 -> 100 per seed, whole eval
 # batches, 300 pooled: +-3.4 pts at 90 %, +-2 pts near 97 %, what the claims' bars of 90 / 95 / 98 % need);
 # the expert (no seeds) runs 200. The baselines run under ``EpisodeRule``: +-17 pts per evaluation, about
 # +-10 pts on a cell pooled over three seeds, so 50 episodes per seed (150 pooled); the lookup table (near 0 %,
 # [0, 7] pts at 0 of 50) too. ``full`` keeps fixed counts for its paired comparisons' methods and runs the
-# others under a +-10 pts rule (docs/notes_adaptive.md).
+# others under a +-10 pts rule (docs/guides/evaluation.md, statistics).
 PRESETS: dict[str, dict] = {
     "demo": {
         "num_episodes": 1400,
@@ -161,7 +161,7 @@ PRESETS: dict[str, dict] = {
         "train_seeds": [1000, 1001, 1002],
         # the costliest: act (its dense recording once, then training and dense evaluation per seed) and
         # recovering_dagger / recovering_dart (rollouts and retraining per seed); timings in
-        # docs/results/report_full_summary.json
+        # docs/results/study/report_full/summary.json
         "methods": [
             "expert",
             "lookup_table",
@@ -193,7 +193,7 @@ PRESETS: dict[str, dict] = {
         "cli_check_episodes": 200,
         # the recipe's second LSTM layer carries two steps of latency on `full`; on the paper task, where no
         # suite is more than one step late and no demonstration moves the cube, it costs the large nudges
-        # (docs/results/report_full_two_layers.md) and doubles the recipe's training: one layer here
+        # (docs/changelog.md) and doubles the recipe's training: one layer here
         "recipe_changes": {"num_layers": 1},
         # counts from the interval widths: the expert and the lookup table (every paired comparison's baseline)
         # and the clocked LSTM (paired with it per seed on every suite) run every suite's n; every other method
