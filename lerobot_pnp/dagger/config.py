@@ -14,8 +14,8 @@ from lerobot_pnp.presets import TASK_FIELDS
 from .dart import DartNoise
 
 # The default rollouts have no observation latency. Rollouts under latency are allowed (a rollout records the
-# current state, and training shows half of all episodes late, policy.latency_augment_*), but with an earlier
-# recipe that had no late episodes, adding them cost nominal success in round 1 (docs/results/planner.md).
+# current state, and training shows half of all episodes late, policy.latency_augment_*), but the expert labels
+# what a late planner cannot see yet, so such a round hurts (docs/guides/dagger-dart.md).
 DEFAULT_ROLLOUT_SUITES = ["nominal", "quiet_grasp_miss", "quiet_drop", "quiet_nudge_0.03", "quiet_displace"]
 DEFAULT_EVAL_SUITES = [
     "quiet", "quiet_grasp_miss", "quiet_drop", "quiet_nudge_0.03", "quiet_displace", "quiet_noise_latency",
@@ -52,12 +52,12 @@ def _suite_problems(field_name: str, names: list[str]) -> list[str]:
     return problems
 
 
-# The recovering planner's recipe (``configs/dagger.json``; how each part was chosen: docs/results/planner.md).
+# The recovering planner's recipe (``configs/dagger.json``; what each part is and why: docs/policy.md).
 # The study (``lerobot_pnp.report``) trains the same recipe on its own data.
 RECOVERING_RECIPE: dict[str, Any] = {
     "mode": "recovering",
     "hidden_size": 256,
-    "num_layers": 2,  # a second layer carries two steps of latency (docs/results/heldout_protocol.md)
+    "num_layers": 2,  # a second layer carries two steps of latency (docs/policy.md)
     "optimizer_lr": 3e-3,
     "lr_scheduler": "cosine",
     "scheduler_warmup_steps": 200,
@@ -68,7 +68,7 @@ RECOVERING_RECIPE: dict[str, Any] = {
     "await_observation": True,
     "still_arm_phases": [7],  # the place's open keeps the arm (Phase.PLACE_DESCEND) ...
     "still_arm_tol": 0.05,  # ... where the network would move it by more than a refinement
-    "memory_per_attempt": True,  # a re-pick starts from the zero state (docs/results/memory_per_attempt.md)
+    "memory_per_attempt": True,  # a re-pick starts from the zero state (docs/policy.md)
 }
 RECOVERING_BATCH_SIZE = 32  # episodes per batch of the recipe (DAgger's default, the held-out protocol's)
 # epochs between two held-out losses of a recipe training (no figure reads its curve; a pass over the held-out
@@ -118,7 +118,7 @@ class DaggerConfig:
             probability ``beta``, the policy's action otherwise; every visited state is labelled either way. With
             ``0`` a policy that does not yet recover only visits the first state of a recovery, so a round teaches
             one more recovery keyframe at most; with ``1`` round 1 visits whole recoveries
-            (docs/results/dagger_curve.md).
+            (docs/guides/dagger-dart.md).
         beta_decay: Round ``r``'s weight is ``beta * beta_decay ** (r - 1)`` (``beta_i = p^(i-1)`` in the paper).
         dart: DART's noise (``dagger.dart``) on the expert's executed labels (``--dart.sigma`` rad on each
             joint target, ``--dart.gripper_flip`` probability per step); the frames keep the clean labels. With
@@ -134,7 +134,7 @@ class DaggerConfig:
         epochs: Training epochs of each round (the fast path, ``lerobot-pnp train``).
         warm_start_epochs: ``0``: each round after round 0 retrains from scratch on the aggregate. ``> 0``:
             each such round continues the previous round's weights and normalisation statistics for this many
-            epochs instead (cheaper; not neutral: docs/results/dagger_curve.md).
+            epochs instead (cheaper; not neutral: DART warm-started loses its drop recovery).
         batch_size: Episodes per training batch.
         seed: The seed of the demonstrations, rollouts and training (the run is deterministic given it).
         progress: Show progress bars (demonstrations, rollouts, training, evaluation).

@@ -4,7 +4,7 @@ By default each round retrains **from scratch** on the aggregate: its normalisat
 aggregate's (DAgger adds the policy's off-distribution states), and a fresh policy is a function of its dataset
 and seed only. With ``warm_start_epochs`` a round instead continues the previous round's weights, with their
 normalisation statistics, for that many epochs: a fraction of the cost, so that several rounds fit the budget
-of one (the study's DAgger and DART rounds; docs/results/dagger_curve.md compares the two).
+of one (the study's DAgger rounds).
 
 Layout of ``output_dir``::
 

@@ -18,7 +18,7 @@ is evaluated. New methods (the recovering planner, DAgger rounds, ACT) plug in b
   others do not get (interactive expert labels): it shows what the teacher adds, not a like-for-like method.
 * ``recovering_dart``: ``recovering`` of the same seed plus one DART round at the same budget: 300 noisy
   expert demonstrations of the undisturbed task (``DART_SIGMA`` rad on the joint targets it executes, clean
-  labels). Its data never shows a disturbance, only the off-path states the noise makes (docs/results/dart.md).
+  labels). Its data never shows a disturbance, only the off-path states the noise makes (docs/guides/dagger-dart.md).
 * ``memoryless_mlp``: the capacity-matched memoryless control: ``recovering`` with an MLP trunk of about the
   LSTM trunk's parameter count instead of the LSTM (same data, inputs, loss and budget).
 * ``phase_told_mlp``: the same MLP told the phase: trained and run with ``observe_phase`` (a one-hot of the

@@ -21,7 +21,7 @@ if TYPE_CHECKING:
 # suite's budget + the final state: DAgger's rollouts are that long).
 RECOVERING = {**RECOVERING_RECIPE, "max_episode_length": RECOVERY_BUDGET + 1}
 # The memoryless controls take the recipe that gave each its best nominal success on the `full` task
-# (docs/results/planner.md): the plain MLP with the late episodes, the phase-told one without.
+# (docs/policy.md): the plain MLP with the late episodes, the phase-told one without.
 # Without memory there is none to restart at a re-pick: memory_per_attempt is off (it would change nothing).
 MEMORYLESS_MLP = {**RECOVERING, "recurrent": False, "memory_per_attempt": False}
 PHASE_TOLD_MLP = {**RECOVERING, "recurrent": False, "latency_augment_prob": 0.0, "memory_per_attempt": False}
@@ -30,13 +30,13 @@ DAGGER_ROLLOUTS = 300  # policy episodes of the one DAgger round, cycled over th
 RECOVERING_TRUNK = f"{RECOVERING['num_layers']} x {RECOVERING['hidden_size']} LSTM"
 # DAgger's rounds in the study (Ross et al.'s mixture): round r's rollouts execute the expert's label at each step
 # with probability DAGGER_BETA * 0.5 ** (r - 1), the policy's action otherwise, and every visited state is labelled.
-# Pure on-policy rounds (beta 0) label only the first keyframe of each recovery (docs/results/dagger_curve.md).
+# Pure on-policy rounds (beta 0) label only the first keyframe of each recovery (docs/guides/dagger-dart.md).
 DAGGER_ROUNDS = 2
 DAGGER_BETA = 1.0
-# rad of noise on each joint target the expert executes (docs/results/dart.md: about twice the grasp clearance)
+# rad of noise on each joint target the expert executes (benchmarks/dart_noise.py: about twice the grasp clearance)
 DART_SIGMA = 0.02
 # epochs of a DAgger round's training when it continues the previous round's weights (0: retrained from scratch).
-# DART retrains from scratch: warm-started it lost the drop recovery (docs/results/dagger_curve.md, warm start)
+# DART retrains from scratch: warm-started it loses the drop recovery (docs/changelog.md)
 DAGGER_WARM_START_EPOCHS = 100
 
 # The study's DAgger and DART rounds (``dagger.DaggerConfig`` fields): part of the training key of the methods
