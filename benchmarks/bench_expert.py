@@ -1,8 +1,8 @@
 """The scripted expert on every task suite: success over seeded episodes, failures by cause and phase.
 
-Issue targets: >= 99.5 % on `paper`, on `full` and on each perturbation alone (1000 episodes each); >= 99 % on
+Targets: >= 99.5 % on `paper`, on `full` and on each perturbation alone (1000 episodes each); >= 99 % on
 every suite of the held-out-disturbance protocol (``evaluation.suites.HELD_OUT_AXES``, on the `full` training task;
-issue 19, >= 200 episodes each).
+>= 200 episodes each).
 
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_expert.py --episodes 1000 --out outputs/bench_expert.json
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_expert.py --episodes 200 --suites protocol \
@@ -27,7 +27,7 @@ BUDGET = {"keyframe_budget": 40}  # room for recoveries
 PRESET_SUITES: dict[str, dict] = {
     "paper": {},
     "full": {"preset": "full"},
-    "full, narrow (before issue 19)": {"preset": "full", **NARROW_FULL_DISTURBANCES},
+    "full, narrow (presets.NARROW_FULL_DISTURBANCES)": {"preset": "full", **NARROW_FULL_DISTURBANCES},
     "nudge 3 cm": {"nudge_max": 0.03},
     "grasp_miss": {"grasp_miss_prob": 1.0, **BUDGET},
     "drop": {"drop_prob": 1.0, **BUDGET},

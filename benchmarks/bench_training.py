@@ -28,7 +28,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
 
 ROOT = Path(__file__).resolve().parents[1]
-TARGET_S = 15 * 60  # issue 19: the shipped recovering recipe trains in under 15 minutes on 2 cores
+TARGET_S = 15 * 60  # the shipped recovering recipe trains in under 15 minutes on 2 cores
 
 
 def _time_training(method: str, root: Path, workdir: Path, epochs: int, seed: int) -> dict:

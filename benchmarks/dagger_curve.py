@@ -1,5 +1,5 @@
 """The learning curve of ``lerobot-pnp dagger`` runs: success per round with 95 % Wilson intervals, the labels
-each round added, the rollouts' label statistics and the wall time (docs/results/dagger_curve.md, dart.md).
+each round added, the rollouts' label statistics and the wall time (docs/guides/dagger-dart.md).
 
 ``python benchmarks/dagger_curve.py NAME=OUTPUT_DIR ... [--round0 OUTPUT_DIR] [--json FILE]``: one column
 block per run; ``--round0`` names the run whose round-0 time is reported when the runs reused a copied round 0.

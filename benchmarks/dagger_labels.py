@@ -1,4 +1,4 @@
-"""What the expert's labels of one DAgger run teach, per round and rollout suite (issue 19's diagnosis).
+"""What the expert's labels of one DAgger run teach, per round and rollout suite.
 
 ``python benchmarks/dagger_labels.py OUTPUT_DIR [--json FILE]`` reads the rollout datasets of a
 ``lerobot-pnp dagger`` run and prints, per round and suite: episodes, labelled frames, frames whose label

@@ -1,5 +1,5 @@
 """How large DART's joint noise is on the task's scale: what a noise setting does to the expert's hand and to
-its demonstrations (the measurement that picks ``dart.sigma``; docs/results/dart.md).
+its demonstrations (the measurement that picks ``dart.sigma``).
 
 ``python benchmarks/dart_noise.py [--config configs/dart_paper.json] [--episodes 40] SIGMA[,FLIP] ...`` prints,
 per setting, in the task of a dagger config (its preset with ``env_changes``, the rollout suite ``nominal``):

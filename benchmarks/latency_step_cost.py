@@ -1,4 +1,4 @@
-"""What the 40-keyframe budget leaves to a controller that waits to see each of its moves (issue 19, latency).
+"""What the 40-keyframe budget leaves to a controller that waits to see each of its moves (latency).
 
 The gate lets a planner trained on observations at most ``k`` steps old (``observation_gate``, ``in_flight = k``)
 plan while at most ``k`` of its moves are unobserved. At ``heldout_latency_2`` the recovering recipe (``k = 1``)

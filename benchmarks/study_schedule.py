@@ -13,7 +13,7 @@ dataset stages' wall times given on the command line (a reused dataset records n
 
 ``--study`` also takes a study's ``summary.json`` (``timings_s``: every training and evaluation it recorded,
 the data-efficiency runs and the ``lerobot-eval`` cross-check included), so a committed summary
-(``docs/results/report_full_summary.json``) replays without its folder. The cross-check runs after the pool,
+(``docs/results/study/report_full/summary.json``) replays without its folder. The cross-check runs after the pool,
 alone, and is added as it was recorded.
 """
 

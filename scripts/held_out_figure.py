@@ -1,7 +1,7 @@
 """Draw the held-out protocol's figure (``report.figures.draw_held_out``, which a study now draws itself) from a
 study's ``summary.json``, for a study run before the figure existed.
 
-    python scripts/held_out_figure.py docs/results/heldout_summary_one_layer.json docs/results/heldout_figures_one_layer/held_out.png
+    python scripts/held_out_figure.py docs/results/study/heldout/summary.json /tmp/held_out.png
 """
 
 import json

@@ -1,5 +1,5 @@
 """The shipped recovering recipe trained on `full` (the training condition), evaluated on the held-out
-protocol's suites (stock eval_policy in process, the study's evaluator); numbers in docs/results/heldout_protocol.md.
+protocol's suites (stock eval_policy in process, the study's evaluator).
 
     lerobot-pnp generate --repo_id local/baxter_pnp_full19 --root outputs/ds_full --num_episodes 1000 \
         --env.preset full

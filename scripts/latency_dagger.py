@@ -1,7 +1,7 @@
-"""One DAgger round under the trained latency, from the held-out study's recovering checkpoints (issue 19).
+"""One DAgger round under the trained latency, from the held-out study's recovering checkpoints.
 
 The planner loses its re-grasps near the target at two steps of latency, though the same network re-picks there
-at one step. The untried lever of docs/results/heldout_protocol.md was to show it, under the latency it is
+at one step. One untried lever is to show it, under the latency it is
 trained on, the states it visits itself, labelled by the expert. This runs one round of ``lerobot-pnp dagger``
 on top of a study checkpoint (``outputs/heldout/train/recovering/seedN``, round 0 not trained again): 300
 rollouts cycled over one suite (``train_latency``: the `full` task with 0 or 1 step of latency; ``nominal``:

@@ -1,4 +1,4 @@
-"""Where the recovering planner loses episodes at two steps of latency (issue 19): its decisions, the gate's
+"""Where the recovering planner loses episodes at two steps of latency: its decisions, the gate's
 waits and the failures, paired episode by episode with the trained latency of one step.
 
 A protocol checkpoint (``outputs/RUN/train_done.json`` from ``scripts/heldout_protocol_eval.py``) runs the

@@ -1,4 +1,4 @@
-"""Is the recovering planner's shortfall at two steps of latency particular to each training seed? (issue 19)
+"""Is the recovering planner's shortfall at two steps of latency particular to each training seed?
 
 Training seeds of the same recipe score 84.5-92.5 % on ``heldout_latency_2``. If each seed failed its own
 episodes, a planner averaging several seeds' networks would fail fewer. This runs protocol checkpoints
