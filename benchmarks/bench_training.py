@@ -4,7 +4,7 @@
         [--paper_root outputs/demo/dataset] [--epochs 300] [--workdir outputs/bench_training]
         [--out outputs/bench_training.json]
 
-Issue 19 asks that training the shipped recovering recipe still finish in under ``TARGET_S`` on 2 cores. This
+The target: training the shipped recovering recipe should still finish in under ``TARGET_S`` on 2 cores. This
 times ``train_fast`` as the study trains each method (``report.methods.METHODS[name].train``: the recipe's
 policy settings, its batch of ``RECOVERING_BATCH_SIZE`` episodes, the window sized to the recorded task's
 keyframe budget) on a keyframe dataset of the ``full`` task at the recipe's budget (1000 demonstrations, 300

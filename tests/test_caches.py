@@ -1,4 +1,4 @@
-"""Cached stages that cannot lie (issue 22): DAgger and the study keyed by what produced them, one lock per
+"""Cached stages that cannot lie: DAgger and the study keyed by what produced them, one lock per
 output folder, ``--fresh`` that deletes only the study's files, relative paths, pool workers that die with
 the study, checkpoints that carry their task, and the smaller robustness cases. One test per case."""
 

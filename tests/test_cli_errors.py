@@ -79,7 +79,7 @@ def test_a_second_sigterm_terminates_instead_of_interrupting_the_unwinding():
 
 
 def test_viz_of_a_dataset_with_nan_is_one_line_naming_episode_and_frame(tmp_path, capsys):
-    """Issue 9 item 4: the viewer used to exit 0 and print NaN."""
+    """The viewer fails with a clear error rather than exiting 0 and printing NaN."""
     from keyframe_synth import REPO_ID, make_keyframe_dataset
 
     root = tmp_path / "nan"
@@ -93,7 +93,7 @@ def test_viz_of_a_dataset_with_nan_is_one_line_naming_episode_and_frame(tmp_path
 
 
 def test_lerobot_eval_rejects_bad_env_flags_before_loading_the_policy(tmp_path):
-    """Issue 9 items 7 and 11 through the real lerobot-eval: the env config fails first, naming the flag."""
+    """Through the real lerobot-eval: the env config fails first, naming the flag."""
     exe = BIN / "lerobot-eval"
     if not exe.exists():
         pytest.skip(f"lerobot-eval is not installed next to {sys.executable}")

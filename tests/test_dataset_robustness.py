@@ -1,4 +1,4 @@
-"""Nothing lost, nothing silent (issue 9, dataset side), through the real `lerobot-pnp` console script.
+"""Nothing lost, nothing silent (the dataset side), through the real `lerobot-pnp` console script.
 
 Each case asserts the data kept (or the dataset completed) and a one-line error with no traceback.
 """

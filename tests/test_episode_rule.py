@@ -1,4 +1,4 @@
-"""Episode counts chosen from the interval widths (``config.EpisodeRule``, issue 19): where an evaluation stops,
+"""Episode counts chosen from the interval widths (``config.EpisodeRule``): where an evaluation stops,
 its key, and that reusing a fixed-n record by truncation gives exactly the episodes a fresh run makes."""
 
 from __future__ import annotations

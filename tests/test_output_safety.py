@@ -74,6 +74,10 @@ def test_fresh_unlinks_a_linked_entry_and_never_follows_it(tmp_path):
     Manifest(out, COMMAND).clear()
     assert sorted(p.name for p in out.iterdir()) == []
     assert _tree(victim) == {"f": "x"}
+    _manifest(tmp_path / "other", ["f"])  # a manifest that is a link: another folder's list, never read as ours
+    (out / MANIFEST_FILE).symlink_to(tmp_path / "other" / MANIFEST_FILE)
+    with pytest.raises(ConfigError, match="is a link"):
+        Manifest(out, COMMAND)
 
 
 def test_claim_refuses_a_path_outside_the_folder(tmp_path):

@@ -2,7 +2,7 @@
 
 Golden tensors: the loss (training mode: latency augmentation, input noise, dropout), its gradients and
 ``select_action`` of both planners (a gated run included), frozen from the code before the planners became two
-classes (issue 21), so that a refactor that claims "behaviour unchanged" is held to the bit.
+classes, so that a refactor that claims "behaviour unchanged" is held to the bit.
 ``tests/golden/pnp_lstm.pt`` was written by ``python tests/test_policy_compat.py --write`` (do it again only
 for a change that is *meant* to change the numbers, and say so). On the machine kind that wrote it (same torch,
 same CPU capability and model) the comparison is ``torch.equal``; elsewhere float kernels may round differently,

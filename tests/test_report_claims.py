@@ -210,7 +210,7 @@ def test_the_quick_preset_renders_its_three_claims_in_order():
     ]
 
 
-# ---------------------------------------------------------------------------------- held-out axes (issue 19)
+# --------------------------------------------------------------------------------------------- held-out axes
 def _table(rates: dict[tuple[str, str], tuple[int, int]]):
     """The pooled table from ``{(method, suite): (successes, n)}``."""
     results: dict = {}

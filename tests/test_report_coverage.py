@@ -1,4 +1,4 @@
-"""What a report covers (issue 19): ``--report_only`` names every evaluation it left out and why (and deletes
+"""What a report covers: ``--report_only`` names every evaluation it left out and why (and deletes
 nothing), and suites of the same effective conditions are one evaluation that the report lists under both names."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The held-out-disturbance protocol as a study (issue 19): the study's task (``task_preset``), the ``heldout``
+"""The held-out-disturbance protocol as a study: the study's task (``task_preset``), the ``heldout``
 preset, the methods refused up front on a task they cannot train on, and the per-axis report on a tiny study."""
 
 from __future__ import annotations

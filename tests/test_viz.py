@@ -25,7 +25,7 @@ from lerobot_pnp.recorded_task import RECORDED_FILE, write_recorded
 
 REPO_ID = "test/viz_keyframe"
 SEEDS = (0, 1)
-# A task other than the paper's: another object region and place target (issue 8).
+# A task other than the paper's: another object region and place target.
 CUSTOM_TASK = {
     "object_low": (0.5, 0.2),
     "object_high": (0.6, 0.3),
