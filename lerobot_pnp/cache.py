@@ -271,8 +271,10 @@ class Manifest:
         self.entries: set[str] = self._read() if self.path.exists() or self.path.is_symlink() else set()
 
     def _read(self) -> set[str]:
+        if self.path.is_symlink():
+            raise self._refused("it is a link")
         try:
-            data = json.loads(self.path.read_text()) if not self.path.is_symlink() else None
+            data = json.loads(self.path.read_text())
         except (OSError, ValueError) as err:
             raise self._refused(f"it cannot be read ({type(err).__name__})") from None
         if not isinstance(data, dict) or not isinstance(data.get("entries"), list):

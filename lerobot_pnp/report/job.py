@@ -29,6 +29,8 @@ TRAIN_TIME = "study_train_time.json"  # in a training folder: how long its train
 def train_context(
     job: Job, method, cfg: StudyConfig, layout: StudyLayout, roots: dict[str, Path], keys: dict[str, str]
 ):
+    """What the job's method x seed trains with: its recording, training folder, seed, budget and the keys of
+    the recordings (``methods.TrainContext``)."""
     seed = int(cfg.train_seeds[0] if not job.tag.isdigit() else job.tag)
     data_root = roots["keyframe"] if method.data == "dense" else roots[method.data]  # ACT reads ctx.dense_root
     budget = (read_recorded(roots["keyframe"]) or {}).get("keyframe_budget")  # the recorded task's
