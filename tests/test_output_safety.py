@@ -329,3 +329,22 @@ def test_a_hand_edited_training_time_is_left_out_not_a_traceback(tmp_path, text)
     assert train_time(tmp_path) is None
     (tmp_path / TRAIN_TIME).write_text('{"wall_s": 12}')
     assert train_time(tmp_path) == 12.0
+
+
+def test_dagger_keeps_its_demonstrations_record_when_the_generator_refuses_the_settings(tmp_path, monkeypatch):
+    import lerobot_pnp.dataset as dataset
+    from lerobot_pnp.dagger import loop
+    from lerobot_pnp.dagger.config import DaggerConfig
+
+    cfg = DaggerConfig(output_dir=str(tmp_path), num_demos=4)
+    record = tmp_path / "demos" / "stage.json"
+    record.parent.mkdir()
+    record.write_text(json.dumps({"key": "k", "parts": {"stage": "demos", "seed": 99}}))  # another seed: stale
+
+    def refuse(**kwargs):
+        raise ConfigError("num_episodes must be an integer >= 1, got 0")
+
+    monkeypatch.setattr(dataset, "GenerateConfig", refuse)
+    with pytest.raises(ConfigError, match="num_episodes"):
+        loop._demos(cfg, tmp_path, loop.base_env_config(cfg))
+    assert record.is_file()

@@ -113,12 +113,11 @@ def _demos(cfg: DaggerConfig, out: Path, env_cfg) -> tuple[Path, str, str, str]:
     stage = _stage(root / STAGE_FILE, "demos", env=env_cfg.to_dict(), num_demos=n, test=test, seed=cfg.seed,
                    repo_id=repo_id)  # fmt: skip
     if not stage.done("dagger demos"):
-        stage.invalidate()
-        generate(
-            GenerateConfig(repo_id=repo_id, root=str(root), num_episodes=n, seed=cfg.seed, env=env_cfg,
-                           train_fraction=1 - cfg.test_fraction, workers=1, overwrite=root.exists(),
-                           progress=cfg.progress)
-        )  # fmt: skip
+        gen = GenerateConfig(repo_id=repo_id, root=str(root), num_episodes=n, seed=cfg.seed, env=env_cfg,
+                             train_fraction=1 - cfg.test_fraction, workers=1, overwrite=root.exists(),
+                             progress=cfg.progress)  # fmt: skip
+        stage.invalidate()  # only once the settings are valid: a bad flag leaves the demonstrations' record
+        generate(gen)
         stage.commit()
     return root, repo_id, test, stage.key
 
