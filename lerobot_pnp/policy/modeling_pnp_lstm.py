@@ -33,6 +33,7 @@ from torch import Tensor, nn
 
 from lerobot_pnp.errors import ConfigError, PolicyError
 
+from . import processor_pnp_lstm  # noqa: F401  (registers the processor steps a saved pnp_lstm pipeline names)
 from .configuration_pnp_lstm import PnpLstmConfig
 from .latency import late_observer
 from .modes import build_planner
