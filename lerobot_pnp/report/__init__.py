@@ -1,10 +1,12 @@
 """The reproduction study: methods x evaluation suites x seeds -> ``report.md`` with intervals and plots.
 
-One job per module: ``methods`` (what is compared: how each is trained and evaluated), ``baselines`` (the
+One job per module: ``methods`` (what is compared; ``recipes``: the recovering recipe and the DAgger / DART
+schedules, ``builders``: how each method is trained and evaluated, ``training``: a training's key and the keyed
+training), ``baselines`` (the
 open-loop lookup table), ``adapters`` (the only calls into the dataset generator and the fast trainer),
 ``config`` (``StudyConfig`` and its presets), ``layout`` (every path of a study), ``run`` (the stages, cached
 on disk and resumable; ``schedule``: its jobs and their pool, ``job``: what one job does, ``cross_check``: the
 `lerobot-eval` cross-check), ``results`` (pooled rates and paired comparisons), ``figures`` / ``plots``,
-``claims`` and ``markdown`` (the text), ``writer`` (``report.md`` and ``summary.json``). Suites, statistics
+``claims``, ``markdown`` and ``preamble`` (the text; ``preamble``: its opening and Methods section), ``writer`` (``report.md`` and ``summary.json``). Suites, statistics
 and the evaluators live in ``lerobot_pnp.evaluation``.
 """
