@@ -160,3 +160,26 @@ def test_lerobot_eval_runs_named_suites_and_refuses_an_unknown_one(tmp_path):
     assert list(info["per_group"]) == ["nominal", "heldout_far_drop"]
     assert [t["task_group"] for t in info["per_task"]] == ["nominal", "heldout_far_drop"]
     assert (tmp_path / "ok" / "videos" / "heldout_far_drop_0" / "eval_episode_0.mp4").is_file()
+
+
+def test_video_frames_are_sketches_and_a_frozen_scene_is_drawn_once():
+    """Without cameras a suite's video frame is a sketch of the simulator's state; once the episode ended the
+    frame of the frozen scene is drawn once, until the next rollout's reset."""
+    from lerobot_pnp.evaluation.stock_suites import SKETCH_SIZE, make_suite_env
+
+    env = make_suite_env(BaxterPnPEnvConfig(preset="paper").to_dict(), "nominal")
+    env.reset(seed=3, options={"lerobot_new_rollout": True})
+    first = env.render()
+    assert (
+        first.shape == (*SKETCH_SIZE, 3)
+        and first.dtype == np.uint8
+        and len(np.unique(first.reshape(-1, 3), axis=0)) > 2
+    )
+    hold = np.append(env.unwrapped.physics.state_vector()[:7], 1.0)
+    while not env.is_frozen:
+        env.step(hold)
+    still = env.render()
+    assert env.render() is still
+    env.reset(seed=4, options={"lerobot_new_rollout": True})
+    assert not env.is_frozen and env.render() is not still
+    env.close()

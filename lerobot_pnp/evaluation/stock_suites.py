@@ -17,6 +17,11 @@ names and each suite's config are checked when the config is built (``check_task
 a policy or writes anything. A suite's vector env is built when ``lerobot-eval`` reaches it and closed after it, so
 memory holds one suite's envs at a time; a sub-env whose episode ended stops simulating (LeRobot's
 ``FreezeAfterEpisodeEnd``) until the rollout's next seeded reset.
+
+Videos: ``lerobot-eval`` always writes up to 10 episodes per task (``videos/<suite>_0/eval_episode_<i>.mp4``,
+one frame per env step). A MuJoCo render costs about 20 keyframe steps on a CPU, so 10 rendered episodes per suite
+would cost more than the 100 episodes they show; without cameras a suite's frames are top-down sketches drawn from
+the simulator's state (``sketch_frame``: free), with cameras the front camera's renders (what the policy sees).
 """
 
 from __future__ import annotations
@@ -25,6 +30,7 @@ import functools
 from typing import Any
 
 import gymnasium as gym
+import numpy as np
 from lerobot.envs.utils import FreezeAfterEpisodeEnd, _LazyAsyncVectorEnv
 
 from lerobot_pnp.errors import ConfigError
@@ -134,19 +140,21 @@ def create_suite_envs(cfg: Any, n_envs: int, use_async_envs: bool) -> dict[str, 
 
 def make_suite_env(config: dict, suite: str) -> gym.Env:
     """One sub-env of a suite: ``task`` is the suite's name (LeRobot's task name, as LIBERO's), ``task_description``
-    the language instruction, which no suite changes; frozen once its episode ends."""
+    the language instruction, which no suite changes; frozen once its episode ends. Its video frames are top-down
+    sketches unless the config renders cameras (a policy that sees images gets the front camera's renders)."""
     env = gym.make(GYM_ID, disable_env_checker=True, config=config)
     env.unwrapped.task = suite
-    return FrozenRender(env)
+    return FrozenRender(env, sketch=not config.get("cameras"))
 
 
 class FrozenRender(FreezeAfterEpisodeEnd):
-    """LeRobot's ``FreezeAfterEpisodeEnd``, whose ``render`` while frozen is the frame of the frozen scene, rendered
+    """LeRobot's ``FreezeAfterEpisodeEnd``, whose ``render`` while frozen is the frame of the frozen scene, drawn
     once: ``lerobot-eval`` renders its video episodes at every step of the batch until the batch's last episode
-    ends, and a render costs about a keyframe step on a CPU."""
+    ends. With ``sketch`` a frame is a top-down sketch of the scene (``sketch_frame``), not a MuJoCo render."""
 
-    def __init__(self, env: gym.Env):
+    def __init__(self, env: gym.Env, sketch: bool = False):
         super().__init__(env)
+        self._sketch = sketch
         self._still = None  # the frozen scene's frame
 
     def reset(self, **kwargs):
@@ -156,11 +164,43 @@ class FrozenRender(FreezeAfterEpisodeEnd):
         return obs, info
 
     def render(self):
-        if not self.is_frozen:
-            return self.env.render()
-        if self._still is None:
-            self._still = self.env.render()
-        return self._still
+        if self.is_frozen and self._still is not None:
+            return self._still
+        frame = sketch_frame(self.env.unwrapped) if self._sketch else self.env.render()
+        self._still = frame if self.is_frozen else None
+        return frame
+
+
+SKETCH_SIZE = (120, 180)  # pixels: 0.6 m (base x, down) by 0.9 m (base y, right to left)
+_ORIGIN, _SCALE = (0.3, 0.6), 200.0  # the sketch's top-left corner (base x, y in m) and its pixels per metre
+
+
+def sketch_frame(env) -> np.ndarray:
+    """The scene seen from above, from the simulator's state (a render costs about 20 keyframe steps on a CPU):
+    the place target (green, its success tolerance), the cube (red, darker when lifted) and the gripper (blue,
+    larger the higher it is, hollow when open)."""
+    frame = np.full((*SKETCH_SIZE, 3), 235, np.uint8)
+    physics, task = env.physics, env.pnp_task
+
+    def box(xy, half: float, color, hollow: bool = False) -> None:
+        r, c = (xy[0] - _ORIGIN[0]) * _SCALE, (_ORIGIN[1] - xy[1]) * _SCALE
+        h = max(1, round(half * _SCALE))
+        r0, r1, c0, c1 = (max(0, round(v)) for v in (r - h, r + h + 1, c - h, c + h + 1))
+        frame[r0:r1, c0:c1] = color
+        if hollow and r1 - r0 > 2 and c1 - c0 > 2:
+            frame[r0 + 1 : r1 - 1, c0 + 1 : c1 - 1] = 235
+
+    from lerobot_pnp import robot
+
+    box(task.place_xy, env.config.success_xy_tol, (60, 170, 60))
+    pos, _ = physics.object_pose()
+    lifted = pos[2] > robot.TABLE_TOP_Z + physics.object_size
+    box(pos[:2], physics.object_size / 2, (150, 20, 20) if lifted else (220, 50, 50))
+    ee, _ = physics.ee_pose()
+    box(
+        ee[:2], 0.01 + 0.05 * max(0.0, ee[2] - robot.TABLE_TOP_Z), (40, 70, 200), hollow=physics.gripper_opening() > 0.5
+    )
+    return frame
 
 
 def _vector_env(name: str, cfg: Any, n_envs: int, use_async_envs: bool):

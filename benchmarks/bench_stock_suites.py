@@ -1,0 +1,162 @@
+"""One stock multi-suite ``lerobot-eval`` against the study's in-process evaluations of the same suites.
+
+Side by side, on the same checkpoint, suites, seeds and batch:
+
+- ``stock``: ``lerobot-eval --env.task=<suites>`` as a user runs it: one process, its start-up, the policy loaded
+  once, LeRobot's videos (up to 10 episodes per suite);
+- ``stock_no_videos``: the same ``eval_policy_all`` over the env config's ``create_envs`` in this process with no
+  video (what the videos cost);
+- ``study``: the study's evaluator per suite (``load_policy`` with the suite's env config, then
+  ``eval_lerobot_policy``: ``report.methods._checkpoint_eval``), its evaluation times summed.
+
+It checks that ``stock`` and ``study`` give the same outcome episode by episode on every suite and writes the times,
+their ratios and each suite's success to ``--out``. Target: stock / study <= 1.2, and stock <= 6 min for the 18
+held-out suites x 100 keyframe episodes on 2 cores.
+
+    OMP_NUM_THREADS=1 MUJOCO_GL=egl python benchmarks/bench_stock_suites.py [--checkpoint PATH] \\
+        [--task heldout] [--episodes 100] [--batch 50] [--out bench_stock_suites.json]
+
+Without ``--checkpoint`` it builds an untrained tiny pnp_lstm recording the ``full`` task (the held-out protocol's
+training task): it fails every episode, so every episode runs to its suite's budget, the most steps a suite costs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+SEED = 100_000  # the study's first evaluation seed
+
+
+def tiny_checkpoint(path: Path) -> Path:
+    """An untrained pnp_lstm (hidden size 8) recording the ``full`` task, in LeRobot's pretrained_model layout."""
+    import torch
+    from lerobot.configs import FeatureType, PolicyFeature
+
+    from lerobot_pnp.env_config import BaxterPnPEnvConfig
+    from lerobot_pnp.policy import PnpLstmConfig, PnpLstmPolicy, make_pnp_lstm_pre_post_processors
+    from lerobot_pnp.recorded_task import write_checkpoint_task
+
+    task = BaxterPnPEnvConfig(preset="full")
+    width = len(task.environment_state_names)
+    cfg = PnpLstmConfig(
+        hidden_size=8,
+        input_features={
+            "observation.state": PolicyFeature(FeatureType.STATE, (8,)),
+            "observation.environment_state": PolicyFeature(FeatureType.ENV, (width,)),
+        },
+        output_features={"action": PolicyFeature(FeatureType.ACTION, (8,))},
+    )
+
+    def unit(n: int) -> dict:
+        return {"mean": torch.zeros(n), "std": torch.ones(n), "min": -torch.ones(n), "max": torch.ones(n)}
+
+    torch.manual_seed(0)
+    PnpLstmPolicy(cfg).save_pretrained(path)
+    stats = {"observation.state": unit(8), "observation.environment_state": unit(width), "action": unit(8)}
+    for proc in make_pnp_lstm_pre_post_processors(cfg, stats):
+        proc.save_pretrained(path)
+    write_checkpoint_task({"type": "baxter_pnp", **task.to_dict()}, path)
+    return path
+
+
+def run_stock(ckpt: Path, task: str, n: int, batch: int, out: Path) -> tuple[float, dict[str, list[bool]]]:
+    """The lerobot-eval command, timed from launch to exit; its per-suite successes."""
+    cmd = [str(Path(sys.executable).with_name("lerobot-eval")), f"--policy.path={ckpt}", "--env.type=baxter_pnp",
+           f"--env.task={task}", f"--eval.n_episodes={n}", f"--eval.batch_size={batch}", f"--seed={SEED}",
+           "--policy.device=cpu", f"--output_dir={out}"]  # fmt: skip
+    print(" ".join(cmd), flush=True)
+    t = time.perf_counter()
+    proc = subprocess.run(cmd, capture_output=True, text=True, env={**os.environ, "OMP_NUM_THREADS": "1"})
+    wall = time.perf_counter() - t
+    if proc.returncode != 0:
+        sys.exit(f"lerobot-eval failed ({proc.returncode}):\n{proc.stderr[-3000:]}")
+    info = json.loads((out / "eval_info.json").read_text())
+    return wall, {t["task_group"]: t["metrics"]["successes"] for t in info["per_task"]}
+
+
+def run_stock_no_videos(ckpt: Path, task: str, n: int, batch: int) -> float:
+    """``eval_policy_all`` over ``create_envs`` in this process, no videos: the evaluation alone."""
+    import torch
+    from lerobot.envs.factory import make_env_pre_post_processors
+    from lerobot.scripts.lerobot_eval import eval_policy_all
+
+    from lerobot_pnp.env_config import BaxterPnPEnvConfig
+    from lerobot_pnp.evaluation.checkpoints import load_policy
+
+    cfg = BaxterPnPEnvConfig(task_source=str(ckpt), task=task)
+    t = time.perf_counter()
+    loaded = load_policy(ckpt, env_cfg=cfg)
+    envs = cfg.create_envs(n_envs=batch)
+    env_pre, env_post = make_env_pre_post_processors(cfg, loaded.policy.config)
+    with torch.no_grad():
+        eval_policy_all(
+            envs, loaded.policy, env_pre, env_post, loaded.preprocessor, loaded.postprocessor, n, start_seed=SEED
+        )
+    return time.perf_counter() - t
+
+
+def run_study(ckpt: Path, task: str, n: int, batch: int) -> tuple[dict[str, float], dict[str, list[bool]]]:
+    """The study's evaluator on each suite (``_checkpoint_eval``): its wall time and outcomes per suite."""
+    from lerobot_pnp.env_config import BaxterPnPEnvConfig
+    from lerobot_pnp.evaluation.checkpoints import load_policy
+    from lerobot_pnp.evaluation.episodes import eval_lerobot_policy
+    from lerobot_pnp.evaluation.stock_suites import suite_configs
+
+    times, outcomes = {}, {}
+    for suite, env_cfg in suite_configs(BaxterPnPEnvConfig(task_source=str(ckpt), task=task)).items():
+        t = time.perf_counter()
+        lp = load_policy(ckpt, env_cfg=env_cfg)
+        records = eval_lerobot_policy(lp.policy, lp.preprocessor, lp.postprocessor, env_cfg, n, SEED, batch)
+        times[suite] = time.perf_counter() - t
+        outcomes[suite] = [r.success for r in records]
+        print(f"  study {suite:<24} {times[suite]:6.1f} s  {sum(outcomes[suite])}/{n}", flush=True)
+    return times, outcomes
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--checkpoint", type=Path, default=None, help="default: an untrained tiny pnp_lstm (full task)")
+    ap.add_argument("--task", default="heldout", help="--env.task: suites, axes or aliases")
+    ap.add_argument("--episodes", type=int, default=100)
+    ap.add_argument("--batch", type=int, default=50)
+    ap.add_argument("--out", type=Path, default=Path("bench_stock_suites.json"))
+    args = ap.parse_args()
+    from lerobot_pnp.registration import register_all
+
+    register_all()
+    import torch
+
+    torch.set_num_threads(1)
+    with tempfile.TemporaryDirectory(prefix="bench_stock_suites_") as tmp:
+        ckpt = args.checkpoint or tiny_checkpoint(Path(tmp) / "pretrained_model")
+        batch = min(args.batch, args.episodes)
+        stock_s, stock = run_stock(ckpt, args.task, args.episodes, batch, Path(tmp) / "eval")
+        print(f"stock lerobot-eval: {stock_s:.1f} s", flush=True)
+        quiet_s = run_stock_no_videos(ckpt, args.task, args.episodes, batch)
+        print(f"stock eval_policy_all without videos: {quiet_s:.1f} s", flush=True)
+        times, study = run_study(ckpt, args.task, args.episodes, batch)
+    differ = sorted(s for s in study if stock.get(s) != study[s])
+    total = sum(times.values())
+    result = {
+        "task": args.task, "suites": len(study), "episodes_per_suite": args.episodes, "batch": batch,
+        "checkpoint": str(args.checkpoint or "untrained tiny pnp_lstm, full task"), "cpus": os.cpu_count(),
+        "load_average": os.getloadavg(), "stock_s": stock_s, "stock_no_videos_s": quiet_s, "study_sum_s": total,
+        "ratio": stock_s / total, "ratio_no_videos": quiet_s / total, "study_s": times,
+        "success": {s: sum(v) / len(v) for s, v in study.items()}, "outcomes_differ": differ,
+    }  # fmt: skip
+    args.out.write_text(json.dumps(result, indent=2))
+    print(f"stock {stock_s:.1f} s, without videos {quiet_s:.1f} s, study (sum of suites) {total:.1f} s: "
+          f"ratio {result['ratio']:.2f} ({result['ratio_no_videos']:.2f} without videos); outcomes differ on {differ or 'no suite'}")  # fmt: skip
+    if differ:
+        sys.exit(1)
+
+
+if __name__ == "__main__":
+    main()
