@@ -93,6 +93,13 @@ def test_overwrite_refuses_a_folder_with_foreign_files_before_any_work(dataset_r
     assert (tmp_path / "other" / "checkpoints" / "000999").is_dir()
 
 
+def test_a_run_failing_before_it_writes_leaves_no_folder(tmp_path):
+    out = tmp_path / "run"
+    with pytest.raises(PnPError):
+        train_fast(_cfg(tmp_path / "no_dataset", out))
+    assert not out.exists()
+
+
 def test_overwrite_through_the_cli_is_one_line(dataset_root, tmp_path, capsys):
     from lerobot_pnp.cli import main
 
