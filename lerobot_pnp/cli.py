@@ -58,6 +58,11 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
         "lerobot_pnp.evaluation.compare:run_compare",
         "compare lerobot-eval runs (RUN or NAME=RUN1,RUN2 ...): intervals, control arm, paired verdicts",
     ),
+    "leaderboard": (
+        "lerobot_pnp.evaluation.leaderboard:LeaderboardConfig",
+        "lerobot_pnp.evaluation.leaderboard:write_leaderboard",
+        "regenerate docs/leaderboard.md from the committed lerobot-eval outputs of the held-out protocol",
+    ),
 }
 
 

@@ -1,0 +1,54 @@
+"""The leaderboard page is generated from committed eval_info.json outputs: the committed page is what they give."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from lerobot_pnp import cli
+from lerobot_pnp.errors import ConfigError
+from lerobot_pnp.evaluation.leaderboard import LeaderboardConfig, render
+from lerobot_pnp.evaluation.stock_suites import suite_names
+
+ROOT = Path(__file__).resolve().parents[1]
+RUNS, PAGE = ROOT / "docs" / "results" / "leaderboard", ROOT / "docs" / "leaderboard.md"
+
+
+def test_the_committed_page_matches_the_committed_runs():
+    if not RUNS.is_dir():
+        pytest.skip("no committed leaderboard runs")
+    assert PAGE.read_text() == render(LeaderboardConfig().runs_dir)
+
+
+def _write_row(root: Path, name: str, ok: int, n: int = 10) -> None:
+    folder = root / name
+    folder.mkdir(parents=True)
+    outcomes = {s: [i < ok for i in range(n)] for s in suite_names("heldout")}
+    per_task = [{"task_group": s, "task_id": 0, "metrics": {"successes": v}} for s, v in outcomes.items()]
+    per_group = {s: {"n_episodes": n} for s in outcomes}
+    (folder / "eval_info.json").write_text(json.dumps({"per_task": per_task, "per_group": per_group}))
+    (folder / "row.json").write_text(json.dumps({"label": f"method {name}", "command": f"lerobot-eval ... {name}"}))
+
+
+def test_rows_verdicts_and_the_command_to_add_one(tmp_path):
+    _write_row(tmp_path / "runs", "a_good", ok=10)
+    _write_row(tmp_path / "runs", "b_weak", ok=3)
+    out = tmp_path / "leaderboard.md"
+    assert cli.main(["leaderboard", f"--runs_dir={tmp_path / 'runs'}", f"--output={out}"]) == 0
+    page = out.read_text()
+    assert "| `a_good` | method a_good | 100.0% [72.2, 100.0] | 100.0 -> 100.0: generalises |" in page
+    assert "| `b_weak` | method b_weak | 30.0% [10.8, 60.3] | 30.0 -> 30.0: no_recovery |" in page
+    assert "--env.task heldout" in page and "lerobot-pnp leaderboard --runs_dir" in page
+    assert page.count("| heldout_") == 11 and "- `b_weak`: `lerobot-eval ... b_weak`" in page
+
+
+def test_a_row_that_does_not_pair_writes_nothing(tmp_path):
+    _write_row(tmp_path / "runs", "a", ok=10)
+    _write_row(tmp_path / "runs", "b", ok=3, n=12)
+    with pytest.raises(ConfigError, match="do not pair"):
+        render(tmp_path / "runs")
+    out = tmp_path / "leaderboard.md"
+    assert cli.main(["leaderboard", f"--runs_dir={tmp_path / 'runs'}", f"--output={out}"]) == 2
+    assert not out.exists()
