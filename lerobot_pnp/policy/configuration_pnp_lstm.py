@@ -101,7 +101,7 @@ class PnpLstmConfig(PreTrainedConfig):
     for ``lerobot-train`` (it acts on the whole-episode windows)."""
     latency_augment_max: int = 1
     """Training only: a late episode's lag is drawn uniformly in ``1..latency_augment_max`` steps (1: exactly one
-    step late, as before)."""
+    step late)."""
     latency_augment_jitter: float = 0.0
     """Training only: within a late episode the lag is redrawn in ``0..latency_augment_max`` at each frame with this
     probability (the env's ``obs_latency_jitter``)."""
