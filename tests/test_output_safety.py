@@ -164,8 +164,12 @@ def test_a_mistyped_flag_leaves_a_finished_dataset_untouched(tmp_path):
 
     out = tmp_path / "q"
     before = _finished_dataset(out / "dataset")
-    cfg = StudyConfig(output_dir=str(out), preset="quick", workers=-1, num_episodes=100)
-    with pytest.raises(ConfigError, match="workers") as err:
+    with pytest.raises(ConfigError, match=r"workers must be an integer >= 0 .*got -1"):
+        StudyConfig(output_dir=str(out), preset="quick", workers=-1, num_episodes=100)
+    # ... and a bad value that reaches the generator anyway (a config built in code) touches nothing either
+    cfg = StudyConfig(output_dir=str(out), preset="quick", workers=1, num_episodes=100)
+    cfg.workers = -1
+    with pytest.raises(ConfigError, match="workers must be >= 0, got -1") as err:
         dataset_stage(out, "dataset", cfg)
     assert not isinstance(err.value, OtherSettingsError)
     assert _tree(out / "dataset") == before

@@ -111,8 +111,9 @@ class GenerateConfig:
             raise ConfigError(f"seed must be an integer in [0, 2**63) with room for the episode seeds, got {self.seed}")
         if self.executor not in EXECUTORS:
             raise ConfigError(f"executor must be one of {EXECUTORS}, got {self.executor!r}")
-        if self.tasks < 0 or self.workers < 0 or self.max_retries < 0:
-            raise ConfigError("tasks, workers and max_retries must be >= 0")
+        for name in ("tasks", "workers", "max_retries"):
+            if getattr(self, name) < 0:
+                raise ConfigError(f"{name} must be >= 0, got {getattr(self, name)}")
         if self.tasks > self.num_episodes:
             raise ConfigError(f"tasks ({self.tasks}) must be <= num_episodes ({self.num_episodes})")
         if not 0 < self.train_fraction <= 1:

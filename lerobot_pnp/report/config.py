@@ -316,6 +316,8 @@ class StudyConfig:
             raise ConfigError("epochs must be >= 1 and train_seeds non-empty")
         if any(s.n_episodes < 1 for s in self.suites):
             raise ConfigError("every suite needs n_episodes >= 1")
+        if not (isinstance(self.workers, int) and self.workers >= 0):
+            raise ConfigError(f"workers must be an integer >= 0 (0 = one per core), got {self.workers!r}")
         batch = self.eval_batch_size
         if not (isinstance(batch, int) and not isinstance(batch, bool) and batch >= 1):
             raise ConfigError(f"eval_batch_size must be an integer >= 1 (sub-envs evaluated at a time), got {batch!r}")
