@@ -54,6 +54,10 @@ class DatasetError(PnPError):
     """A dataset folder is missing, incomplete, corrupt, or cannot be written/pushed as asked."""
 
 
+class ClusterJobError(PnPError):
+    """A study's cluster jobs could not be submitted, failed or were cancelled, or an earlier run's still run."""
+
+
 class PolicyError(PnPError):
     """A policy checkpoint is missing, unreadable, or incompatible with the env or dataset."""
 

@@ -18,6 +18,7 @@ from lerobot_pnp.evaluation.stats import wilson_interval
 from lerobot_pnp.evaluation.suites import HELD_OUT_AXES, get_suites
 from lerobot_pnp.presets import PRESETS as TASK_PRESETS
 from lerobot_pnp.report.methods import DATA_EFFICIENCY_METHODS, METHODS, RECOVERING, get_methods
+from lerobot_pnp.report.slurm import StudySlurmOptions, checked
 
 
 @dataclass
@@ -294,8 +295,13 @@ class StudyConfig:
     # config files of other studies run in the same process pool, each with its own output_dir and report:
     # their jobs fill the cores this study's leave idle; --fresh and --report_only apply to them too
     alongside: list[str] = field(default_factory=list)
+    # where the datasets, trainings and evaluations run: local (this machine's process pool) or slurm (cluster jobs,
+    # --slurm.*; --workers then caps the jobs of one array running at once, 0 = no cap); the same stages and results
+    executor: str = "local"
+    slurm: StudySlurmOptions = field(default_factory=StudySlurmOptions)
 
     def __post_init__(self):
+        self.executor, self.slurm = checked(self.executor, self.slurm)
         if self.quick and self.full:
             raise ConfigError("pass either --quick or --full, not both")
         self.preset = "quick" if self.quick else "full" if self.full else self.preset

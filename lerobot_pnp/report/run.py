@@ -65,12 +65,18 @@ def run_study(cfg: StudyConfig) -> dict:
     cfgs = [cfg, *(load_study_config(path) for path in cfg.alongside)]
     for c in cfgs[1:]:  # how to run (not what to run) is the command line's, for every study
         c.fresh, c.report_only = c.fresh or cfg.fresh, c.report_only or cfg.report_only
+        c.executor, c.slurm = cfg.executor, cfg.slurm
     outs = [Path(c.output_dir).resolve() for c in cfgs]
     if len(set(outs)) < len(outs):
         raise ConfigError(f"alongside: two studies write to the same output_dir ({[c.output_dir for c in cfgs]})")
     with ExitStack() as stack:
         for c in cfgs:  # every folder locked before any is cleared or written: a held one stops the run at once
             stack.enter_context(lock_output(Path(c.output_dir), "lerobot-pnp report/demo"))
+        if any((out / "slurm").is_dir() for out in outs):  # an earlier run's cluster jobs still at work
+            from lerobot_pnp.report.cluster import refuse_live_jobs
+
+            for out in outs:
+                refuse_live_jobs(out)
         manifests = [_manifest(Path(c.output_dir), c.fresh) for c in cfgs]  # every one read and checked first
         for c, manifest in zip(cfgs, manifests, strict=True):
             if c.fresh:
@@ -147,7 +153,13 @@ def _prepare(cfg: StudyConfig, layout: StudyLayout, manifest: Manifest) -> _Prep
     t = time.perf_counter()
     root = layout.dataset()
     keys: dict[str, str] = {}  # recording -> its dataset's stage key
-    generation, keys["keyframe"] = dataset_stage(out, root.name, cfg)
+    make_dataset = dataset_stage
+    if cfg.executor == "slurm":  # each dataset made by a cluster job
+        from lerobot_pnp.report.cluster import CLUSTER_DIR
+        from lerobot_pnp.report.cluster import dataset_on_slurm as make_dataset
+
+        manifest.claim(CLUSTER_DIR)
+    generation, keys["keyframe"] = make_dataset(out, root.name, cfg)
     timings["dataset"] = time.perf_counter() - t
     base_env = BaxterPnPEnvConfig.from_dict(read_recorded(root) or {})
     roots = {"keyframe": root}
@@ -159,7 +171,7 @@ def _prepare(cfg: StudyConfig, layout: StudyLayout, manifest: Manifest) -> _Prep
         t = time.perf_counter()
         roots[data] = layout.dataset(data)
         manifest.claim(roots[data].name)
-        generation[data], keys[data] = dataset_stage(out, roots[data].name, cfg, changes)
+        generation[data], keys[data] = make_dataset(out, roots[data].name, cfg, changes)
         if not cfg.report_only or generation[data].get("status") == "reused":
             check_same_demonstrations(root, roots[data])
         timings[f"dataset_{data}"] = time.perf_counter() - t
@@ -173,18 +185,25 @@ def _run_prepared(runs: list[_PreparedStudy]) -> list[dict]:
     """Stages 2-3 of every study in one pool, then each study's cross-check and report (stage 4)."""
     jobs = [replace(j, study=i) for i, r in enumerate(runs) for j in r.jobs]
     processes = job_processes(runs[0].cfg, len(jobs))
+    slurm = runs[0].cfg.executor == "slurm"  # the missing stages as cluster jobs (report.cluster)
     for r in runs:
         _stage(f"2-3/4 train and evaluate: {', '.join(m.name for m in r.methods)} (learned: seeds {r.cfg.train_seeds})")
+    where = "as SLURM jobs" if slurm else f"in {processes} process{'es' if processes > 1 else ''}"
     print(
         f"evaluation: stock LeRobot eval_policy, in process; the same seeds for every method; {len(jobs)} runs "
-        f"(method x training seed{', of every study' if len(runs) > 1 else ''}) in {processes} "
-        f"process{'es' if processes > 1 else ''}",
+        f"(method x training seed{', of every study' if len(runs) > 1 else ''}) {where}",
         flush=True,
     )
-    if processes > 1:  # a trained method's suites spread over the free processes
+    if processes > 1 or slurm:  # a trained method's suites spread over the free processes (or cluster jobs)
         jobs = split_jobs(jobs, {j: job_suites(j, runs[j.study].cfg, runs[j.study].base_env) for j in jobs})
     contexts = tuple(r.context for r in runs)
-    finished = dict(run_jobs(jobs, (contexts,), processes, fn=_study_job))
+    if slurm:
+        from lerobot_pnp.report.cluster import run_on_slurm
+
+        finished, processes = run_on_slurm(jobs, contexts, runs[0].cfg, [r.layout.out for r in runs], _study_job)
+        processes = max(1, processes)  # the cluster jobs submitted
+    else:
+        finished = dict(run_jobs(jobs, (contexts,), processes, fn=_study_job))
     return [_finish(r, [j for j in jobs if j.study == i], finished, processes) for i, r in enumerate(runs)]
 
 

@@ -1,0 +1,48 @@
+"""``lerobot-pnp report --executor slurm``: the study's SLURM options (``--slurm.*``), named as generation's.
+
+The options extend generation's ``SlurmOptions`` (partition, CPUs, memory, time, QOS, job name), so that one
+cluster's flags read the same for ``generate`` and ``report``; what the study's jobs add is how they are grouped
+into cluster jobs. The executor itself: ``report.cluster``.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+from lerobot_pnp.dataset.generation import SlurmOptions
+from lerobot_pnp.errors import ConfigError
+
+EXECUTORS = ("local", "slurm")
+# sbatch --time: minutes, MM:SS, HH:MM:SS, D-HH, D-HH:MM or D-HH:MM:SS
+_TIME = re.compile(r"^(\d+-\d+(:\d+){0,2}|\d+(:\d+){0,2})$")
+
+
+@dataclass
+class StudySlurmOptions(SlurmOptions):
+    """``--slurm.*``: the resources of each cluster job of the study, and how its work is grouped into jobs."""
+
+    job_name: str = "pnp_study"  # SLURM job name of every job of the study
+    # a method x seed's evaluations per cluster job: 0 = its training and every suite in one job (the fewest jobs:
+    # a suite's evaluation often takes seconds, a job's start as long); N = the training alone, then its suites N
+    # per job, each job waiting for the training (--dependency afterok)
+    suites_per_job: int = 0
+    dataset_cpus: int = 0  # CPUs of a dataset's generation job (its shard workers); 0 = cpus_per_task
+
+    def __post_init__(self):
+        super().__post_init__()
+        if not isinstance(self.suites_per_job, int) or self.suites_per_job < 0:
+            raise ConfigError(f"slurm.suites_per_job must be an integer >= 0, got {self.suites_per_job!r}")
+        if not isinstance(self.dataset_cpus, int) or self.dataset_cpus < 0:
+            raise ConfigError(f"slurm.dataset_cpus must be an integer >= 0, got {self.dataset_cpus!r}")
+        if not _TIME.match(str(self.time)):
+            raise ConfigError(
+                f"slurm.time must be a SLURM time limit such as 04:00:00 or 1-00:00:00, got {self.time!r}"
+            )
+
+
+def checked(executor: str, slurm) -> tuple[str, StudySlurmOptions]:
+    """The executor and its options, as ``StudyConfig`` keeps them (a dict from a config file made options)."""
+    if executor not in EXECUTORS:
+        raise ConfigError(f"executor must be one of {EXECUTORS}, got {executor!r}")
+    return executor, StudySlurmOptions(**slurm) if isinstance(slurm, dict) else slurm
