@@ -115,16 +115,17 @@ def _same(old: Any, new: Any) -> bool:
 def same_env_configs(stored: list[dict] | dict | None, current: list[dict] | dict) -> bool:
     """Whether env configs recorded in a stage's key equal the current ones (one dict or a list of them).
 
-    A task field missing from a stored config was added later and had its paper value ("off") then, the
-    rule of recorded tasks; other missing keys are ignored."""
-    from lerobot_pnp.presets import PAPER_TASK
+    A task field missing from a stored config was added later and had its paper value ("off") then, an
+    observation field its ``OBSERVATION_UNRECORDED`` value, the rule of recorded tasks; other missing keys are
+    ignored."""
+    from lerobot_pnp.presets import OBSERVATION_UNRECORDED, PAPER_TASK
 
     if isinstance(current, dict):
         stored, current = [stored] if isinstance(stored, dict) else None, [current]
     if stored is None or len(stored) != len(current):
         return False
     current = json.loads(json.dumps(current))  # tuples -> lists, as stored
-    paper = json.loads(json.dumps(PAPER_TASK))
+    paper = json.loads(json.dumps({**PAPER_TASK, **OBSERVATION_UNRECORDED}))
     return all(
         old.get(k, paper.get(k, v)) == v for old, new in zip(stored, current, strict=True) for k, v in new.items()
     )

@@ -117,7 +117,8 @@ class BaxterPnPEnv(gym.Env):
     def render(self):
         if self.render_mode != "rgb_array":
             return None
-        return self.physics.render("front", self.config.image_height, self.config.image_width)
+        cfg = self.config
+        return self.physics.render("front", cfg.image_height, cfg.image_width, cfg.render_effects)
 
     def close(self):
         self.physics.close()
@@ -127,7 +128,8 @@ class BaxterPnPEnv(gym.Env):
         obs = self.pnp_task.observe(self.physics, self.np_random)
         if self.config.cameras:
             h, w = self.config.image_height, self.config.image_width
-            obs["pixels"] = {c: self.physics.render(c, h, w) for c in self.config.cameras}
+            fx = self.config.render_effects
+            obs["pixels"] = {c: self.physics.render(c, h, w, fx) for c in self.config.cameras}
         return obs
 
     def _info(self, truncated: bool, success: bool | None = None) -> dict:

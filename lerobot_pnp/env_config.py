@@ -15,8 +15,9 @@ Task fields default to ``None``, which means "not set here". They are resolved o
    non-default task is evaluated on that task with no extra flag),
 3. fields given explicitly.
 
-The observation setup (``cameras``, ``image_height``, ``image_width``) and the control mode follow the same
-rule, so ``lerobot-eval --policy.path=...`` of a policy trained on camera images renders the same cameras.
+The observation setup (``cameras``, ``image_height``, ``image_width``, ``render_effects``) and the control mode
+follow the same rule, so ``lerobot-eval --policy.path=...`` of a policy trained on camera images renders the same
+cameras the same way.
 A generated dataset records the resolved config (``recorded_task.write_recorded``).
 """
 
@@ -39,6 +40,7 @@ from lerobot_pnp.presets import (
     GYM_NAMESPACE,
     GYM_TASK,
     OBSERVATION_DEFAULTS,
+    OBSERVATION_UNRECORDED,
     PAPER_TASK,
     PRESETS,
     TASK_FIELDS,
@@ -80,6 +82,8 @@ class BaxterPnPEnvConfig(EnvConfig):
     cameras: list[str] | None = None  # rendered camera observations: front, overhead, wrist
     image_height: int | None = None  # rendered camera image height (pixels)
     image_width: int | None = None  # rendered camera image width (pixels)
+    # shadows, reflections and 4x multisampling (MuJoCo's default visuals); off renders a frame several times faster
+    render_effects: bool | None = None
     speed: float = 1.0  # fraction of Baxter's joint velocity limits used by the interpolator
     straight_paths: bool = True  # keyframe moves keep the gripper on a straight line (else joint-linear)
     # ---- task (None = from the preset / recorded task; the values are in PAPER_TASK / FULL_TASK)
@@ -191,7 +195,9 @@ class BaxterPnPEnvConfig(EnvConfig):
             self.preset = recorded.get("preset", "paper")
         for name, default in OBSERVATION_DEFAULTS.items():
             if getattr(self, name) is None:
-                setattr(self, name, recorded.get(name, default))
+                if recorded:  # a record made before the field existed: the value it had then
+                    default = recorded.get(name, OBSERVATION_UNRECORDED.get(name, default))
+                setattr(self, name, default)
         self._resolve_control(recorded)
         self.task_source = None  # resolved: the config now stands on its own
 

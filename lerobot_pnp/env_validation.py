@@ -34,7 +34,7 @@ def validate(cfg: Any) -> None:
 
 
 def validate_control(cfg: Any) -> None:
-    """Control mode, rate, episode length, cameras and image size, speed."""
+    """Control mode, rate, episode length, cameras, image size and render effects, speed."""
     if cfg.control_mode not in CONTROL_MODES:
         raise ConfigError(f"env.control_mode must be one of {CONTROL_MODES}, got {cfg.control_mode!r}")
     cfg.cameras = list(cfg.cameras or [])
@@ -51,6 +51,8 @@ def validate_control(cfg: Any) -> None:
         isinstance(v, int) and not isinstance(v, bool) and 8 <= v <= 4096 for v in (cfg.image_height, cfg.image_width)
     ):
         raise ConfigError(f"env.image_height/width must be in [8, 4096], got {cfg.image_height}x{cfg.image_width}")
+    if not isinstance(cfg.render_effects, bool):
+        raise ConfigError(f"env.render_effects must be true or false, got {cfg.render_effects!r}")
     if not 0 < cfg.speed <= 1:
         raise ConfigError(f"env.speed (fraction of Baxter's joint velocity limits) must be in (0, 1], got {cfg.speed}")
 

@@ -65,7 +65,7 @@ class BaxterPhysics:
         self._ee_site = m.site(robot.EE_SITE).id
         self._target_site = m.site(robot.TARGET_SITE).id
         self._substeps_keyframe = round(CONTROL_DT / m.opt.timestep)
-        self._renderers: dict[tuple[int, int], mujoco.Renderer] = {}
+        self._renderers: dict[tuple[int, int, bool], mujoco.Renderer] = {}
         # Optional observer called after every control tick (100 Hz for keyframe moves, once per dense
         # period), e.g. by the viewer to record the motion between keyframes. It must not change the state.
         self.on_control_tick = None
@@ -287,13 +287,25 @@ class BaxterPhysics:
             raise PhysicsError("physics diverged (non-finite state); this is a bug, please report the seed and actions")
 
     # ------------------------------------------------------------------ rendering
-    def render(self, camera: str, height: int, width: int) -> np.ndarray:
-        """An RGB image (HxWx3 uint8) from a named MJCF camera (headless EGL on Linux by default)."""
-        key = (height, width)
+    def render(self, camera: str, height: int, width: int, effects: bool = True) -> np.ndarray:
+        """An RGB image (HxWx3 uint8) from a named MJCF camera (headless EGL on Linux by default).
+
+        ``effects``: MuJoCo's default visuals (shadows, reflections, multisampled anti-aliasing). Without them a
+        software-rendered frame costs a fraction as much; the env's ``render_effects`` decides, per task.
+        """
+        key = (height, width, effects)
         if key not in self._renderers:
-            self._renderers[key] = mujoco.Renderer(self.model, height=height, width=width)
+            default_samples = self.model.vis.quality.offsamples
+            if not effects:  # read once, when the renderer's GL context is made
+                self.model.vis.quality.offsamples = 0
+            try:
+                self._renderers[key] = mujoco.Renderer(self.model, height=height, width=width)
+            finally:
+                self.model.vis.quality.offsamples = default_samples
         renderer = self._renderers[key]
         renderer.update_scene(self.data, camera=camera)
+        renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = effects
+        renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = effects
         return renderer.render().copy()
 
     def close(self) -> None:

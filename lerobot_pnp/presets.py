@@ -116,5 +116,8 @@ PRESETS: dict[str, dict[str, Any]] = {"paper": PAPER_TASK, "full": FULL_TASK}
 TASK_FIELDS = tuple(PAPER_TASK)
 # The observation setup (not part of any preset): rendered cameras and their image size. Like the control mode it
 # is read back from the recorded task, so a policy trained on camera images is evaluated with the same cameras.
-OBSERVATION_DEFAULTS: dict[str, Any] = {"cameras": [], "image_height": 240, "image_width": 320}
+OBSERVATION_DEFAULTS: dict[str, Any] = {"cameras": [], "image_height": 240, "image_width": 320, "render_effects": False}
+# What a task recorded before an observation field existed was rendered with (the recorded-task rule: a missing field
+# has its old value): MuJoCo's default visuals, shadows, reflections and multisampling.
+OBSERVATION_UNRECORDED: dict[str, Any] = {"render_effects": True}
 CAMERAS = ("front", "overhead", "wrist")  # the named cameras of the MJCF scene (envs/baxter_pnp.xml)
