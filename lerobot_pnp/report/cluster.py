@@ -30,7 +30,7 @@ from lerobot_pnp.report.schedule import TRAINING, Job
 
 CLUSTER_DIR = "slurm"  # in a study folder: submitit's job folders (logs, pickles) and JOBS_FILE
 JOBS_FILE = "jobs.json"
-POLL_S = 2.0  # seconds between two looks at the queue
+POLL_S = (0.5, 10.0)  # seconds between two looks at the queue: at first, and at most (a long wait looks less often)
 
 
 def refuse_live_jobs(out: Path) -> None:
@@ -155,6 +155,7 @@ class Submitter:
         its error and its log, after the others ended (the folder lock held until then). Interrupted: every job
         still queued or running is cancelled."""
         ended: dict[int, tuple[bool, object]] = {}
+        started = time.monotonic()
         try:
             while len(ended) < len(jobs):
                 live = _queued([j.job_id for i, j in enumerate(jobs) if i not in ended])
@@ -167,7 +168,7 @@ class Submitter:
                     elif live is not None:  # gone from the queue without a result: cancelled, killed, out of time
                         ended[i] = (False, None)
                 if len(ended) < len(jobs):
-                    time.sleep(POLL_S)
+                    time.sleep(min(POLL_S[1], POLL_S[0] + (time.monotonic() - started) / 60))
         except BaseException:
             for i, job in enumerate(jobs):
                 if i not in ended:

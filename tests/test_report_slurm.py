@@ -1,0 +1,153 @@
+"""`lerobot-pnp report --executor slurm`: the study's jobs as SLURM jobs (``report.cluster``).
+
+On a real (one-node) cluster: a tiny study run as cluster jobs records the same evaluations, episode for episode,
+as the local pool; a job cancelled with scancel fails the run in one line, and the same command then submits only
+the missing stages. Needs SLURM's client binaries; a one-node cluster is started with
+``benchmarks/slurm_local_cluster.sh`` when none answers and this process may (root). The grouping of the jobs
+into cluster jobs is checked without SLURM.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from lerobot_pnp import cli
+from lerobot_pnp.report.cluster import cluster_tasks
+from lerobot_pnp.report.schedule import TRAINING, Job
+
+_MISSING = [b for b in ("sbatch", "squeue", "sinfo", "scancel") if shutil.which(b) is None]
+needs_slurm = pytest.mark.skipif(bool(_MISSING), reason=f"SLURM is not installed ({', '.join(_MISSING)} not on PATH)")
+CLUSTER = Path(__file__).resolve().parents[1] / "benchmarks" / "slurm_local_cluster.sh"
+STUDY = ["--preset", "quick", "--num_episodes", "10", "--epochs", "1", "--train_seeds", "[1000]",
+         "--methods", "[lookup_table,clocked_lstm]", "--cli_check_episodes", "0",
+         "--suites", "[{name: nominal, n_episodes: 2}]"]  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    up = subprocess.run(["sinfo", "-h", "-o", "%P %T"], capture_output=True, text=True, timeout=30)
+    if up.returncode != 0 and os.geteuid() == 0:
+        subprocess.run([str(CLUSTER), "start"], check=True, capture_output=True, timeout=120)
+        up = subprocess.run(["sinfo", "-h", "-o", "%P %T"], capture_output=True, text=True, timeout=30)
+    assert up.returncode == 0, f"SLURM is installed but no controller answers: {up.stderr.strip()}"
+    return up.stdout.split()[0].rstrip("*")  # the default partition
+
+
+def _report(out: Path, *flags: str) -> int:
+    return cli.main(["report", "--output_dir", str(out), *STUDY, *flags])
+
+
+def _episodes(out: Path) -> dict[str, list]:
+    return {
+        p.relative_to(out).as_posix(): json.loads(p.read_text())["episodes"] for p in (out / "evals").rglob("*.json")
+    }
+
+
+def _submitted(out: Path) -> list[str]:
+    try:
+        return json.loads((out / "slurm" / "jobs.json").read_text())["job_ids"]
+    except (OSError, ValueError):
+        return []
+
+
+@needs_slurm
+@pytest.mark.slow
+def test_a_study_on_slurm_equals_the_local_run_and_resubmits_only_what_a_cancelled_job_left(cluster, tmp_path, capsys):
+    assert _report(tmp_path / "local", "--workers", "1") == 0
+    capsys.readouterr()
+    out = tmp_path / "slurm"
+    slurm = ["--executor", "slurm", "--slurm.partition", cluster, "--slurm.mem_per_cpu_gb", "1", "--slurm.time", "10"]
+    seen: dict[str, object] = {}
+
+    def cancel_the_training():
+        """Once the study's two cluster jobs are submitted (after the dataset's), cancel the clocked LSTM's (its
+        training and evaluation) before its training can finish; the folder stays locked meanwhile."""
+        from lerobot_pnp.cache import lock_output
+        from lerobot_pnp.errors import DatasetError
+
+        deadline = time.time() + 120
+        while len(ids := _submitted(out)) < 2 and time.time() < deadline:
+            time.sleep(0.1)
+        subprocess.run(["scancel", ids[-1]], check=True, timeout=30)
+        seen["cancelled"] = ids[-1]
+        try:
+            lock_output(out, "a second study")
+        except DatasetError as err:
+            seen["refused"] = str(err)
+
+    watcher = threading.Thread(target=cancel_the_training)
+    watcher.start()
+    assert _report(out, *slurm) == 2
+    watcher.join()
+    err = capsys.readouterr().err.strip().splitlines()[-1]  # the one line after the generation's log
+    assert err.startswith("lerobot-pnp report: error: 1 of 2 cluster jobs failed or were cancelled"), err
+    assert f"SLURM {seen['cancelled']}: clocked_lstm 1000" in err and "run the same command again" in err
+    assert "another `a second study` is using" in str(seen.get("refused")), seen
+    done = _episodes(out)
+    assert set(done) == {"evals/lookup_table/seed-/nominal.json"}  # the cancelled job left no record
+    assert not (out / "train/clocked_lstm/seed1000/stage.json").exists()
+    lookup = (out / "evals/lookup_table/seed-/nominal.json").stat().st_mtime_ns
+
+    # the same command: only the cancelled job's stages are submitted (the dataset and lookup table are reused)
+    assert _report(out, *slurm) == 0
+    printed = capsys.readouterr().out
+    assert "submitted 1 cluster jobs" in printed and "dataset dataset: cluster job" not in printed, printed
+    assert len(_submitted(out)) == 1 and (out / "evals/lookup_table/seed-/nominal.json").stat().st_mtime_ns == lookup
+    assert _episodes(out) == _episodes(tmp_path / "local")  # every evaluation, episode for episode
+    assert (
+        json.loads((out / "summary.json").read_text())["success"]
+        == json.loads((tmp_path / "local" / "summary.json").read_text())["success"]
+    )
+
+
+@needs_slurm
+def test_a_folder_whose_earlier_cluster_jobs_still_run_is_refused(cluster, tmp_path, capsys):
+    """A submitting process that was killed leaves its jobs running: a new run on the folder waits for them."""
+    job = subprocess.run(["sbatch", "--parsable", "-p", cluster, "--mem=100M", "--wrap", "sleep 60"],
+                         capture_output=True, text=True, check=True, timeout=30).stdout.strip()  # fmt: skip
+    try:
+        (tmp_path / "s" / "slurm").mkdir(parents=True)
+        (tmp_path / "s" / "slurm" / "jobs.json").write_text(json.dumps({"job_ids": [job]}))
+        assert _report(tmp_path / "s", "--fresh") == 2
+    finally:
+        subprocess.run(["scancel", job], timeout=30)
+    err = capsys.readouterr().err.strip()
+    assert f"still queued or running (SLURM ids {job})" in err and len(err.splitlines()) == 1, err
+    assert (tmp_path / "s" / "slurm" / "jobs.json").is_file()  # --fresh cleared nothing
+
+
+def test_cluster_jobs_group_a_method_x_seed_and_wait_only_on_what_they_continue():
+    jobs = [Job("clocked_lstm", "1", None, TRAINING), *(Job("clocked_lstm", "1", None, s) for s in "abc"),
+            Job("lookup_table", "-", None, "a"), Job("recovering", "1", None, TRAINING),
+            Job("recovering_dagger", "1", None, TRAINING), Job("recovering_dagger", "1", None, "a")]  # fmt: skip
+    whole = cluster_tasks(jobs, 0)  # a method x seed's training and suites in one job
+    assert [[j.part for j in t] for t in whole] == [[TRAINING, "a", "b", "c"], ["a"], [TRAINING], [TRAINING, "a"]]
+    from lerobot_pnp.report.cluster import _waits_on
+
+    assert _waits_on(whole) == [None, None, None, 2]  # DAgger's round waits for the training it continues
+    split = cluster_tasks(jobs, 2)  # the training alone, its suites two per job, each waiting on it
+    assert [[j.part for j in t] for t in split] == [[TRAINING], ["a", "b"], ["c"], ["a"], [TRAINING], [TRAINING], ["a"]]
+    assert _waits_on(split) == [None, 0, 0, None, None, 4, 5]
+
+
+@pytest.mark.parametrize(
+    ("flags", "message"),
+    [
+        (["--executor", "ray"], "executor must be one of ('local', 'slurm'), got 'ray'"),
+        (["--slurm.suites_per_job", "-1"], "slurm.suites_per_job must be an integer >= 0, got -1"),
+        (["--slurm.time", "4h"], "slurm.time must be a SLURM time limit"),
+    ],
+)
+def test_bad_executor_options_are_one_line(flags, message, tmp_path, capsys):
+    assert _report(tmp_path / "never", *flags) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and len(err.splitlines()) == 1, err
+    assert not (tmp_path / "never").exists()
