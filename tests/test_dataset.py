@@ -299,27 +299,41 @@ def test_kill_9_then_resume(tmp_path):
 
 
 # ---------------------------------------------------------------------------------------------- push
-def test_push_without_token_or_network_fails_fast_and_touches_nothing(kf, tmp_path):
+def test_push_without_token_or_network_fails_fast_and_touches_nothing(kf, tmp_path, monkeypatch, capsys):
+    """The installed CLI refuses a push without a token in one line; without a network (a dead name server
+    included) or with HF_HUB_OFFLINE it fails within its connect timeout. None of them touches the folder."""
+    import socket
+
+    from huggingface_hub import constants
+
+    from lerobot_pnp import cli
+
     root, _ = kf
     before = _snapshot(root)
     home = tmp_path / "hf_home"
-    t0 = time.time()
     res = _cli("push", f"--repo_id={REPO}", f"--root={root}", env=_cli_env(HF_HOME=str(home)))
     assert res.returncode == 2 and "no Hugging Face token" in res.stderr, res.stderr
-    t1 = time.time()
-    res = _cli(
-        "push",
-        f"--repo_id={REPO}",
-        f"--root={root}",
-        "--connect_timeout_s=3",
-        env=_cli_env(HF_HOME=str(home), HF_TOKEN="hf_not_a_real_token"),
-    )
-    assert res.returncode == 2 and "cannot push" in res.stderr, res.stderr
-    # fast: the network attempt costs about its connect timeout beyond the same CLI's start-up and checks (the
-    # token-less call above), not the Hub client's retries; relative, so a loaded machine does not fail it
-    assert time.time() - t1 < 2 * (t1 - t0) + 30
-    res = _cli("push", f"--repo_id={REPO}", f"--root={root}", env=_cli_env(HF_HUB_OFFLINE="1", HF_TOKEN="hf_x"))
-    assert res.returncode == 2 and "HF_HUB_OFFLINE" in res.stderr
+
+    push = ["push", f"--repo_id={REPO}", f"--root={root}", "--connect_timeout_s=1"]
+    monkeypatch.setattr(constants, "HF_HUB_OFFLINE", False)
+    monkeypatch.setenv("HF_TOKEN", "hf_not_a_real_token")
+    lookups = []
+
+    def dead_name_server(host, *args, **kwargs):
+        lookups.append(host)
+        time.sleep(30)  # a resolver retrying an unreachable name server
+        raise socket.gaierror(socket.EAI_AGAIN, "Temporary failure in name resolution")
+
+    monkeypatch.setattr(socket, "getaddrinfo", dead_name_server)
+    t0 = time.monotonic()
+    assert cli.main(push) == 2
+    assert lookups and time.monotonic() - t0 < 1 + 5, "the failure waited for the resolver, not the timeout"
+    err = capsys.readouterr().err
+    assert "cannot push: the Hub at" in err and "unreachable" in err and len(err.strip().splitlines()) == 1, err
+
+    monkeypatch.setattr(constants, "HF_HUB_OFFLINE", True)
+    assert cli.main(push) == 2
+    assert "HF_HUB_OFFLINE" in capsys.readouterr().err
     assert _snapshot(root) == before
 
 

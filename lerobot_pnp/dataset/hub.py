@@ -31,7 +31,6 @@ def push(cfg: PushConfig) -> dict:
     Fails fast, before anything is read for upload, when there is no token or the Hub cannot be reached.
     Never modifies the local folder.
     """
-    import socket
     from urllib.parse import urlparse
 
     root = cfg.output_root.resolve()
@@ -45,8 +44,7 @@ def push(cfg: PushConfig) -> dict:
     url = urlparse(constants.ENDPOINT)
     host, port = url.hostname, url.port or (443 if url.scheme == "https" else 80)
     try:
-        with socket.create_connection((host, port), timeout=cfg.connect_timeout_s):
-            pass
+        _connect(host, port, cfg.connect_timeout_s)
     except OSError as err:
         raise DatasetError(f"cannot push: the Hub at {constants.ENDPOINT} is unreachable ({err})") from None
     try:
@@ -59,3 +57,34 @@ def push(cfg: PushConfig) -> dict:
         "url": f"{constants.ENDPOINT}/datasets/{cfg.repo_id}",
         "tag": "v3.0",
     }
+
+
+def _connect(host: str, port: int, timeout_s: float) -> None:
+    """Open (and close) a TCP connection to ``host`` within ``timeout_s`` seconds, the name lookup included.
+
+    ``socket.create_connection``'s timeout covers the connection only: behind a dead name server the resolver's
+    own retries make a push without a network wait far longer than the timeout before it fails.
+    """
+    import socket
+    import threading
+    import time
+
+    start, found = time.monotonic(), {}
+
+    def lookup() -> None:
+        try:
+            found["addresses"] = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)
+        except OSError as err:
+            found["error"] = err
+
+    resolver = threading.Thread(target=lookup, daemon=True)  # a lookup cannot be cancelled: left to finish alone
+    resolver.start()
+    resolver.join(timeout_s)
+    if resolver.is_alive():
+        raise TimeoutError(f"no answer to the name lookup of {host} within {timeout_s:g} s")
+    if "error" in found:
+        raise found["error"]
+    left = max(timeout_s - (time.monotonic() - start), 0.1)
+    *_, address = found["addresses"][0]
+    with socket.create_connection(address[:2], timeout=left):
+        pass
