@@ -22,6 +22,10 @@ _TIME = re.compile(r"^(\d+-\d+(:\d+){0,2}|\d+(:\d+){0,2})$")
 class StudySlurmOptions(SlurmOptions):
     """``--slurm.*``: the resources of each cluster job of the study, and how its work is grouped into jobs."""
 
+    partition: str = "cpu"  # SLURM partition (sbatch --partition) of every job of the study
+    cpus_per_task: int = 1  # CPUs per job (sbatch --cpus-per-task): its suites are evaluated in that many processes
+    mem_per_cpu_gb: int = 2  # GB per CPU (an integer: sbatch rejects "1.5G")
+    time: str = "04:00:00"  # per job (sbatch --time): HH:MM:SS or D-HH:MM:SS; the longest training must fit
     job_name: str = "pnp_study"  # SLURM job name of every job of the study
     # a method x seed's evaluations per cluster job: 0 = its training and every suite in one job (the fewest jobs:
     # a suite's evaluation often takes seconds, a job's start as long); N = the training alone, then its suites N
