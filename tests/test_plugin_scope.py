@@ -223,6 +223,7 @@ def _normalised(path: Path, outs: tuple[Path, Path]) -> bytes:
     return data
 
 
+@pytest.mark.slow
 def test_lerobot_train_on_another_robots_dataset_writes_the_same_checkpoint_with_and_without_the_plugin(tmp_path):
     root = tmp_path / "other"
     _other_robot_dataset(root)
@@ -249,6 +250,7 @@ def our_dataset(tmp_path_factory) -> Path:
     return root
 
 
+@pytest.mark.slow
 def test_stock_lerobot_train_on_our_dataset_with_an_invalid_recorded_task_stops_at_start_up(our_dataset, tmp_path):
     import shutil
 
@@ -337,6 +339,7 @@ def test_lerobot_evals_policy_builders_on_our_env_refuse_what_cannot_load_as_pol
     assert not isinstance(err.value, PolicyError)
 
 
+@pytest.mark.slow
 def test_lerobot_eval_on_our_env_of_a_checkpoint_it_cannot_load_is_one_line(misfit_and_truncated, tmp_path):
     """Through the real ``lerobot-eval``: one line naming the problem, no traceback."""
     _, truncated = misfit_and_truncated
