@@ -111,7 +111,7 @@ def test_a_study_on_slurm_equals_the_local_run_and_resubmits_only_what_a_cancell
 @needs_slurm
 def test_a_folder_whose_earlier_cluster_jobs_still_run_is_refused(cluster, tmp_path, capsys):
     """A submitting process that was killed leaves its jobs running: a new run on the folder waits for them."""
-    job = subprocess.run(["sbatch", "--parsable", "-p", cluster, "--mem=100M", "--wrap", "sleep 60"],
+    job = subprocess.run(["sbatch", "--parsable", "-p", cluster, "--mem=100M", "-o", "/dev/null", "--wrap", "sleep 60"],
                          capture_output=True, text=True, check=True, timeout=30).stdout.strip()  # fmt: skip
     try:
         (tmp_path / "s" / "slurm").mkdir(parents=True)

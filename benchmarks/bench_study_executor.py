@@ -1,0 +1,81 @@
+"""The study's local path beside a baseline revision, side by side: the same tiny study, wall clock per run.
+
+`lerobot-pnp report` gained ``--executor slurm``; its default (``local``) must cost what it cost before. This runs
+the tiny study of ``tests/test_report_slurm.py`` (10 demonstrations, one epoch, the lookup table and the
+clocked LSTM on two nominal episodes) from scratch in a fresh process, in turn from a revision and from a
+baseline revision, both exported with ``git archive`` (new, old, new, old ...), each into a new output folder,
+and prints each side's runs and median. With ``--slurm PARTITION`` it also runs the study once as cluster jobs
+(``--executor slurm``) and prints its wall clock and the jobs it submitted.
+
+    OMP_NUM_THREADS=1 MUJOCO_GL=egl HF_HUB_OFFLINE=1 python benchmarks/bench_study_executor.py \\
+        --baseline de34a60 [--revision HEAD] [--rounds 3] [--workers 1] [--slurm cpu]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tarfile
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+STUDY = ["--preset", "quick", "--num_episodes", "10", "--epochs", "1", "--train_seeds", "[1000]",
+         "--methods", "[lookup_table,clocked_lstm]", "--cli_check_episodes", "0",
+         "--suites", "[{name: nominal, n_episodes: 2}]"]  # fmt: skip
+
+
+def export(revision: str, into: Path) -> Path:
+    """The package of ``revision`` in ``into`` (``git archive``): imported ahead of the installed one."""
+    archive = into / f"{revision}.tar"
+    subprocess.run(["git", "-C", str(ROOT), "archive", "-o", str(archive), revision, "lerobot_pnp"], check=True)
+    with tarfile.open(archive) as tar:
+        tar.extractall(into / revision, filter="data")
+    return into / revision
+
+
+def run(source: Path, out: Path, *flags: str) -> float:
+    """Wall seconds of one study from scratch, its package imported from ``source``."""
+    env = {**os.environ, "PYTHONPATH": str(source)}
+    probe = "import lerobot_pnp, sys; sys.exit(0 if lerobot_pnp.__file__.startswith(sys.argv[1]) else 1)"
+    subprocess.run([sys.executable, "-c", probe, str(source)], env=env, check=True)
+    cmd = [sys.executable, "-m", "lerobot_pnp.cli", "report", "--output_dir", str(out), *STUDY, *flags]
+    t = time.perf_counter()
+    subprocess.run(cmd, env=env, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    return time.perf_counter() - t
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--baseline", required=True, help="the git revision to compare with (e.g. the commit before)")
+    p.add_argument("--revision", default="HEAD", help="the git revision measured (default: HEAD)")
+    p.add_argument("--rounds", type=int, default=3)
+    p.add_argument("--workers", type=int, default=1)
+    p.add_argument("--slurm", metavar="PARTITION", help="also run the study once as cluster jobs on this partition")
+    args = p.parse_args()
+    with tempfile.TemporaryDirectory(prefix="bench_study_") as tmp:
+        tmp = Path(tmp)
+        sides = {args.revision: export(args.revision, tmp), args.baseline: export(args.baseline, tmp)}
+        times: dict[str, list[float]] = {name: [] for name in sides}
+        for r in range(args.rounds):
+            for name, source in sides.items():
+                out = tmp / f"out_{name}_{r}"
+                times[name].append(run(source, out, "--workers", str(args.workers)))
+                print(f"round {r + 1}: {name}: {times[name][-1]:.1f} s", flush=True)
+        for name, t in times.items():
+            print(f"{name}: median {statistics.median(t):.1f} s of {', '.join(f'{x:.1f}' for x in t)}")
+        if args.slurm:
+            out = tmp / "slurm"
+            flags = ["--executor", "slurm", "--slurm.partition", args.slurm, "--slurm.mem_per_cpu_gb", "1"]
+            wall = run(sides[args.revision], out, *flags)
+            jobs = json.loads((out / "slurm" / "jobs.json").read_text())["job_ids"]
+            print(f"slurm: {wall:.1f} s, the dataset's job then {len(jobs)} cluster jobs ({', '.join(jobs)})")
+
+
+if __name__ == "__main__":
+    main()
