@@ -166,6 +166,9 @@ def test_an_unknown_field_in_a_recorded_task_is_refused_by_every_reader(tmp_path
         assert "'gripper_tilt'" in str(err.value) and f"lerobot_pnp {__version__} does not know" in str(err.value), name
     assert len(messages) == 1, messages
     assert not (tmp_path / "baxter_pnp_env.json").exists()  # nothing copied
+    (root / "meta/pnp_generate.json").write_text(json.dumps({"lerobot_pnp_version": "9.0.0"}))  # who generated it
+    with pytest.raises(ConfigError, match=r"lerobot_pnp 9\.0\.0 generated the dataset: read it with that version"):
+        dataset_task(root)
 
 
 # ------------------------------------------------------------------------------------- stock lerobot-train
