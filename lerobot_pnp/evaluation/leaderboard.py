@@ -76,6 +76,10 @@ def render(runs_dir: str | Path) -> str:
         f"lerobot-pnp leaderboard --runs_dir {runs_dir} --output docs/leaderboard.md",
         "```",
         "",
+        "The expert (privileged: it reads the simulator) and the lookup table (built in memory from a dataset) are no "
+        "checkpoints; their rates on the same suites and seeds are in "
+        "[the held-out study](results/study/heldout/report.md).",
+        "",
         "| row | method | nominal | " + " | ".join(a.name for a in HELD_OUT_AXES) + " |",
         "|---|---|---|" + "---|" * len(HELD_OUT_AXES),
     ]
