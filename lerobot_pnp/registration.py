@@ -66,12 +66,14 @@ def register_env_config() -> None:
 
 
 def register_policy_config() -> None:
-    """``--policy.type=pnp_lstm`` / ``--policy.path``: importing the configuration module registers it (LeRobot
-    finds the policy and its processors from that module's name when it builds them)."""
+    """``--policy.type=pnp_lstm`` / ``pnp_pixels`` / ``--policy.path``: importing the configuration modules registers
+    them (LeRobot finds each policy and its processors from its module's name when it builds them)."""
     from lerobot_pnp.cli_help import annotate_stock_help
     from lerobot_pnp.policy.configuration_pnp_lstm import PnpLstmConfig
+    from lerobot_pnp.policy.configuration_pnp_pixels import PnpPixelsConfig
 
     annotate_stock_help(PnpLstmConfig)
+    annotate_stock_help(PnpPixelsConfig)
 
 
 def register_task_record() -> None:

@@ -58,3 +58,195 @@ def test_the_two_settings_render_different_deterministic_images():
     assert not np.array_equal(images[True], images[False])
     # the scene is the same: the images differ in shading, not in what is where
     assert np.abs(images[True].astype(int) - images[False].astype(int)).mean() < 40
+
+
+# ---------------------------------------------------------------------------------------------- the policy
+STATE_DIM, ENV_DIM, ACTION_DIM, SIZE = 8, 7, 8, 32  # the video codec (SVT-AV1) fails on 24x24
+
+
+def _config(**changes):
+    from lerobot.configs.types import FeatureType, PolicyFeature
+
+    from lerobot_pnp.policy import PnpPixelsConfig
+
+    cfg = PnpPixelsConfig(**{"hidden_size": 32, "conv_channels": [8, 8], "num_keypoints": 4, **changes})
+    cfg.input_features = {
+        "observation.state": PolicyFeature(type=FeatureType.STATE, shape=(STATE_DIM,)),
+        "observation.environment_state": PolicyFeature(type=FeatureType.ENV, shape=(ENV_DIM,)),
+        "observation.images.front": PolicyFeature(type=FeatureType.VISUAL, shape=(3, SIZE, SIZE)),
+    }
+    cfg.output_features = {"action": PolicyFeature(type=FeatureType.ACTION, shape=(ACTION_DIM,))}
+    return cfg
+
+
+def _policy(**changes):
+    import torch
+
+    from lerobot_pnp.policy import PnpPixelsPolicy
+
+    torch.manual_seed(0)
+    return PnpPixelsPolicy(_config(**changes))
+
+
+def _episodes(b: int = 3, t: int = 6, seed: int = 0) -> dict:
+    import torch
+
+    g = torch.Generator().manual_seed(seed)
+    pad = torch.zeros(b, t, dtype=torch.bool)
+    pad[0, t - 2 :] = True  # a shorter episode, padded
+    return {
+        "observation.state": torch.randn(b, t, STATE_DIM, generator=g),
+        "observation.environment_state": torch.randn(b, t, ENV_DIM, generator=g),
+        "observation.images.front": torch.rand(b, t, 3, SIZE, SIZE, generator=g),
+        "action": torch.randn(b, t, ACTION_DIM, generator=g),
+        "action_is_pad": pad,
+        "phase.subtask": (torch.arange(t) >= t // 2).long().expand(b, t).clone(),
+        "phase.index": torch.arange(t).clamp(max=9).expand(b, t).clone(),
+    }
+
+
+def test_forward_backward_shapes_and_the_auxiliary_pose_loss():
+    policy = _policy()
+    policy.train()
+    batch = _episodes()
+    loss, info = policy.forward(batch)
+    assert loss.ndim == 0 and "pose_loss" in info
+    loss.backward()
+    encoder_grads = [p.grad for p in policy.encoders.parameters()]
+    assert all(g is not None and bool(g.abs().sum() > 0) for g in encoder_grads)
+    per_sample, _ = policy.forward(batch, reduction="none")
+    assert per_sample.shape == (3,)
+    feats, real = policy.keypoints(batch)
+    assert feats.shape == (3, 6, 2 * 4) and not bool(feats[0, -2:].any()) and int(real.sum()) == 16
+    without = _policy(pose_loss_weight=0.0)
+    assert without.pose_head is None and "pose_loss" not in without.forward(batch)[1]
+
+
+def _act(policy, frames: list[dict]) -> list:
+    import torch
+
+    policy.reset()
+    return [policy.select_action(f).clone() for f in frames] if frames else [torch.empty(0)]
+
+
+def _frames(env_state: str = "random") -> list[dict]:
+    import torch
+
+    batch = _episodes(b=2, t=4, seed=1)
+    out = []
+    for k in range(4):
+        frame = {key: batch[key][:, k] for key in ("observation.state", "observation.images.front")}
+        if env_state == "random":
+            frame["observation.environment_state"] = batch["observation.environment_state"][:, k]
+        elif env_state == "nan":
+            frame["observation.environment_state"] = torch.full((2, ENV_DIM), float("nan"))
+        out.append(frame)
+    return out
+
+
+def test_acting_never_reads_the_environment_state():
+    import torch
+
+    policy = _policy()
+    policy.eval()
+    seen = _act(policy, _frames("random"))
+    for other in ("nan", "absent"):
+        assert all(torch.equal(a, b) for a, b in zip(seen, _act(policy, _frames(other)), strict=True))
+    assert all(bool(torch.isfinite(a).all()) for a in seen)
+
+
+def test_the_images_change_the_actions():
+    import torch
+
+    policy = _policy()
+    policy.eval()
+    frames = _frames("absent")
+    dark = [{**f, "observation.images.front": torch.zeros_like(f["observation.images.front"])} for f in frames]
+    assert not torch.equal(_act(policy, frames)[0], _act(policy, dark)[0])
+
+
+def test_save_load_round_trip_gives_identical_actions(tmp_path):
+    import torch
+
+    from lerobot_pnp.policy import PnpLstmConfig, PnpPixelsPolicy
+
+    policy = _policy()
+    policy.eval()
+    policy.save_pretrained(tmp_path)
+    assert json.loads((tmp_path / "config.json").read_text())["type"] == "pnp_pixels"
+    assert type(PnpLstmConfig.from_pretrained(tmp_path)).__name__ == "PnpPixelsConfig"
+    loaded = PnpPixelsPolicy.from_pretrained(tmp_path)
+    loaded.eval()
+    frames = _frames("absent")
+    assert all(torch.equal(a, b) for a, b in zip(_act(policy, frames), _act(loaded, frames), strict=True))
+
+
+def test_needs_a_camera_and_the_joints():
+    from lerobot_pnp.policy import PnpPixelsPolicy
+
+    cfg = _config()
+    del cfg.input_features["observation.images.front"]
+    with pytest.raises(ConfigError, match="at least one camera"):
+        PnpPixelsPolicy(cfg)
+    with pytest.raises(ConfigError, match="num_keypoints must be >= 1"):
+        _config(num_keypoints=0)
+
+
+# ---------------------------------------------------------------------------------------------- the fast path
+def _image_of(obj, size: int = SIZE) -> np.ndarray:
+    """A grey table with the object as a bright square where it lies (x, y in the synthetic data's ranges)."""
+    image = np.full((size, size, 3), 60, dtype=np.uint8)
+    col = int(np.clip((obj[0] - 0.45) / 0.5 * (size - 4), 0, size - 4))
+    row = int(np.clip((obj[1] + 0.35) / 0.7 * (size - 4), 0, size - 4))
+    image[row : row + 4, col : col + 4] = (60, 120, 250)
+    return image
+
+
+@pytest.fixture(scope="module")
+def image_dataset(tmp_path_factory):
+    """12 synthetic keyframe episodes (tests/keyframe_synth.py) with a camera that shows the object, as video."""
+    from keyframe_synth import ACTION, OBS_ENV, OBS_STATE, T, features, synthetic_episode
+    from lerobot.datasets import LeRobotDataset
+
+    root = tmp_path_factory.mktemp("pixels") / "ds"
+    feats = {**features(), "observation.images.front": {"dtype": "video", "shape": (SIZE, SIZE, 3),
+                                                       "names": ["height", "width", "channels"]}}  # fmt: skip
+    ds = LeRobotDataset.create("test/pixels", fps=1, features=feats, root=root, use_videos=True, video_backend="pyav")
+    rng = np.random.default_rng(0)
+    for _ in range(12):
+        states, objs, acts = synthetic_episode(rng)
+        for k in range(T):
+            ds.add_frame({
+                OBS_STATE: states[k].astype(np.float32), OBS_ENV: objs[k].astype(np.float32),
+                ACTION: acts[k].astype(np.float32), "observation.images.front": _image_of(objs[k]),
+                "phase.index": np.array([k]), "phase.subtask": np.array([k // 5]),
+                "next.done": np.array([k == T - 1]), "next.success": np.array([k == T - 1]),
+                "task": "Pick the cube and place it on the target.",
+            })  # fmt: skip
+        ds.save_episode()
+    ds.finalize()
+    return root
+
+
+def test_fast_path_loads_the_frames_and_learns(image_dataset, tmp_path):
+    import torch
+
+    from lerobot_pnp.policy import PnpPixelsConfig, PnpPixelsPolicy
+    from lerobot_pnp.train_fast import TrainFastConfig, train_fast
+    from lerobot_pnp.train_fast.data import load_keyframe_data
+
+    _, data = load_keyframe_data("test/pixels", image_dataset, max_length=10, with_images=True)
+    frames = data.images["observation.images.front"]
+    assert frames.shape == (12, 10, 3, SIZE, SIZE) and frames.dtype == torch.uint8
+    # the decoded video shows the object where the recorded state puts it (lossy codec: the bright square)
+    blue = frames[3, 0, 2].float() - frames[3, 0, 0].float()
+    row, col = divmod(int(blue.argmax()), SIZE)
+    expected = _image_of(data.env_state[3, 0].numpy())[..., 2].astype(int) - 60
+    assert expected[row, col] > 0
+    policy = PnpPixelsConfig(hidden_size=32, conv_channels=[8, 8], num_keypoints=4, max_episode_length=10)
+    cfg = TrainFastConfig(dataset_repo_id="test/pixels", dataset_root=str(image_dataset), policy=policy, steps=40,
+                          batch_size=4, lr=3e-3, output_dir=str(tmp_path / "out"), progress=False)  # fmt: skip
+    result = train_fast(cfg)
+    assert result.history[-1]["train_mse"] < 0.7 * result.history[0]["train_mse"], result.history
+    loaded = PnpPixelsPolicy.from_pretrained(result.checkpoint_dir)
+    assert loaded.config.type == "pnp_pixels" and loaded.config.num_keypoints == 4

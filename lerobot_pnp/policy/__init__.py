@@ -7,13 +7,15 @@ decorated with ``PreTrainedConfig.register_subclass``). LeRobot then finds ``Pnp
 
 The planner (``ClockedPlanner``, the paper's, or ``RecoveringPlanner``; ``planner.Planner`` is their one
 interface) is a plain ``nn.Module`` that ``PnpLstmPolicy`` wraps (LeRobot's ``ACT`` / ``ACTPolicy`` split);
-the pre-processor's check step is the one place that checks observations.
+the pre-processor's check step is the one place that checks observations. ``pnp_pixels``
+(``configuration_pnp_pixels``) is the same planner on joint state + camera images, an image encoder in front.
 
 This package knows tensors and LeRobot features only: it never imports the simulator or the expert (only
 the package's error classes from ``lerobot_pnp.errors``).
 """
 
 from .configuration_pnp_lstm import PnpLstmConfig
+from .configuration_pnp_pixels import PnpPixelsConfig
 
 # The modeling side (torch modules) loads on first use: LeRobot imports this package wherever it parses a policy
 # config (its plugin discovery registers ``pnp_lstm``), and finds the policy by module name when it builds one.
@@ -21,9 +23,11 @@ _LAZY = {
     "ClockedPlanner": ".clocked",
     "PnpLstm": ".clocked",
     "PnpLstmPolicy": ".modeling_pnp_lstm",
+    "PnpPixelsPolicy": ".modeling_pnp_pixels",
     "Planner": ".planner",
     "PlannerState": ".planner",
     "make_pnp_lstm_pre_post_processors": ".processor_pnp_lstm",
+    "make_pnp_pixels_pre_post_processors": ".processor_pnp_pixels",
     "RecoveringPlanner": ".recovering",
 }
 
@@ -43,6 +47,9 @@ __all__ = [
     "PnpLstm",
     "PnpLstmConfig",
     "PnpLstmPolicy",
+    "PnpPixelsConfig",
+    "PnpPixelsPolicy",
     "RecoveringPlanner",
     "make_pnp_lstm_pre_post_processors",
+    "make_pnp_pixels_pre_post_processors",
 ]

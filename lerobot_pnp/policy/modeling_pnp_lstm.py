@@ -72,8 +72,7 @@ class PnpLstmPolicy(PreTrainedPolicy):
             and torch.get_num_threads() != config.torch_num_threads
         ):
             torch.set_num_threads(config.torch_num_threads)
-        self.input_keys: list[str] = config.model_input_keys
-        input_dim = sum(int(config.input_features[k].shape[0]) for k in self.input_keys)
+        self.input_keys, input_dim = self._planner_inputs(config)
         self.action_dim = int(config.output_features[ACTION].shape[0])
         self.model = build_planner(config, input_dim, self.action_dim)
         if dataset_meta is not None:
@@ -83,6 +82,12 @@ class PnpLstmPolicy(PreTrainedPolicy):
             config.dataset_fps = int(dataset_meta.fps)
         self.recorded_task = _recorded_task(dataset_meta)
         self.reset()
+
+    def _planner_inputs(self, config: PnpLstmConfig) -> tuple[list[str], int]:
+        """The batch keys concatenated, in order, into the planner's input, and its width (``pnp_pixels`` adds the
+        image keypoints it computes into the batch)."""
+        keys = config.model_input_keys
+        return keys, sum(int(config.input_features[k].shape[0]) for k in keys)
 
     @property
     def subtask_nets(self) -> nn.ModuleList:

@@ -18,9 +18,14 @@ import draccus
 
 from lerobot_pnp import robot
 from lerobot_pnp.errors import ConfigError
-from lerobot_pnp.policy import PnpLstmConfig
+from lerobot_pnp.policy import PnpLstmConfig, PnpPixelsConfig
 
 from .output import check_output
+
+# The policy types the fast path trains (``pnp_pixels`` is a ``PnpLstmConfig`` too: the same planner, images in
+# front). The command line's ``--policy.*`` flags are ``pnp_lstm``'s; ``pnp_pixels`` comes from a config file
+# (``TrainFastConfig.from_train_config``, e.g. configs/train_pnp_pixels.json).
+FAST_POLICIES: dict[str, type[PnpLstmConfig]] = {"pnp_lstm": PnpLstmConfig, "pnp_pixels": PnpPixelsConfig}
 
 
 @dataclass
@@ -142,9 +147,13 @@ class TrainFastConfig:
             out["dataset_root"] = str(ds["root"])
         if data.get("policy"):
             policy = dict(data["policy"])
-            ptype = policy.pop("type", "pnp_lstm")
-            if ptype != "pnp_lstm":
-                raise ConfigError(f"the fast path trains pnp_lstm only; the config's policy type is {ptype!r}")
+            ptype = policy.get("type", "pnp_lstm")
+            if ptype not in FAST_POLICIES:
+                raise ConfigError(
+                    f"the fast path trains {sorted(FAST_POLICIES)}; the config's policy type is {ptype!r}"
+                )
+            if ptype == "pnp_lstm":
+                policy.pop("type", None)
             out["policy"] = policy
         for key in ("batch_size", "seed"):
             if data.get(key) is not None:
@@ -184,13 +193,13 @@ def policy_config_from_dict(policy: dict[str, Any]) -> PnpLstmConfig:
     """Build a ``PnpLstmConfig`` from the ``policy`` block of a LeRobot config JSON (draccus decoding)."""
     policy = dict(policy)
     ptype = policy.pop("type", "pnp_lstm")
-    if ptype != "pnp_lstm":
-        raise ConfigError(f"the fast path trains pnp_lstm only; the config's policy type is {ptype!r}")
+    if ptype not in FAST_POLICIES:
+        raise ConfigError(f"the fast path trains {sorted(FAST_POLICIES)}; the config's policy type is {ptype!r}")
     with tempfile.NamedTemporaryFile("w", suffix=".json", delete=False) as f:
         json.dump(policy, f)
         tmp = f.name
     try:
         with draccus.config_type("json"):
-            return draccus.parse(PnpLstmConfig, tmp, args=[])
+            return draccus.parse(FAST_POLICIES[ptype], tmp, args=[])
     finally:
         os.unlink(tmp)

@@ -50,6 +50,7 @@ class KeyframeData:
     pad: torch.Tensor | None = None  # (E, T) bool
     subtask: torch.Tensor | None = None  # (E, T) long
     phase: torch.Tensor | None = None  # (E, T) long
+    images: dict[str, torch.Tensor] | None = None  # camera key -> (E, T, 3, H, W) uint8 (image policies)
 
     def batch(self, rows: torch.Tensor) -> dict[str, torch.Tensor]:
         return {OBS_STATE: self.state[rows], OBS_ENV_STATE: self.env_state[rows], ACTION: self.action[rows]}
@@ -120,12 +121,16 @@ def validate_keyframe_dataset(
 
 
 def load_keyframe_data(
-    repo_id: str, root: str | Path | None, test_override: str | None = None, max_length: int | None = None
+    repo_id: str,
+    root: str | Path | None,
+    test_override: str | None = None,
+    max_length: int | None = None,
+    with_images: bool = False,
 ) -> tuple[Any, KeyframeData]:
     """Load a keyframe LeRobotDataset into tensors. Returns ``(dataset, data)``.
 
     ``max_length`` None: every episode must have the paper's 10 frames (clocked mode); set: episodes of any
-    length up to it, padded at the end (recovering mode).
+    length up to it, padded at the end (recovering mode). ``with_images``: its cameras' frames too (``images``).
     """
     from lerobot_pnp.dataset import open_local_dataset
 
@@ -180,4 +185,13 @@ def load_keyframe_data(
         subtask=label(SUBTASK_KEY),
         phase=label(PHASE_KEY),
     )
+    if with_images:
+        from .images import camera_keys, episode_images
+
+        if not camera_keys(ds.meta):
+            raise DatasetError(
+                f"dataset '{repo_id}' records no camera: generate it with --env.cameras (e.g. '[front]') for an "
+                "image policy"
+            )
+        data.images = {k: episode_images(ds, k, episodes, counts, t_max) for k in camera_keys(ds.meta)}
     return ds, data

@@ -22,7 +22,7 @@ import torch
 from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_STATE
 
 from lerobot_pnp.errors import ConfigError
-from lerobot_pnp.policy import PnpLstmPolicy
+from lerobot_pnp.policy import PnpLstmPolicy, PnpPixelsConfig
 from lerobot_pnp.progress import log_friendly_tqdm
 from lerobot_pnp.registration import register_task_record
 
@@ -130,8 +130,9 @@ def _normalised(preprocessor, data, rows: torch.Tensor, device) -> dict[str, tor
     """The episodes ``rows`` normalised once, with the same pre-processor lerobot-train uses (None if empty)."""
     if not len(rows):
         return None
-    out = preprocessor(data.batch(rows))
-    out = {k: out[k].to(device) for k in (OBS_STATE, OBS_ENV_STATE, ACTION)}
+    images = {k: v[rows] for k, v in (data.images or {}).items()}  # uint8 (checked, not normalised): the encoder scales
+    out = preprocessor({**data.batch(rows), **images})
+    out = {k: out[k].to(device) for k in (OBS_STATE, OBS_ENV_STATE, ACTION, *images)}
     return {**out, **{k: v.to(device) for k, v in data.extras(rows).items()}}
 
 
@@ -257,7 +258,8 @@ def _policy_and_processors(cfg: TrainFastConfig, ds) -> tuple[PnpLstmPolicy, Any
 def _train(cfg: TrainFastConfig, out_dir: Path) -> TrainFastResult:
     seed_everything(cfg.seed)
     max_length = cfg.policy.max_episode_length if cfg.policy.recovering else None
-    ds, data = load_keyframe_data(cfg.dataset_repo_id, cfg.dataset_root, cfg.test_episodes, max_length)
+    with_images = isinstance(cfg.policy, PnpPixelsConfig)
+    ds, data = load_keyframe_data(cfg.dataset_repo_id, cfg.dataset_root, cfg.test_episodes, max_length, with_images)
     logger.info(
         "Keyframe dataset %s: %d train / %d test episodes (%s)",
         cfg.dataset_repo_id,

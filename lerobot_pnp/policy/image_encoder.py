@@ -1,0 +1,76 @@
+"""A compact image encoder for the camera planner: a shallow conv net and a spatial-softmax keypoint head.
+
+Finn et al. 2016 ("Deep Spatial Autoencoders for Visuomotor Learning") and robomimic's ``ShallowConv`` +
+``SpatialSoftmax``: a few strided convolutions, then one feature map per keypoint whose softmax over the image
+gives an expected (x, y) position. The output is ``2 * num_keypoints`` numbers in [-1, 1] per camera: where in
+the image the things that matter are (the cube, the target, the gripper), which is what a planner that otherwise
+reads the cube's coordinates needs, at a small fraction of a ResNet's cost on a CPU.
+
+Training-time augmentation: a random shift of up to ``shift`` pixels per image (DrQ's pad-and-crop, as
+robomimic's crop randomiser), so that a few hundred demonstrations do not teach exact pixel positions.
+"""
+
+from __future__ import annotations
+
+import torch
+import torch.nn.functional as F  # noqa: N812
+from torch import Tensor, nn
+
+
+class SpatialSoftmax(nn.Module):
+    """``(N, K, H, W)`` feature maps -> ``(N, 2K)`` expected (x, y) of each map's softmax, in [-1, 1].
+
+    The temperature is learned (robomimic's ``learnable_temperature``): sharp maps localise, soft ones average."""
+
+    def __init__(self, height: int, width: int):
+        super().__init__()
+        ys, xs = torch.meshgrid(torch.linspace(-1, 1, height), torch.linspace(-1, 1, width), indexing="ij")
+        self.register_buffer("grid", torch.stack([xs.reshape(-1), ys.reshape(-1)], dim=1), persistent=False)
+        self.log_temperature = nn.Parameter(torch.zeros(()))
+
+    def forward(self, maps: Tensor) -> Tensor:
+        n, k = maps.shape[:2]
+        attention = torch.softmax(maps.reshape(n, k, -1) / self.log_temperature.exp(), dim=-1)
+        return (attention @ self.grid).reshape(n, 2 * k)
+
+
+class KeypointEncoder(nn.Module):
+    """One camera's images ``(N, 3, H, W)`` (float in [0, 1], or uint8) -> keypoints ``(N, 2 * num_keypoints)``.
+
+    ``channels``: the conv layers before the keypoint maps, the first 5x5 and the rest 3x3, each with stride 2;
+    the keypoint maps are a 3x3 conv on the last layer's resolution."""
+
+    def __init__(self, image_shape: tuple[int, int, int], channels: list[int], num_keypoints: int, shift: int = 0):
+        super().__init__()
+        c, h, w = image_shape
+        layers: list[nn.Module] = []
+        for i, out in enumerate(channels):
+            k = 5 if i == 0 else 3
+            layers += [nn.Conv2d(c, out, k, stride=2, padding=k // 2), nn.ReLU()]
+            c, h, w = out, (h + 1) // 2, (w + 1) // 2
+        layers.append(nn.Conv2d(c, num_keypoints, 3, padding=1))
+        self.conv = nn.Sequential(*layers)
+        self.softmax = SpatialSoftmax(h, w)
+        self.shift = shift
+        self.out_dim = 2 * num_keypoints
+
+    def forward(self, images: Tensor) -> Tensor:
+        x = images.float() / 255.0 if images.dtype == torch.uint8 else images
+        if self.training and self.shift > 0:
+            x = random_shift(x, self.shift)
+        return self.softmax(self.conv((x - 0.5) * 4.0))
+
+
+def random_shift(images: Tensor, shift: int) -> Tensor:
+    """Each image moved by a random whole number of pixels in ``[-shift, shift]`` in x and y, its border repeated
+    (DrQ's augmentation: replicate-pad, then crop at a random offset, as one ``grid_sample``)."""
+    n, _, h, w = images.shape
+    padded = F.pad(images, (shift, shift, shift, shift), mode="replicate")
+    hp, wp = h + 2 * shift, w + 2 * shift
+    # sampling grid of the unshifted crop, in the padded image's normalised coordinates (pixel centres)
+    xs = (torch.arange(w, device=images.device, dtype=images.dtype) + shift + 0.5) * 2 / wp - 1
+    ys = (torch.arange(h, device=images.device, dtype=images.dtype) + shift + 0.5) * 2 / hp - 1
+    base = torch.stack(torch.meshgrid(ys, xs, indexing="ij")[::-1], dim=-1)  # (h, w, 2) as (x, y)
+    offsets = torch.randint(-shift, shift + 1, (n, 1, 1, 2), device=images.device).to(images.dtype)
+    offsets = offsets * torch.tensor([2.0 / wp, 2.0 / hp], device=images.device, dtype=images.dtype)
+    return F.grid_sample(padded, base.unsqueeze(0) + offsets, mode="nearest", align_corners=False)
