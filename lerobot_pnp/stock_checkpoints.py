@@ -72,9 +72,9 @@ def run_config_is_ours(cfg) -> bool:
     task (what the hooks check before they act)."""
     from lerobot_pnp.presets import ENV_TYPE
     from lerobot_pnp.recorded_task import RECORDED_FILE
-    from lerobot_pnp.stock_cli import POLICY_TYPE
+    from lerobot_pnp.stock_cli import POLICY_TYPES
 
-    if getattr(getattr(cfg, "policy", None), "type", None) == POLICY_TYPE:
+    if getattr(getattr(cfg, "policy", None), "type", None) in POLICY_TYPES:
         return True
     if getattr(getattr(cfg, "env", None), "type", None) == ENV_TYPE:
         return True

@@ -20,7 +20,7 @@ from pathlib import Path
 from lerobot_pnp.presets import ENV_TYPE
 from lerobot_pnp.recorded_task import CHECKPOINT_RECORDED_FILE, RECORDED_FILE
 
-POLICY_TYPE = "pnp_lstm"  # the type configuration_pnp_lstm registers (that module loads LeRobot's configs)
+POLICY_TYPES = ("pnp_lstm",)  # the policy types our configuration modules register (they load LeRobot's configs)
 
 
 def stock_script() -> str | None:
@@ -86,7 +86,7 @@ def run_is_ours() -> bool:
     config = _config_file()
     env_type = arg("env.type") or _section(config, "env").get("type")
     policy_type = arg("policy.type") or _section(config, "policy").get("type")
-    if env_type == ENV_TYPE or policy_type == POLICY_TYPE:
+    if env_type == ENV_TYPE or policy_type in POLICY_TYPES:
         return True
     folders = [task_source_from_argv(), *dataset_roots_from_argv(), arg("policy.path")]
     repo_id = arg("dataset.repo_id") or _section(config, "dataset").get("repo_id")
@@ -120,4 +120,4 @@ def _names_ours(path: Path, key: str | None) -> bool:
     except (OSError, UnicodeDecodeError, json.JSONDecodeError):
         return False
     section = (data.get(key) if key else data) if isinstance(data, dict) else None
-    return isinstance(section, dict) and section.get("type") in (ENV_TYPE, POLICY_TYPE)
+    return isinstance(section, dict) and section.get("type") in (ENV_TYPE, *POLICY_TYPES)
