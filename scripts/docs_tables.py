@@ -151,39 +151,32 @@ def heldout_suites(base: str) -> str:
     return "\n".join([*lines, "", study_source()])
 
 
-def _pooled(rows: dict, suite: str) -> tuple[int, int]:
-    return sum(r[suite]["successes"] for r in rows.values()), sum(r[suite]["n"] for r in rows.values())
+def _counted(k: int, n: int) -> str:
+    """``k`` of ``n`` as a rate with its 95 % Wilson interval (the package's)."""
+    from lerobot_pnp.evaluation.stats import wilson_interval
+
+    return _cell({"rate": k / n, "interval": wilson_interval(k, n)})
 
 
 def gate_table(base: str) -> str:
     """The observation gate on and off, the same weights: latency beyond the trained one step."""
-    from lerobot_pnp.evaluation.stats import wilson_interval
-
     data = _json("recovering_gate_3seeds_eval.json")
     lines = ["| suite | gate on | gate off (same weights) |", "|---|---|---|"]
     for suite in ("train_latency", "heldout_latency_2", "heldout_latency_jitter"):
-        cells = []
-        for arm in ("gated", "ungated"):
-            k, n = _pooled(data[arm], suite)
-            lo, hi = wilson_interval(k, n)
-            cells.append(f"{_pct(k / n)} % [{100 * lo:.1f}, {100 * hi:.1f}] ({k}/{n})")
-        lines.append(f"| `{suite}` | " + " | ".join(cells) + " |")
+        counts = [
+            [sum(r[suite][f] for r in data[arm].values()) for f in ("successes", "n")] for arm in ("gated", "ungated")
+        ]
+        lines.append(f"| `{suite}` | " + " | ".join(f"{_counted(k, n)} ({k}/{n})" for k, n in counts) + " |")
     return "\n".join([*lines, "", _source("recovering_gate_3seeds_eval.json")])
 
 
 def memory_table(base: str) -> str:
     """Memory per attempt on and off, the same training and eval seeds."""
-    from lerobot_pnp.evaluation.stats import wilson_interval
-
     data = _json("memory_per_attempt.json")
     lines = ["| suite | memory carried over the episode | memory per attempt |", "|---|---|---|"]
     for suite in ("nominal", "train_displace", "heldout_double_displace", "heldout_latency_2"):
         row = data["suites"][suite]
-        cells = []
-        for arm in ("carried", "per_attempt"):
-            k, n = row[arm], row["n"]
-            lo, hi = wilson_interval(k, n)
-            cells.append(f"{_pct(k / n)} % [{100 * lo:.1f}, {100 * hi:.1f}]")
+        cells = [_counted(row[arm], row["n"]) for arm in ("carried", "per_attempt")]
         lines.append(f"| `{suite}` (n={row['n']}) | " + " | ".join(cells) + " |")
     seeds = ", ".join(map(str, data["train_seeds"]))
     return "\n".join([*lines, "", f"Training seeds {seeds} pooled. " + _source("memory_per_attempt.json")])
