@@ -5,7 +5,8 @@ the tiny study of ``tests/test_report_slurm.py`` (10 demonstrations, one epoch, 
 clocked LSTM on two nominal episodes) from scratch in a fresh process, in turn from a revision and from a
 baseline revision, both exported with ``git archive`` (new, old, new, old ...), each into a new output folder,
 and prints each side's runs and median. With ``--slurm PARTITION`` it also runs the study once as cluster jobs
-(``--executor slurm``) and prints its wall clock and the jobs it submitted.
+(``--executor slurm``, from the installed package, which its jobs import) and prints its wall clock and the jobs
+it submitted.
 
     OMP_NUM_THREADS=1 MUJOCO_GL=egl HF_HUB_OFFLINE=1 python benchmarks/bench_study_executor.py \\
         --baseline de34a60 [--revision HEAD] [--rounds 3] [--workers 1] [--slurm cpu]
@@ -15,7 +16,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import statistics
 import subprocess
 import sys
@@ -31,22 +31,32 @@ STUDY = ["--preset", "quick", "--num_episodes", "10", "--epochs", "1", "--train_
 
 
 def export(revision: str, into: Path) -> Path:
-    """The package of ``revision`` in ``into`` (``git archive``): imported ahead of the installed one."""
+    """The package of ``revision`` in ``into`` (``git archive``), laid out as installed (the scene in
+    ``lerobot_pnp/assets``): imported ahead of the installed one."""
     archive = into / f"{revision}.tar"
-    subprocess.run(["git", "-C", str(ROOT), "archive", "-o", str(archive), revision, "lerobot_pnp"], check=True)
+    subprocess.run(["git", "-C", str(ROOT), "archive", "-o", str(archive), revision, "lerobot_pnp", "envs"], check=True)
     with tarfile.open(archive) as tar:
         tar.extractall(into / revision, filter="data")
+    (into / revision / "envs").rename(into / revision / "lerobot_pnp" / "assets")
     return into / revision
+
+
+# the package imported from the folder given first, not from the editable install's finder
+LAUNCH = """import sys
+sys.meta_path[:] = [f for f in sys.meta_path if "editable" not in str(f).lower()]
+sys.path.insert(0, sys.argv.pop(1))
+import lerobot_pnp
+assert lerobot_pnp.__file__.startswith(sys.path[0]), lerobot_pnp.__file__
+from lerobot_pnp.cli import main
+sys.exit(main(sys.argv[1:]))
+"""
 
 
 def run(source: Path, out: Path, *flags: str) -> float:
     """Wall seconds of one study from scratch, its package imported from ``source``."""
-    env = {**os.environ, "PYTHONPATH": str(source)}
-    probe = "import lerobot_pnp, sys; sys.exit(0 if lerobot_pnp.__file__.startswith(sys.argv[1]) else 1)"
-    subprocess.run([sys.executable, "-c", probe, str(source)], env=env, check=True)
-    cmd = [sys.executable, "-m", "lerobot_pnp.cli", "report", "--output_dir", str(out), *STUDY, *flags]
+    cmd = [sys.executable, "-c", LAUNCH, str(source), "report", "--output_dir", str(out), *STUDY, *flags]
     t = time.perf_counter()
-    subprocess.run(cmd, env=env, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     return time.perf_counter() - t
 
 
@@ -72,7 +82,7 @@ def main() -> None:
         if args.slurm:
             out = tmp / "slurm"
             flags = ["--executor", "slurm", "--slurm.partition", args.slurm, "--slurm.mem_per_cpu_gb", "1"]
-            wall = run(sides[args.revision], out, *flags)
+            wall = run(ROOT, out, *flags)  # the cluster jobs' Python imports the installed package
             jobs = json.loads((out / "slurm" / "jobs.json").read_text())["job_ids"]
             print(f"slurm: {wall:.1f} s, the dataset's job then {len(jobs)} cluster jobs ({', '.join(jobs)})")
 
