@@ -5,8 +5,8 @@ schedules, ``builders``: how each method is trained and evaluated, ``training``:
 training), ``baselines`` (the
 open-loop lookup table), ``adapters`` (the only calls into the dataset generator and the fast trainer),
 ``config`` (``StudyConfig`` and its presets), ``layout`` (every path of a study), ``run`` (the stages, cached
-on disk and resumable; ``schedule``: its jobs and their pool, ``job``: what one job does, ``cross_check``: the
-`lerobot-eval` cross-check), ``results`` (pooled rates and paired comparisons), ``figures`` / ``plots``,
+on disk and resumable; ``schedule``: its jobs and their pool, ``job``: what one job does, ``cluster``: the same
+jobs as SLURM jobs, ``slurm``: their options, ``cross_check``: the `lerobot-eval` cross-check), ``results`` (pooled rates and paired comparisons), ``figures`` / ``plots``,
 ``claims``, ``markdown`` and ``preamble`` (the text; ``preamble``: its opening and Methods section), ``writer`` (``report.md`` and ``summary.json``). Suites, statistics
 and the evaluators live in ``lerobot_pnp.evaluation``.
 """
