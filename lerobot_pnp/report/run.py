@@ -15,7 +15,7 @@ so the report states the config of its results. The output folder is locked for 
 only the entries of its manifest, every study's manifest checked before any folder is cleared.
 
 This module runs the stages in order; the jobs and their pool: ``report.schedule``; what one job does (train,
-evaluate): ``report.job``; the `lerobot-eval` cross-check: ``report.cross_check``; the config and its presets:
+evaluate): ``report.job``; the same datasets and jobs as SLURM jobs (``--executor slurm``): ``report.cluster``; the `lerobot-eval` cross-check: ``report.cross_check``; the config and its presets:
 ``report.config``; every path under the output folder: ``report.layout``.
 """
 
