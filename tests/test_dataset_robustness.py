@@ -72,23 +72,23 @@ def small(tmp_path_factory):
 
 
 # ---------------------------------------------------------------------------------------------- 1: overwrite
-def test_overwrite_and_resume_refuse_a_running_generation(tmp_path):
+def test_overwrite_and_resume_refuse_a_running_generation(tmp_path, capsys):
+    """The running generation is the console script; the two attempts go through ``cli.main`` in this process
+    (the lock is the other process's either way)."""
+    from lerobot_pnp.cli import main
+
     root = tmp_path / "running"
     proc = subprocess.Popen(_args(root, 12, "--tasks=4", "--workers=1"), env=_env(), stderr=subprocess.PIPE, text=True)
     try:
         _wait_for(_first_shard_done(root), proc)
         os.kill(proc.pid, signal.SIGSTOP)  # a generation that is still running (paused, so the test is not a race)
         before = sorted(p.name for p in (root / ".pnp_work" / "shards").iterdir())
-        attempts = [
-            subprocess.Popen(
-                _args(root, 12, flag), env=_env(), stderr=subprocess.PIPE, stdout=subprocess.PIPE, text=True
+        for flag in ("--overwrite", "--resume"):
+            rc = main(_args(root, 12, flag)[1:])
+            err = capsys.readouterr().err
+            _one_line_error(
+                subprocess.CompletedProcess([flag], rc, "", err), "another `lerobot-pnp generate` is writing"
             )
-            for flag in ("--overwrite", "--resume")
-        ]
-        for attempt in attempts:
-            out, err = attempt.communicate(timeout=240)
-            _one_line_error(subprocess.CompletedProcess(attempt.args, attempt.returncode, out, err),
-                            "another `lerobot-pnp generate` is writing")  # fmt: skip
         assert sorted(p.name for p in (root / ".pnp_work" / "shards").iterdir()) == before  # nothing deleted
         os.kill(proc.pid, signal.SIGCONT)
         assert proc.wait(timeout=240) == 0, proc.stderr.read()
@@ -100,7 +100,9 @@ def test_overwrite_and_resume_refuse_a_running_generation(tmp_path):
 
 
 # ---------------------------------------------------------------------------------------------- 2, 3: kill + resume
-def test_resume_after_kill_keeps_unrelated_files_and_finishes(tmp_path):
+def test_resume_after_kill_keeps_unrelated_files_and_finishes(tmp_path, capsys):
+    from lerobot_pnp.cli import main
+
     root = tmp_path / "killed"
     root.mkdir()
     proc = subprocess.Popen(_args(root, 8, "--tasks=4", "--workers=1"), env=_env(), stderr=subprocess.PIPE)
@@ -112,9 +114,8 @@ def test_resume_after_kill_keeps_unrelated_files_and_finishes(tmp_path):
     shutil.rmtree(root / ".pnp_work" / "logs" / "completions", ignore_errors=True)
     (root / "notes.txt").write_text("keep me")
     (root / "meta").mkdir(exist_ok=True)  # a partial commit of a killed merge is redone, not kept
-    res = _run(_args(root, 8, "--resume"))
-    assert res.returncode == 0, res.stderr[-3000:]
-    assert json.loads(res.stdout)["episodes_reused"] >= 2
+    assert main(_args(root, 8, "--resume", "--workers=1")[1:]) == 0  # killed: the console script; resumed: cli.main
+    assert json.loads(capsys.readouterr().out)["episodes_reused"] >= 2
     assert (root / "notes.txt").read_text() == "keep me"
     assert verify_dataset(root)["total_episodes"] == 8
     # --overwrite replaces the dataset, not the user's files
