@@ -151,22 +151,25 @@ class Submitter:
         return jobs
 
     def wait(self, jobs: list, what: list[str]) -> list:
-        """Each job's result, once every job has ended; a job that failed or was cancelled is one line naming it,
-        its error and its log, after the others ended (the folder lock held until then). Interrupted: every job
-        still queued or running is cancelled."""
+        """Each job's result, once every job has left the queue; a job that failed or was cancelled is one line
+        naming it, its error and its log, after the others ended (the folder lock held until then). Interrupted:
+        every job still queued or running is cancelled."""
         ended: dict[int, tuple[bool, object]] = {}
+        gone: set[int] = set()  # out of the queue without a result at the last look (a result may lag on NFS)
         started = time.monotonic()
         try:
             while len(ended) < len(jobs):
                 live = _queued([j.job_id for i, j in enumerate(jobs) if i not in ended])
-                for i, job in enumerate(jobs):
-                    if i in ended or (live is not None and job.job_id in live and not job.paths.result_pickle.exists()):
+                for i, job in enumerate(jobs):  # ended: out of the queue, so nothing of it writes on
+                    if i in ended or live is None or job.job_id in live:
                         continue
                     if job.paths.result_pickle.exists():
                         error = job.exception()
                         ended[i] = (error is None, error if error is not None else job.result())
-                    elif live is not None:  # gone from the queue without a result: cancelled, killed, out of time
+                    elif i in gone:  # no result, twice: cancelled, killed, out of time
                         ended[i] = (False, None)
+                    else:
+                        gone.add(i)
                 if len(ended) < len(jobs):
                     time.sleep(min(POLL_S[1], POLL_S[0] + (time.monotonic() - started) / 60))
         except BaseException:
