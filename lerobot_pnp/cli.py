@@ -205,6 +205,8 @@ def main(argv: list[str] | None = None) -> int:
             print(command_help(name, summary, config_cls))
             return 0
         config_path, args = _split_config_path(args)
+        if hasattr(config_cls, "command_class"):  # a config class chosen by the input (train: the policy type)
+            config_cls, args = config_cls.command_class(config_path, args)
         args = normalize_args(config_cls, args)
         try:
             with tempfile.TemporaryDirectory(prefix="lerobot_pnp_cfg_") as tmp:

@@ -250,3 +250,32 @@ def test_fast_path_loads_the_frames_and_learns(image_dataset, tmp_path):
     assert result.history[-1]["train_mse"] < 0.7 * result.history[0]["train_mse"], result.history
     loaded = PnpPixelsPolicy.from_pretrained(result.checkpoint_dir)
     assert loaded.config.type == "pnp_pixels" and loaded.config.num_keypoints == 4
+
+
+def test_the_shipped_config_trains_on_both_paths(image_dataset, tmp_path):
+    """configs/train_pnp_pixels.json: a stock ``lerobot-train`` config of LeRobot's registered ``pnp_pixels``, and
+    ``lerobot-pnp train --config_path`` of it (or ``--policy.type=pnp_pixels``) runs the fast path."""
+    from pathlib import Path
+
+    from lerobot.configs.policies import PreTrainedConfig
+
+    from lerobot_pnp.cli import main
+    from lerobot_pnp.policy import PnpPixelsConfig
+    from lerobot_pnp.train_fast.config import TrainFastConfig, TrainFastPixelsConfig
+
+    path = Path(__file__).resolve().parents[1] / "configs" / "train_pnp_pixels.json"
+    policy = json.loads(path.read_text())["policy"]
+    assert isinstance(PreTrainedConfig.get_choice_class(policy.pop("type"))(**policy), PnpPixelsConfig)
+    cls, rest = TrainFastConfig.command_class(str(path), ["--policy.type=pnp_pixels", "--epochs=2"])
+    assert cls is TrainFastPixelsConfig and rest == ["--epochs=2"]
+    assert TrainFastConfig.command_class(None, ["--policy.type", "pnp_pixels"])[0] is TrainFastPixelsConfig
+    assert TrainFastConfig.command_class(None, [])[0] is TrainFastConfig
+    with pytest.raises(ConfigError, match="the fast path trains"):
+        TrainFastConfig.command_class(None, ["--policy.type=act"])
+    out = tmp_path / "cli"
+    args = ["train", f"--config_path={path}", "--dataset_repo_id=test/pixels", f"--dataset_root={image_dataset}",
+            "--steps=2", "--policy.max_episode_length=10", "--policy.hidden_size=16", "--progress=false",
+            f"--output_dir={out}"]  # fmt: skip
+    assert main(args) == 0
+    saved = json.loads((out / "checkpoints" / "last" / "pretrained_model" / "config.json").read_text())
+    assert saved["type"] == "pnp_pixels" and saved["hidden_size"] == 16 and saved["num_keypoints"] == 16

@@ -23,8 +23,7 @@ from lerobot_pnp.policy import PnpLstmConfig, PnpPixelsConfig
 from .output import check_output
 
 # The policy types the fast path trains (``pnp_pixels`` is a ``PnpLstmConfig`` too: the same planner, images in
-# front). The command line's ``--policy.*`` flags are ``pnp_lstm``'s; ``pnp_pixels`` comes from a config file
-# (``TrainFastConfig.from_train_config``, e.g. configs/train_pnp_pixels.json).
+# front); ``TrainFastConfig.command_class`` picks the command line's config class by the type.
 FAST_POLICIES: dict[str, type[PnpLstmConfig]] = {"pnp_lstm": PnpLstmConfig, "pnp_pixels": PnpPixelsConfig}
 
 
@@ -120,18 +119,44 @@ class TrainFastConfig:
     @classmethod
     def from_train_config(cls, path: str | Path, **overrides: Any) -> TrainFastConfig:
         """Build from a ``lerobot-train`` config JSON (see ``translate_config_file``), then ``overrides``."""
-        kwargs: dict[str, Any] = cls.translate_config_file(json.loads(Path(path).read_text()))
+        data = json.loads(Path(path).read_text())
+        kwargs: dict[str, Any] = cls.translate_config_file(data)
         if "policy" in kwargs:
-            kwargs["policy"] = policy_config_from_dict(kwargs["policy"])
+            kwargs["policy"] = policy_config_from_dict({**kwargs["policy"], "type": _policy_type(data)})
         kwargs.update(overrides)
         return cls(**kwargs)
+
+    @classmethod
+    def command_class(cls, config_path: str | None, args: list[str]) -> tuple[type[TrainFastConfig], list[str]]:
+        """The config class ``lerobot-pnp train`` parses into, by the policy type its config file or
+        ``--policy.type`` names (the command line's ``--policy.*`` flags are those of that type), and the
+        arguments without ``--policy.type``."""
+        ptype = "pnp_lstm"
+        if config_path is not None:
+            from draccus import cfgparsing
+
+            with open(config_path, encoding="utf-8") as f:
+                data = cfgparsing.load_config(f, file=config_path)
+            ptype = _policy_type(data) if isinstance(data, dict) else ptype
+        rest: list[str] = []
+        it = iter(args)
+        for arg in it:
+            if arg == "--policy.type":
+                ptype = next(it, "")
+            elif arg.startswith("--policy.type="):
+                ptype = arg.split("=", 1)[1]
+            else:
+                rest.append(arg)
+        if ptype not in FAST_POLICIES:
+            raise ConfigError(f"the fast path trains {sorted(FAST_POLICIES)}; the policy type is {ptype!r}")
+        return (TrainFastPixelsConfig if ptype == "pnp_pixels" else TrainFastConfig), rest
 
     @classmethod
     def translate_config_file(cls, data: dict[str, Any]) -> dict[str, Any]:
         """This config's keys from a config file, so ``lerobot-pnp train`` reads ``lerobot-train``'s files too.
 
-        A ``lerobot-train`` config (it has a ``dataset`` block) gives dataset, policy (its ``type`` must be
-        ``pnp_lstm``), batch size, seed and output dir (+ ``_fast``); keys of the stock trainer alone (``env``,
+        A ``lerobot-train`` config (it has a ``dataset`` block) gives dataset, policy (its ``type``
+        ``pnp_lstm`` or ``pnp_pixels``, dropped: ``command_class`` reads it), batch size, seed and output dir (+ ``_fast``); keys of the stock trainer alone (``env``,
         ``eval``, ``num_workers``, ``log_freq`` ...) are dropped. ``steps`` is not taken over (a
         ``lerobot-train`` step is a batch of windows, a fast-path step a batch of whole episodes): the fast
         path trains for ``epochs`` unless ``--steps`` is given. A file in this config's own keys is returned
@@ -147,13 +172,11 @@ class TrainFastConfig:
             out["dataset_root"] = str(ds["root"])
         if data.get("policy"):
             policy = dict(data["policy"])
-            ptype = policy.get("type", "pnp_lstm")
+            ptype = policy.pop("type", "pnp_lstm")
             if ptype not in FAST_POLICIES:
                 raise ConfigError(
                     f"the fast path trains {sorted(FAST_POLICIES)}; the config's policy type is {ptype!r}"
                 )
-            if ptype == "pnp_lstm":
-                policy.pop("type", None)
             out["policy"] = policy
         for key in ("batch_size", "seed"):
             if data.get(key) is not None:
@@ -161,6 +184,22 @@ class TrainFastConfig:
         if data.get("output_dir"):
             out["output_dir"] = str(data["output_dir"]) + "_fast"
         return out
+
+
+@dataclass
+class TrainFastPixelsConfig(TrainFastConfig):
+    """``lerobot-pnp train`` of ``pnp_pixels`` (a config file whose policy type it is, or ``--policy.type``): the
+    same fast path, the camera frames decoded once with the rest of the dataset."""
+
+    policy: PnpPixelsConfig = field(default_factory=PnpPixelsConfig)
+    """The ``pnp_pixels`` hyper-parameters (``--policy.num_keypoints=16`` ...)."""
+    output_dir: str = "outputs/train_fast/pnp_pixels"
+
+
+def _policy_type(data: dict[str, Any]) -> str:
+    """The policy type a config file names (``pnp_lstm`` when it names none)."""
+    policy = data.get("policy")
+    return str(policy.get("type", "pnp_lstm")) if isinstance(policy, dict) else "pnp_lstm"
 
 
 def _is_int(value: Any) -> bool:
