@@ -216,7 +216,9 @@ def run_on_slurm(jobs: list[Job], contexts: tuple, cfg, outs: list[Path], fn) ->
     if tasks:
         _submit_tasks(tasks, contexts, cfg, outs, fn)
         if left := [j for j in todo if missing(j, contexts[j.study])]:  # a job ended well without its record
-            raise ClusterJobError(f"the cluster jobs ended, but {len(left)} stages are still missing: {left[0]}")
+            raise ClusterJobError(
+                f"the cluster jobs ended, but {len(left)} stages have no record: {_describe(left[:1])}"
+            )
     return dict(run_jobs(jobs, (contexts,), 1, fn=fn)), len(tasks)
 
 
@@ -225,15 +227,20 @@ def _submit_tasks(tasks: list[list[Job]], contexts: tuple, cfg, outs: list[Path]
     submitter = Submitter(outs, cfg.slurm, cfg.workers)
     waits, submitted = _waits_on(tasks), {}
     cpus = cfg.slurm.cpus_per_task
-    while len(submitted) < len(tasks):
-        groups: dict[int | None, list[int]] = {}
-        for i, before in enumerate(waits):
-            if i not in submitted and (before is None or before in submitted):
-                groups.setdefault(before, []).append(i)
-        for before, members in groups.items():
-            after = None if before is None else submitted[before].job_id
-            calls = [(tasks[i], contexts, cpus, fn) for i in members]
-            submitted.update(zip(members, submitter.submit(_run_task, calls, cpus, after), strict=True))
+    try:
+        while len(submitted) < len(tasks):
+            groups: dict[int | None, list[int]] = {}
+            for i, before in enumerate(waits):
+                if i not in submitted and (before is None or before in submitted):
+                    groups.setdefault(before, []).append(i)
+            for before, members in groups.items():
+                after = None if before is None else submitted[before].job_id
+                calls = [(tasks[i], contexts, cpus, fn) for i in members]
+                submitted.update(zip(members, submitter.submit(_run_task, calls, cpus, after), strict=True))
+    except BaseException:  # a refused or interrupted submission leaves no job of this run behind
+        for job in submitted.values():
+            job.cancel(check=False)
+        raise
     order = sorted(submitted)
     print(f"  submitted {len(tasks)} cluster jobs (SLURM {', '.join(submitted[i].job_id for i in order[:8])}"
           f"{' ...' if len(order) > 8 else ''}); logs: {submitter.folder}", flush=True)  # fmt: skip
