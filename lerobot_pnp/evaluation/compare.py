@@ -48,9 +48,18 @@ class Run:
 
 
 def positional_runs(args: list[str]) -> list[str]:
-    """``RUN_A RUN_B --flag=v`` -> ``--flag=v --runs=[...]`` (the CLI's flags are ``--name=value``)."""
-    runs = [a for a in args if not a.startswith("-")]
-    rest = [a for a in args if a.startswith("-")]
+    """``RUN_A RUN_B --flag v --flag=v`` -> the flags, then ``--runs=[...]`` (every compare flag takes a value)."""
+    runs, rest, k = [], [], 0
+    while k < len(args):
+        arg = args[k]
+        if not arg.startswith("-"):
+            runs.append(arg)
+        elif "=" not in arg and arg not in ("-h", "--help") and k + 1 < len(args):
+            rest.append(f"{arg}={args[k + 1]}")
+            k += 1
+        else:
+            rest.append(arg)
+        k += 1
     return [*rest, f"--runs={json.dumps(runs)}"] if runs else rest
 
 
