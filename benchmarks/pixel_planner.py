@@ -1,0 +1,150 @@
+"""The camera planner (``pnp_pixels``) measured end to end: data, training, stock evaluation, ``select_action``.
+
+    .venv/bin/python benchmarks/pixel_planner.py [--episodes 300] [--epochs 100] [--ckpt_every 25]
+        [--eval_episodes 100] [--work outputs/pixel_planner] [--out docs/results/pixel_planner.json]
+
+1. Data: ``lerobot-pnp generate`` of the `full` task with one 64x64 front camera (the env's default render
+   settings: no shadows, reflections or multisampling), ``--workers`` processes; the generator's own summary
+   (wall time, simulation and writing CPU seconds).
+2. Training: ``lerobot-pnp train --config_path configs/train_pnp_pixels.json`` (the fast path) for ``--epochs``,
+   a checkpoint and a held-out loss every ``--ckpt_every`` epochs; the training's wall time at each checkpoint is
+   the loss curve's ``time_s`` (dataset loading and frame decoding before it are in ``train_wall_s``).
+3. Each checkpoint: stock ``lerobot-eval`` with no camera flag (the cameras come from the recorded task) on the
+   nominal task (the training task unchanged), ``--eval_episodes`` seeded episodes from 100000 (the dataset's
+   seeds are below); success with its 95 % Wilson interval: success against training time.
+4. ``select_action`` at batch 1 of the last checkpoint on pre-rendered observations (joints + the camera image;
+   the env's rendering is not in it), mean and median over whole episodes' worth of calls, with and without the
+   pre- and post-processors, one torch thread.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import os
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("HF_HUB_OFFLINE", "1")
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+import torch
+
+torch.set_num_threads(1)
+
+REPO = Path(__file__).resolve().parents[1]
+PNP = str(Path(sys.executable).parent / "lerobot-pnp")
+EVAL_SEED = 100_000
+CAMERA = ["--env.cameras=[front]", "--env.image_height=64", "--env.image_width=64"]
+
+
+def _run(args: list[str]) -> tuple[dict, float]:
+    """A ``lerobot-pnp`` command; its printed JSON summary and its wall time."""
+    start = time.perf_counter()
+    proc = subprocess.run(args, capture_output=True, text=True, env={**os.environ, "OMP_NUM_THREADS": "1"})
+    wall = time.perf_counter() - start
+    if proc.returncode != 0:
+        raise SystemExit(f"{' '.join(args[:2])} failed:\n{proc.stderr[-3000:]}")
+    return json.loads(proc.stdout[proc.stdout.index("{") :]), wall
+
+
+def generate(root: Path, episodes: int, workers: int) -> dict:
+    if (root / "meta" / "info.json").is_file():
+        return json.loads((root.parent / "generate.json").read_text())
+    args = [PNP, "generate", "--repo_id=local/pixel_planner_full_front64", f"--root={root}", "--seed=0"]
+    args += [f"--num_episodes={episodes}", f"--workers={workers}", "--env.preset=full", *CAMERA, "--progress=false"]
+    summary, wall = _run(args)
+    keep = ("episodes", "frames", "workers", "wall_s", "generate_wall_s", "merge_wall_s", "simulate_cpu_s")
+    out = {k: summary.get(k) for k in (*keep, "write_cpu_s")} | {"command_wall_s": round(wall, 1)}
+    (root.parent / "generate.json").write_text(json.dumps(out, indent=1))
+    return out
+
+
+def train(root: Path, out: Path, epochs: int, every: int) -> dict:
+    args = [PNP, "train", f"--config_path={REPO / 'configs' / 'train_pnp_pixels.json'}"]
+    args += ["--dataset_repo_id=local/pixel_planner_full_front64", f"--dataset_root={root}", f"--epochs={epochs}"]
+    args += [f"--save_every_epochs={every}", f"--eval_every_epochs={every}", f"--output_dir={out}", "--overwrite=true"]
+    summary, wall = _run([*args, "--progress=false"])
+    with open(out / "loss_curve.csv") as f:
+        curve = [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
+    return {"summary": summary, "train_wall_s": round(wall, 1), "curve": curve}
+
+
+def evaluate(out: Path, curve: list[dict], n: int) -> list[dict]:
+    """Stock ``lerobot-eval`` of each checkpoint on the nominal task; success and its Wilson interval."""
+    from lerobot_pnp.evaluation.stats import wilson_interval
+    from lerobot_pnp.report.cli_eval import EvalSpec, run_eval
+
+    time_at = {int(p["step"]): p["time_s"] for p in curve}
+    rows = []
+    for ckpt in sorted((out / "checkpoints").glob("[0-9]*"), key=lambda p: int(p.name)):
+        step = int(ckpt.name)
+        res = run_eval(ckpt / "pretrained_model", out / "eval" / ckpt.name, EvalSpec("nominal", n), EVAL_SEED, 50)
+        wins = sum(res["per_episode"].values())
+        low, high = wilson_interval(wins, n)
+        row = {"step": step, "train_time_s": round(time_at.get(step, float("nan")), 1), "successes": wins, "n": n,
+               "success_pct": round(100 * wins / n, 1), "wilson95_pct": [round(100 * low, 1), round(100 * high, 1)]}  # fmt: skip
+        print(row, flush=True)
+        rows.append(row)
+    return rows
+
+
+def _ms(xs: list[float]) -> dict:
+    return {"mean_ms": round(1e3 * statistics.fmean(xs), 3), "median_ms": round(1e3 * statistics.median(xs), 3)}
+
+
+@torch.inference_mode()
+def select_action_cost(ckpt: Path, episodes: int = 20, steps: int = 15) -> dict:
+    """ms per ``select_action`` at batch 1 on pre-rendered observations, with and without the processors."""
+    from lerobot_pnp.evaluation.checkpoints import load_policy
+
+    loaded = load_policy(ckpt)
+    policy = loaded.policy
+    shape = tuple(policy.config.image_features["observation.images.front"].shape)
+    raw = {"observation.state": torch.randn(1, 8), "observation.images.front": torch.rand(1, *shape), "task": ["pick"]}
+    batch = loaded.preprocessor(dict(raw))
+    bare, full = [], []
+    for times, call in ((bare, lambda: policy.select_action(batch)),
+                        (full, lambda: loaded.postprocessor(policy.select_action(loaded.preprocessor(dict(raw)))))):  # fmt: skip
+        for _ in range(episodes):
+            policy.reset()
+            for _ in range(steps):
+                t = time.perf_counter()
+                call()
+                times.append(time.perf_counter() - t)
+    params = sum(p.numel() for p in policy.parameters())
+    return {"params": params, "b1": _ms(bare[steps:]), "b1_with_processors": _ms(full[steps:])}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--episodes", type=int, default=300)
+    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--epochs", type=int, default=100)
+    parser.add_argument("--ckpt_every", type=int, default=25)
+    parser.add_argument("--eval_episodes", type=int, default=100)
+    parser.add_argument("--work", type=Path, default=REPO / "outputs" / "pixel_planner")
+    parser.add_argument("--out", type=Path, default=None)
+    args = parser.parse_args()
+    load = os.getloadavg()[0]
+    data = generate(args.work / "data", args.episodes, args.workers)
+    print("generate:", data, flush=True)
+    run = train(args.work / "data", args.work / "train", args.epochs, args.ckpt_every)
+    print("train:", run["summary"], f"{run['train_wall_s']} s", flush=True)
+    curve = evaluate(args.work / "train", run["curve"], args.eval_episodes)
+    cost = select_action_cost(args.work / "train" / "checkpoints" / "last" / "pretrained_model")
+    print("select_action:", cost, flush=True)
+    result = {"command": " ".join(["benchmarks/pixel_planner.py", *sys.argv[1:]]), "cpu_count": os.cpu_count(),
+              "load_before": round(load, 2), "generate": data, "train_wall_s": run["train_wall_s"],
+              "train_summary": run["summary"], "loss_curve": run["curve"], "nominal": curve, "select_action": cost}  # fmt: skip
+    if args.out:
+        args.out.write_text(json.dumps(result, indent=1) + "\n")
+
+
+if __name__ == "__main__":
+    main()
