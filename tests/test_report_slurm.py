@@ -122,6 +122,11 @@ def test_a_folder_whose_earlier_cluster_jobs_still_run_is_refused(cluster, tmp_p
     err = capsys.readouterr().err.strip()
     assert f"still queued or running (SLURM ids {job})" in err and len(err.splitlines()) == 1, err
     assert (tmp_path / "s" / "slurm" / "jobs.json").is_file()  # --fresh cleared nothing
+    # a job sbatch refuses is one line too
+    assert _report(tmp_path / "p", "--executor", "slurm", "--slurm.partition", "nope") == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("lerobot-pnp report: error: sbatch refused the study's jobs") and "nope" in err, err
+    assert len(err.splitlines()) == 1, err
 
 
 def test_cluster_jobs_group_a_method_x_seed_and_wait_only_on_what_they_continue():

@@ -17,6 +17,8 @@ array and keeps its own completion records, a second bookkeeping beside the stag
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 import signal
 import subprocess
@@ -140,8 +142,8 @@ class Submitter:
         self.executor.update_parameters(
             **self.base, cpus_per_task=cpus, dependency=f"afterok:{after}" if after else None
         )
-        try:
-            with self.executor.batch():
+        try:  # sbatch's refusal is this command's one line, not also printed by submitit
+            with contextlib.redirect_stderr(io.StringIO()), self.executor.batch():  # submitted on leaving batch()
                 jobs = [self.executor.submit(fn, *args) for args in calls]
         except Exception as err:  # sbatch refused: an unknown partition, a time over the partition's limit ...
             raise ClusterJobError(f"sbatch refused the study's jobs: {one_line(err)}") from None
