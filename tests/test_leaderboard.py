@@ -20,6 +20,7 @@ def test_the_committed_page_matches_the_committed_runs():
     if not RUNS.is_dir():
         pytest.skip("no committed leaderboard runs")
     assert PAGE.read_text() == render(LeaderboardConfig().runs_dir)
+    assert cli.main(["leaderboard", "--check=true"]) == 0
 
 
 def _write_row(root: Path, name: str, ok: int, n: int = 10) -> None:
@@ -36,11 +37,13 @@ def test_rows_verdicts_and_the_command_to_add_one(tmp_path):
     _write_row(tmp_path / "runs", "a_good", ok=10)
     _write_row(tmp_path / "runs", "b_weak", ok=3)
     out = tmp_path / "leaderboard.md"
-    assert cli.main(["leaderboard", f"--runs_dir={tmp_path / 'runs'}", f"--output={out}"]) == 0
+    args = ["leaderboard", f"--runs_dir={tmp_path / 'runs'}", f"--output={out}", "--episodes=10"]
+    assert cli.main([*args, "--check=true"]) == 2 and not out.exists()  # no page yet
+    assert cli.main(args) == 0 and cli.main([*args, "--check=true"]) == 0
     page = out.read_text()
     assert "| `a_good` | method a_good | 100.0% [72.2, 100.0] | 100.0 -> 100.0: generalises |" in page
     assert "| `b_weak` | method b_weak | 30.0% [10.8, 60.3] | 30.0 -> 30.0: no_recovery |" in page
-    assert "--env.task heldout" in page and "lerobot-pnp leaderboard --runs_dir" in page
+    assert "--env.task heldout --eval.n_episodes 10" in page and "lerobot-pnp leaderboard --runs_dir" in page
     assert page.count("| heldout_") == 11 and "- `b_weak`: `lerobot-eval ... b_weak`" in page
 
 
@@ -48,7 +51,10 @@ def test_a_row_that_does_not_pair_writes_nothing(tmp_path):
     _write_row(tmp_path / "runs", "a", ok=10)
     _write_row(tmp_path / "runs", "b", ok=3, n=12)
     with pytest.raises(ConfigError, match="do not pair"):
-        render(tmp_path / "runs")
+        render(tmp_path / "runs", episodes=10)
     out = tmp_path / "leaderboard.md"
-    assert cli.main(["leaderboard", f"--runs_dir={tmp_path / 'runs'}", f"--output={out}"]) == 2
+    assert cli.main(["leaderboard", f"--runs_dir={tmp_path / 'runs'}", f"--output={out}", "--episodes=10"]) == 2
     assert not out.exists()
+    _write_row(tmp_path / "short", "c", ok=3)
+    with pytest.raises(ConfigError, match="every suite needs 100 episodes"):
+        render(tmp_path / "short")

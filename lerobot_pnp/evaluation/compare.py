@@ -126,7 +126,8 @@ def parse_runs(specs: list[str]) -> list[Run]:
             bad = sorted(s for s in shared if ca[s] != cb[s])
             if bad:
                 raise ConfigError(
-                    f"compare: runs {a.name!r} and {b.name!r} do not pair on {bad}: episodes per task {ca[bad[0]]} "
+                    f"compare: runs {a.name!r} and {b.name!r} do not pair on {bad[:3]}"
+                    f"{f' and {len(bad) - 3} more suites' if len(bad) > 3 else ''}: episodes per task {ca[bad[0]]} "
                     f"vs {cb[bad[0]]} (run both with the same --eval.n_episodes and --seed)"
                 )
             _pairs(a, b)

@@ -17,8 +17,8 @@ from pathlib import Path
 from lerobot_pnp.errors import ConfigError
 
 ADD_ROW = (
-    "lerobot-eval --policy.path <checkpoint> --env.type baxter_pnp --env.task heldout --eval.n_episodes 100 "
-    "--eval.batch_size 50 --policy.device cpu --seed 100000 --output_dir {runs_dir}/<name>"
+    "lerobot-eval --policy.path <checkpoint> --env.type baxter_pnp --env.task heldout --eval.n_episodes {episodes} "
+    "--eval.batch_size 50 --policy.device cpu --seed {seed} --output_dir {runs_dir}/<name>"
 )
 
 
@@ -28,6 +28,9 @@ class LeaderboardConfig:
 
     runs_dir: str = "docs/results/leaderboard"  # one folder per row: eval_info.json (or one per seed) + row.json
     output: str = "docs/leaderboard.md"  # the generated page
+    episodes: int = 100  # episodes per suite of every row (and of the command that adds one)
+    seed: int = 100_000  # lerobot-eval --seed of every row: the study's first evaluation seed
+    check: bool = False  # write nothing; exit 2 unless the page is what the rows give (for CI)
 
 
 def _rows(runs_dir: Path) -> list[tuple[str, dict, list[str]]]:
@@ -52,15 +55,22 @@ def _rows(runs_dir: Path) -> list[tuple[str, dict, list[str]]]:
     return rows
 
 
-def render(runs_dir: str | Path) -> str:
-    """The page for the rows under ``runs_dir`` (the same text for the same files)."""
+def render(runs_dir: str | Path, episodes: int = 100, seed: int = 100_000) -> str:
+    """The page for the rows under ``runs_dir`` (the same text for the same files); every suite of every row holds
+    ``episodes`` episodes."""
     from lerobot_pnp.evaluation.compare import CompareConfig, analyse, parse_runs
     from lerobot_pnp.evaluation.suites import HELD_OUT_AXES
 
     runs_dir = Path(runs_dir)
     rows = _rows(runs_dir)
     specs = [f"{name}={','.join(runs)}" for name, _, runs in rows]
-    result = analyse(parse_runs(specs), CompareConfig(runs=specs))
+    runs = parse_runs(specs)
+    short = sorted(
+        {f"{r.name}: {s}" for r in runs for s, t in r.suites[0].items() if sum(map(len, t.values())) != episodes}
+    )
+    if short:
+        raise ConfigError(f"leaderboard: every suite needs {episodes} episodes; {short[0]} has another count")
+    result = analyse(runs, CompareConfig(runs=specs))
     table, axes = result["table"], {(a.axis.name, a.method): a for a in result["axes"]}
     lines = [
         "# Leaderboard: the held-out protocol",
@@ -72,7 +82,7 @@ def render(runs_dir: str | Path) -> str:
         "beside its `eval_info.json`, and regenerate the page:",
         "",
         "```bash",
-        ADD_ROW.format(runs_dir=runs_dir),
+        ADD_ROW.format(runs_dir=runs_dir, episodes=episodes, seed=seed),
         f"lerobot-pnp leaderboard --runs_dir {runs_dir} --output docs/leaderboard.md",
         "```",
         "",
@@ -107,7 +117,15 @@ def _axis_cell(result) -> str:
 
 
 def write_leaderboard(cfg: LeaderboardConfig) -> dict:
-    """Regenerate the page (every row read and checked first; nothing written on failure)."""
-    text = render(cfg.runs_dir)
+    """Regenerate the page (every row read and checked first; nothing written on failure), or with ``check`` say
+    whether the committed page is what the rows give."""
+    text = render(cfg.runs_dir, cfg.episodes, cfg.seed)
+    if cfg.check:
+        page = Path(cfg.output)
+        if not page.is_file() or page.read_text() != text:
+            raise ConfigError(
+                f"leaderboard: {cfg.output} is not what {cfg.runs_dir} gives; run lerobot-pnp leaderboard"
+            )
+        return {"up_to_date": cfg.output}
     Path(cfg.output).write_text(text)
     return {"written": cfg.output}
