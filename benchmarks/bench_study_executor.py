@@ -3,8 +3,9 @@
 `lerobot-pnp report` gained ``--executor slurm``; its default (``local``) must cost what it cost before. This runs
 the tiny study of ``tests/test_report_slurm.py`` (10 demonstrations, one epoch, the lookup table and the
 clocked LSTM on two nominal episodes) from scratch in a fresh process, in turn from a revision and from a
-baseline revision, both exported with ``git archive`` (new, old, new, old ...), each into a new output folder,
-and prints each side's runs and median. With ``--slurm PARTITION`` it also runs the study once as cluster jobs
+baseline revision, both exported with ``git archive`` (new then old, old then new, ...), each into a new output
+folder, and prints each side's runs and median: the process's wall clock, and the study's own (``summary.json``
+``run/wall_clock``: the stages, imports left out). With ``--slurm PARTITION`` it also runs the study once as cluster jobs
 (``--executor slurm``, from the installed package, which its jobs import) and prints its wall clock and the jobs
 it submitted.
 
@@ -72,13 +73,16 @@ def main() -> None:
         tmp = Path(tmp)
         sides = {args.revision: export(args.revision, tmp), args.baseline: export(args.baseline, tmp)}
         times: dict[str, list[float]] = {name: [] for name in sides}
+        study: dict[str, list[float]] = {name: [] for name in sides}  # the study's own wall, imports left out
         for r in range(args.rounds):
-            for name, source in sides.items():
+            for name, source in list(sides.items())[:: 1 if r % 2 == 0 else -1]:  # each side first in turn
                 out = tmp / f"out_{name}_{r}"
                 times[name].append(run(source, out, "--workers", str(args.workers)))
-                print(f"round {r + 1}: {name}: {times[name][-1]:.1f} s", flush=True)
+                study[name].append(json.loads((out / "summary.json").read_text())["timings_s"]["run/wall_clock"])
+                print(f"round {r + 1}: {name}: {times[name][-1]:.1f} s (study {study[name][-1]:.1f} s)", flush=True)
         for name, t in times.items():
-            print(f"{name}: median {statistics.median(t):.1f} s of {', '.join(f'{x:.1f}' for x in t)}")
+            print(f"{name}: median {statistics.median(t):.1f} s of {', '.join(f'{x:.1f}' for x in t)}; the study "
+                  f"itself: median {statistics.median(study[name]):.1f} s")  # fmt: skip
         if args.slurm:
             out = tmp / "slurm"
             flags = ["--executor", "slurm", "--slurm.partition", args.slurm, "--slurm.mem_per_cpu_gb", "1"]
