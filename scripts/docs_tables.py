@@ -142,8 +142,8 @@ def heldout_suites(base: str) -> str:
     lines = ["| suite | " + " | ".join(PAPER_METHODS[m] for m in cols) + " |", "|---" * (len(cols) + 1) + "|"]
     for suite, cells in summary["success"].items():
         rec = cells["recovering"]
-        seeds = "-".join(_pct(r) for r in (min(rec["per_seed"]), max(rec["per_seed"])))
-        first = f"{_cell(rec)} n={rec['n']}, seeds {seeds} %"
+        low, high = (_pct(r) for r in (min(rec["per_seed"]), max(rec["per_seed"])))
+        first = f"{_cell(rec)} n={rec['n']}, " + (f"every seed {low} %" if low == high else f"seeds {low}-{high} %")
         rest = [f"{_pct(cells[m]['rate'])} %" if m in cells else "-" for m in cols[1:]]
         alias = summary["suite_aliases"].get(suite)
         name = f"`{suite}`" + (f" (= `{alias}`)" if alias else "")
