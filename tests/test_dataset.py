@@ -182,6 +182,19 @@ def test_deterministic_across_worker_counts(kf, tmp_path):
     assert data_hash(tmp_path / "w2") == data_hash(root)
 
 
+def test_a_small_generation_starts_no_worker_pool():
+    """Each shard beyond the first costs a spawned worker, which imports LeRobot and torch before it simulates
+    anything: shards of less than half their size run in this process instead, larger ones on every core."""
+    from lerobot_pnp.env_config import BaxterPnPEnvConfig
+
+    def tasks(n: int, **env) -> int:
+        return _cfg("/nowhere", num_episodes=n, env=BaxterPnPEnvConfig(**env)).auto_tasks(workers=2)
+
+    assert [tasks(n) for n in (3, 10, 99, 100, 150, 250)] == [1, 1, 1, 2, 2, 3]
+    assert [tasks(n, control_mode="dense", fps=20) for n in (9, 19, 20, 40)] == [1, 1, 2, 2]
+    assert [tasks(n, control_mode="dense", cameras=["front"]) for n in (1, 3, 4)] == [1, 1, 2]
+
+
 # ---------------------------------------------------------------------------------------------- existing roots
 def test_existing_root_is_an_error_and_untouched(kf, capsys):
     from lerobot_pnp import cli

@@ -136,7 +136,9 @@ class GenerateConfig:
         size = SHARD_SIZE[kind] * (10 if self.executor == "slurm" else 1)
         tasks = math.ceil(self.num_episodes / size)
         if self.executor == "local":
-            tasks = max(tasks, min(self.num_episodes, workers))  # every worker gets a shard
+            # every worker gets a shard while a shard keeps half its size: a smaller one would cost its worker's
+            # start-up (LeRobot and torch imported in a spawned process) more than it saves
+            tasks = max(tasks, min(workers, self.num_episodes // max(1, size // 2)))
         return tasks
 
     def run_record(self, tasks: int) -> dict:
