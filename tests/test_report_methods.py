@@ -209,6 +209,7 @@ def test_a_pool_takes_the_likely_longest_jobs_first():
                                                      ("recovering", "1", "nominal", 0)]  # fmt: skip
 
 
+@pytest.mark.slow
 def test_studies_alongside_share_one_pool_and_keep_their_own_reports(tmp_path):
     """`alongside`: a second study's jobs run in the first one's pool (two processes, a trained method's suites
     as jobs of their own); each study writes its own records and report, and running it again redoes nothing."""
