@@ -94,6 +94,13 @@ def test_unknown_or_no_suite_is_one_line_naming_the_valid_ones(task):
     assert ("'bogus'" in message) if "bogus" in task else ("empty" in message)
 
 
+def test_suites_in_threads_are_refused():
+    """eval_policy_all's threads share one policy object: a recurrent policy's memory would mix suites."""
+    with pytest.raises(ConfigError, match="max_parallel_tasks=2"):
+        BaxterPnPEnvConfig(preset="paper", task="nominal,drop", max_parallel_tasks=2)
+    assert BaxterPnPEnvConfig(preset="paper", max_parallel_tasks=2).max_parallel_tasks == 2  # one task: no threads
+
+
 def test_a_suite_contradicting_the_checkpoints_control_mode(tmp_path):
     """A nudge suite fires at keyframe step 1: in a dense checkpoint's task that is before the arm moves."""
     dense = BaxterPnPEnvConfig(preset="paper", control_mode="dense")

@@ -126,8 +126,13 @@ def _check_control_mode(name: str, changes: dict, part: Any) -> None:
 
 def check_task(cfg: Any) -> None:
     """Refuse a bad ``--env.task`` when the config is built (one ConfigError): unknown or no names, a suite whose
-    changes do not apply to the resolved task."""
-    suite_configs(cfg)
+    changes do not apply to the resolved task, suites run in threads (``eval_policy_all`` shares one policy object
+    between its threads: a recurrent policy's state would mix episodes of different suites)."""
+    if suite_configs(cfg) is not None and getattr(cfg, "max_parallel_tasks", 1) > 1:
+        raise ConfigError(
+            f"env.max_parallel_tasks={cfg.max_parallel_tasks}: lerobot-eval would run the suites in threads sharing "
+            "one policy, whose memory would mix their episodes; leave it at 1"
+        )
 
 
 def create_suite_envs(cfg: Any, n_envs: int, use_async_envs: bool) -> dict[str, dict[int, Any]] | None:
