@@ -129,8 +129,9 @@ def install_cli_excepthook() -> None:
 
     LeRobot's CLIs have no error hook of their own, so an uncaught ``PnPError`` (or an offline miss, see
     ``one_line_message``) would end in a 50-250-line traceback with our message at the bottom. This hook prints
-    ``lerobot-train: error: <message>`` instead (exit status 1, as Python gives any uncaught error); every other
-    exception goes to the previous hook unchanged. Scoped: installed only in a ``lerobot-*`` script whose run is
+    ``lerobot-train: error: <message>`` instead and exits with status 2, as ``lerobot-pnp`` and argparse do for a
+    user's mistake (the process's exit functions run first); every other exception goes to the previous hook
+    unchanged (status 1). Scoped: installed only in a ``lerobot-*`` script whose run is
     ours (``registration.install_stock_hooks``: our env, policy or data), and ``LEROBOT_PNP_DEBUG=1`` restores
     the full traceback.
     """
@@ -151,5 +152,19 @@ def install_cli_excepthook() -> None:
             return
         name = prog.removesuffix(".py").replace("_", "-")
         print(f"{name}: error: {line}\n({DEBUG_ENV}=1 shows the traceback)", file=sys.stderr)
+        _exit(2)
 
     sys.excepthook = hook
+
+
+def _exit(status: int) -> None:
+    """End the process with ``status`` from inside ``sys.excepthook`` (where Python would give 1): flush the
+    streams and run the exit functions (logging's shutdown among them) as a normal exit would, then leave."""
+    import atexit
+    import os
+    import sys
+
+    for stream in (sys.stdout, sys.stderr):
+        stream.flush()
+    atexit._run_exitfuncs()
+    os._exit(status)

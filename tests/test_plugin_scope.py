@@ -264,7 +264,7 @@ def test_stock_lerobot_train_on_our_dataset_with_an_invalid_recorded_task_stops_
     out = tmp_path / "out"
     proc = _train(root, out, "local/ours", steps=4)
     _, err = proc.communicate(timeout=240)
-    assert proc.returncode == 1, err[-3000:]
+    assert proc.returncode == 2, err[-3000:]
     assert "Traceback" not in err, err[-3000:]
     assert f"lerobot-train: error: the recorded env config {root / RECORDED_FILE} has non-finite values in " in err
     assert "Creating dataset" in err and "Start offline training" not in err  # before the dataset is even loaded
@@ -349,6 +349,6 @@ def test_lerobot_eval_on_our_env_of_a_checkpoint_it_cannot_load_is_one_line(misf
     cmd = [str(BIN / "lerobot-eval"), f"--policy.path={truncated}", "--env.type=baxter_pnp", "--eval.n_episodes=1"]
     cmd += ["--eval.batch_size=1", "--policy.device=cpu", f"--output_dir={tmp_path / 'eval'}"]
     proc = subprocess.run(cmd, env=PLAIN_ENV, capture_output=True, text=True, timeout=240)
-    assert proc.returncode == 1 and "Traceback" not in proc.stderr, proc.stderr[-3000:]
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr[-3000:]
     line = f"lerobot-eval: error: cannot load the policy from {truncated}: SafetensorError:"
     assert line in proc.stderr.strip().splitlines()[-2], proc.stderr[-1000:]

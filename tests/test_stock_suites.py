@@ -157,7 +157,7 @@ def _eval(ckpt: Path, out: Path, task: str, tmp_path: Path) -> subprocess.Comple
 def test_lerobot_eval_runs_named_suites_and_refuses_an_unknown_one(tmp_path):
     ckpt = _checkpoint(tmp_path / "ckpt")
     proc = _eval(ckpt, tmp_path / "bad", "nominal,bogus", tmp_path)
-    assert proc.returncode != 0 and not (tmp_path / "bad").exists()
+    assert proc.returncode == 2 and not (tmp_path / "bad").exists()
     errors = [line for line in proc.stderr.splitlines() if "error" in line.lower()]
     assert len(errors) == 1 and "unknown suite 'bogus'" in errors[0], proc.stderr[-2000:]
 

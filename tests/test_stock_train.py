@@ -115,6 +115,6 @@ def test_lerobot_train_streaming_with_no_worker_is_one_line(tiny_root, tmp_path)
     cmd += ["--steps=2", f"--output_dir={tmp_path / 'out'}"]
     env = {**os.environ, "OMP_NUM_THREADS": "1", "HF_HUB_OFFLINE": "1", "PYTHONPATH": os.pathsep.join(sys.path)}
     proc = subprocess.run(cmd, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=120)
-    assert proc.returncode == 1
+    assert proc.returncode == 2
     assert "Traceback" not in proc.stderr and "StopIteration" not in proc.stderr, proc.stderr[-3000:]
     assert "lerobot-train: error: --dataset.streaming=true with --num_workers 0 gives an empty stream" in proc.stderr
