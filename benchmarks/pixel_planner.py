@@ -3,7 +3,7 @@
     .venv/bin/python benchmarks/pixel_planner.py [--episodes 300] [--epochs 100] [--ckpt_every 25]
         [--eval_episodes 100] [--work outputs/pixel_planner] [--out docs/results/pixel_planner.json]
 
-1. Data: ``lerobot-pnp generate`` of the `full` task with one 64x64 front camera (the env's default render
+1. Data: ``lerobot-pnp generate`` of the `full` task with ``--cameras`` at ``--size`` (the env's default render
    settings: no shadows, reflections or multisampling), ``--workers`` processes; the generator's own summary
    (wall time, simulation and writing CPU seconds).
 2. Training: ``lerobot-pnp train --config_path configs/train_pnp_pixels.json`` (the fast path) for ``--epochs``,
@@ -40,7 +40,7 @@ torch.set_num_threads(1)
 REPO = Path(__file__).resolve().parents[1]
 PNP = str(Path(sys.executable).parent / "lerobot-pnp")
 EVAL_SEED = 100_000
-CAMERA = ["--env.cameras=[front]", "--env.image_height=64", "--env.image_width=64"]
+REPO_ID = "local/pixel_planner_full"
 
 
 def _run(args: list[str]) -> tuple[dict, float]:
@@ -53,11 +53,12 @@ def _run(args: list[str]) -> tuple[dict, float]:
     return json.loads(proc.stdout[proc.stdout.index("{") :]), wall
 
 
-def generate(root: Path, episodes: int, workers: int) -> dict:
+def generate(root: Path, episodes: int, workers: int, cameras: str, size: int) -> dict:
     if (root / "meta" / "info.json").is_file():
         return json.loads((root.parent / "generate.json").read_text())
-    args = [PNP, "generate", "--repo_id=local/pixel_planner_full_front64", f"--root={root}", "--seed=0"]
-    args += [f"--num_episodes={episodes}", f"--workers={workers}", "--env.preset=full", *CAMERA, "--progress=false"]
+    camera = [f"--env.cameras=[{cameras}]", f"--env.image_height={size}", f"--env.image_width={size}"]
+    args = [PNP, "generate", f"--repo_id={REPO_ID}", f"--root={root}", "--seed=0", f"--num_episodes={episodes}"]
+    args += [f"--workers={workers}", "--env.preset=full", *camera, "--progress=false"]
     summary, wall = _run(args)
     keep = ("episodes", "frames", "workers", "wall_s", "generate_wall_s", "merge_wall_s", "simulate_cpu_s")
     out = {k: summary.get(k) for k in (*keep, "write_cpu_s")} | {"command_wall_s": round(wall, 1)}
@@ -65,9 +66,9 @@ def generate(root: Path, episodes: int, workers: int) -> dict:
     return out
 
 
-def train(root: Path, out: Path, epochs: int, every: int) -> dict:
-    args = [PNP, "train", f"--config_path={REPO / 'configs' / 'train_pnp_pixels.json'}"]
-    args += ["--dataset_repo_id=local/pixel_planner_full_front64", f"--dataset_root={root}", f"--epochs={epochs}"]
+def train(root: Path, out: Path, epochs: int, every: int, extra: list[str]) -> dict:
+    args = [PNP, "train", f"--config_path={REPO / 'configs' / 'train_pnp_pixels.json'}", *extra]
+    args += [f"--dataset_repo_id={REPO_ID}", f"--dataset_root={root}", f"--epochs={epochs}"]
     args += [f"--save_every_epochs={every}", f"--eval_every_epochs={every}", f"--output_dir={out}", "--overwrite=true"]
     summary, wall = _run([*args, "--progress=false"])
     with open(out / "loss_curve.csv") as f:
@@ -105,8 +106,8 @@ def select_action_cost(ckpt: Path, episodes: int = 20, steps: int = 15) -> dict:
 
     loaded = load_policy(ckpt)
     policy = loaded.policy
-    shape = tuple(policy.config.image_features["observation.images.front"].shape)
-    raw = {"observation.state": torch.randn(1, 8), "observation.images.front": torch.rand(1, *shape), "task": ["pick"]}
+    images = {k: torch.rand(1, *ft.shape) for k, ft in policy.config.image_features.items()}
+    raw = {"observation.state": torch.randn(1, 8), **images, "task": ["pick"]}
     batch = loaded.preprocessor(dict(raw))
     bare, full = [], []
     for times, call in ((bare, lambda: policy.select_action(batch)),
@@ -128,18 +129,24 @@ def main() -> None:
     parser.add_argument("--epochs", type=int, default=100)
     parser.add_argument("--ckpt_every", type=int, default=25)
     parser.add_argument("--eval_episodes", type=int, default=100)
+    parser.add_argument("--cameras", default="front,wrist", help="the cameras recorded and seen, comma-separated")
+    parser.add_argument("--size", type=int, default=64, help="image height and width (pixels)")
+    parser.add_argument(
+        "--train_args", default="", help="more lerobot-pnp train flags, e.g. '--policy.hidden_size=128'"
+    )
     parser.add_argument("--work", type=Path, default=REPO / "outputs" / "pixel_planner")
     parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args()
     load = os.getloadavg()[0]
-    data = generate(args.work / "data", args.episodes, args.workers)
+    data = generate(args.work / "data", args.episodes, args.workers, args.cameras, args.size)
     print("generate:", data, flush=True)
-    run = train(args.work / "data", args.work / "train", args.epochs, args.ckpt_every)
+    run = train(args.work / "data", args.work / "train", args.epochs, args.ckpt_every, args.train_args.split())
     print("train:", run["summary"], f"{run['train_wall_s']} s", flush=True)
     curve = evaluate(args.work / "train", run["curve"], args.eval_episodes)
     cost = select_action_cost(args.work / "train" / "checkpoints" / "last" / "pretrained_model")
     print("select_action:", cost, flush=True)
     result = {"command": " ".join(["benchmarks/pixel_planner.py", *sys.argv[1:]]), "cpu_count": os.cpu_count(),
+              "cameras": args.cameras.split(","), "size": args.size, "train_args": args.train_args,
               "load_before": round(load, 2), "generate": data, "train_wall_s": run["train_wall_s"],
               "train_summary": run["summary"], "loss_curve": run["curve"], "nominal": curve, "select_action": cost}  # fmt: skip
     if args.out:

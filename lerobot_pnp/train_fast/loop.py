@@ -309,7 +309,7 @@ def _fit(
     t0 = time.perf_counter()
     pbar = None
     if cfg.progress:  # redrawn twice a second on a terminal, every 15 s into a log (progress.py)
-        pbar = log_friendly_tqdm(total=n_epochs, desc="pnp_lstm (fast)", unit="epoch")
+        pbar = log_friendly_tqdm(total=n_epochs, desc=f"{cfg.policy.type} (fast)", unit="epoch")
     policy.train()
     for epoch in range(1, n_epochs + 1):
         perm = torch.randperm(n_train, generator=gen).to(device)
