@@ -134,7 +134,8 @@ def test_train_refuses_another_policy_type_in_a_lerobot_train_config(tmp_path, c
     config = tmp_path / "act.json"
     config.write_text(json.dumps({"dataset": {"repo_id": "local/x"}, "policy": {"type": "act"}}))
     assert cli.main(["train", "--config_path", str(config)]) == 2
-    assert "the fast path trains pnp_lstm only; the config's policy type is 'act'" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "the fast path trains ['pnp_lstm', 'pnp_pixels']; the policy type is 'act'" in err and err.count("\n") == 1
 
 
 def test_unknown_command_exits_2(capsys):
