@@ -15,6 +15,9 @@
 4. ``select_action`` at batch 1 of the last checkpoint on pre-rendered observations (joints + the camera image;
    the env's rendering is not in it), mean and median over whole episodes' worth of calls, with and without the
    pre- and post-processors, one torch thread.
+5. What the keypoints know: the held-out episodes' environment state predicted by the auxiliary pose head of the
+   last checkpoint, mean absolute error per dimension in the state's units (m; sin/cos of 4 x yaw), over every
+   frame and over the first frame (nothing in the gripper, nothing hidden).
 """
 
 from __future__ import annotations
@@ -122,6 +125,29 @@ def select_action_cost(ckpt: Path, episodes: int = 20, steps: int = 15) -> dict:
     return {"params": params, "b1": _ms(bare[steps:]), "b1_with_processors": _ms(full[steps:])}
 
 
+@torch.inference_mode()
+def pose_error(ckpt: Path, root: Path) -> dict:
+    """Mean absolute error of the pose head's environment state on the held-out episodes (unnormalised)."""
+    from lerobot_pnp.evaluation.checkpoints import load_policy
+    from lerobot_pnp.train_fast.data import load_keyframe_data
+
+    loaded = load_policy(ckpt)
+    policy = loaded.policy
+    if policy.pose_head is None:
+        return {}
+    ds, data = load_keyframe_data(REPO_ID, root, max_length=policy.config.max_episode_length, with_images=True)
+    rows = data.test_idx
+    feats, real = policy.keypoints({**{k: v[rows] for k, v in data.images.items()}, "action_is_pad": data.pad[rows]})
+    stats = ds.meta.stats["observation.environment_state"]
+    pred = policy.pose_head(feats) * torch.as_tensor(stats["std"]) + torch.as_tensor(stats["mean"])
+    err = (pred - data.env_state[rows]).abs()
+    names = ds.meta.features["observation.environment_state"]["names"]
+    return {
+        "all_frames": {n: round(float(err[real][:, i].mean()), 4) for i, n in enumerate(names)},
+        "first_frame": {n: round(float(err[:, 0, i].mean()), 4) for i, n in enumerate(names)},
+    }
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--episodes", type=int, default=300)
@@ -145,10 +171,12 @@ def main() -> None:
     curve = evaluate(args.work / "train", run["curve"], args.eval_episodes)
     cost = select_action_cost(args.work / "train" / "checkpoints" / "last" / "pretrained_model")
     print("select_action:", cost, flush=True)
+    pose = pose_error(args.work / "train" / "checkpoints" / "last" / "pretrained_model", args.work / "data")
+    print("pose error:", pose, flush=True)
     result = {"command": " ".join(["benchmarks/pixel_planner.py", *sys.argv[1:]]), "cpu_count": os.cpu_count(),
               "cameras": args.cameras.split(","), "size": args.size, "train_args": args.train_args,
               "load_before": round(load, 2), "generate": data, "train_wall_s": run["train_wall_s"],
-              "train_summary": run["summary"], "loss_curve": run["curve"], "nominal": curve, "select_action": cost}  # fmt: skip
+              "train_summary": run["summary"], "loss_curve": run["curve"], "nominal": curve, "select_action": cost, "pose_error": pose}  # fmt: skip
     if args.out:
         args.out.write_text(json.dumps(result, indent=1) + "\n")
 
