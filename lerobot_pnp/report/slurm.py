@@ -27,9 +27,8 @@ class StudySlurmOptions(SlurmOptions):
     mem_per_cpu_gb: int = 2  # GB per CPU (an integer: sbatch rejects "1.5G")
     time: str = "04:00:00"  # per job (sbatch --time): HH:MM:SS or D-HH:MM:SS; the longest training must fit
     job_name: str = "pnp_study"  # SLURM job name of every job of the study
-    # a method x seed's evaluations per cluster job: 0 = its training and every suite in one job (the fewest jobs:
-    # a suite's evaluation often takes seconds, a job's start as long); N = the training alone, then its suites N
-    # per job, each job waiting for the training (--dependency afterok)
+    # suites per cluster job: 0 = a method x seed's training and all its suites in one job (fewest jobs: a job's
+    # start costs about as long as a suite); N = the training alone, then its suites N per job (afterok)
     suites_per_job: int = 0
     dataset_cpus: int = 0  # CPUs of a dataset's generation job (its shard workers); 0 = cpus_per_task
 

@@ -133,10 +133,13 @@ class TrainFastConfig:
         arguments without ``--policy.type``."""
         ptype = "pnp_lstm"
         if config_path is not None:
-            from draccus import cfgparsing
+            from draccus import cfgparsing, utils
 
-            with open(config_path, encoding="utf-8") as f:
-                data = cfgparsing.load_config(f, file=config_path)
+            try:
+                with open(config_path, encoding="utf-8") as f:
+                    data = cfgparsing.load_config(f, file=config_path)
+            except (OSError, utils.ParsingError):
+                data = None  # the parse of the file proper reports it, in one line
             ptype = _policy_type(data) if isinstance(data, dict) else ptype
         rest: list[str] = []
         it = iter(args)
