@@ -123,6 +123,22 @@ def test_resume_after_kill_keeps_unrelated_files_and_finishes(tmp_path, capsys):
     assert (root / "notes.txt").read_text() == "keep me" and validate_dataset(root)["total_episodes"] == 2
 
 
+def test_resume_waits_for_a_committed_run_to_let_go_of_the_lock(small, monkeypatch):
+    """A SLURM merge job removes the work folder (the sign a run is done) a moment before its process lets go
+    of the lock: the --resume that follows waits for it; a holder that keeps the lock is refused."""
+    import threading
+
+    from lerobot_pnp.dataset import workdir
+
+    holder = workdir.RootLock(small)  # the finishing merge job: the dataset committed, the lock still held
+    threading.Timer(0.5, holder.close).start()
+    again = generate(GenerateConfig(repo_id=REPO, root=str(small), num_episodes=3, resume=True, progress=False))
+    assert again["status"] == "already complete" and holder.fd is None
+    monkeypatch.setattr(workdir, "COMMIT_WAIT_S", 0.3)
+    with workdir.RootLock(small), pytest.raises(DatasetError, match="another `lerobot-pnp generate` is writing"):
+        generate(GenerateConfig(repo_id=REPO, root=str(small), num_episodes=3, resume=True, progress=False))
+
+
 def _sigint_as_in_a_terminal() -> None:
     """A background job (``cmd &``, CI runners) starts its children with SIGINT ignored; a terminal does not."""
     signal.signal(signal.SIGINT, signal.SIG_DFL)

@@ -37,9 +37,9 @@ from lerobot_pnp.dataset.validation import WORK_DIR, read_json, validate_dataset
 from lerobot_pnp.dataset.workdir import (
     LOCK_FILE,
     RUN_FILE,
-    RootLock,
     disk_error,
     episodes_recorded,
+    generation_lock,
     read_run_record,
     remove_generation,
     root_state,
@@ -155,7 +155,7 @@ def generate(cfg: GenerateConfig) -> dict:
         raise DatasetError(f"{root} is a file, not a dataset folder")
     made = [p for p in (root, *root.parents) if not p.exists()]  # the folders this run creates
     try:
-        with RootLock(root):  # taken before anything is deleted; a root that existed before is never removed
+        with generation_lock(root):  # taken before anything is deleted; a root that existed before is never removed
             try:
                 return _generate_locked(cfg, root, t_start)
             except Exception:

@@ -20,6 +20,7 @@ import errno
 import fcntl
 import os
 import shutil
+import time
 from pathlib import Path
 
 from lerobot_pnp.dataset.layout import is_dataset, read_json
@@ -28,6 +29,7 @@ from lerobot_pnp.errors import DatasetError
 
 TRASH_DIR = ".pnp_work.trash"
 DATASET_ENTRIES = ("meta", "data", "videos")  # what LeRobot writes into a dataset root
+COMMIT_WAIT_S = 60.0  # how long a generation waits for a holder whose dataset is committed to let go
 LOCK_FILE = ".pnp_lock"  # only where a directory cannot be flock-ed (NFS); never deleted while in use
 RUN_FILE = "run.json"  # in the work folder: the settings of the run (``GenerateConfig.run_record``)
 # The fields of a run record and their JSON types: what a resume compares and the shard layout it continues
@@ -112,6 +114,22 @@ class RootLock:
 
     def __exit__(self, *exc):
         self.close()
+
+
+def generation_lock(root: Path) -> RootLock:
+    """The root's lock for a generation. A holder whose run is committed (the dataset in place, no work folder)
+    is finishing: the work folder's removal is the sign that a run is done, and the lock goes a moment later,
+    when the committing process (the SLURM merge job) gets to release it. The command that follows that sign
+    waits up to ``COMMIT_WAIT_S`` for the lock; a holder with a work folder is refused at once."""
+    deadline = time.monotonic() + COMMIT_WAIT_S
+    while True:
+        try:
+            return RootLock(root)
+        except DatasetError:
+            committed = not (root / WORK_DIR).exists() and is_dataset(root)
+            if not committed or time.monotonic() >= deadline:
+                raise
+        time.sleep(0.05)
 
 
 def root_state(root: Path) -> str:
