@@ -20,7 +20,8 @@ from pathlib import Path
 from lerobot_pnp.presets import ENV_TYPE
 from lerobot_pnp.recorded_task import CHECKPOINT_RECORDED_FILE, RECORDED_FILE
 
-POLICY_TYPES = ("pnp_lstm",)  # the policy types our configuration modules register (they load LeRobot's configs)
+# the policy types our configuration modules register (they load LeRobot's configs)
+POLICY_TYPES = ("pnp_lstm", "pnp_pixels")
 
 
 def stock_script() -> str | None:

@@ -89,6 +89,7 @@ def test_bad_image_size_is_one_clear_error():
 @pytest.mark.parametrize("name", IMAGE_CONFIGS)
 def test_shipped_image_configs_are_offline(name):
     """The configs parse as LeRobot policy configs and name no downloadable backbone."""
+    import lerobot.policies  # noqa: F401  (registers LeRobot's own policy configs, as its CLIs' imports do)
     from lerobot.configs.policies import PreTrainedConfig
 
     raw = json.loads((REPO / "configs" / name).read_text())

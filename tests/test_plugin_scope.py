@@ -101,6 +101,7 @@ def test_plugin_discovery_alone_changes_nothing_and_our_configs_still_parse():
         (["lerobot-calibrate", "--robot.type=so100_follower"], False),
         (["lerobot-train", "--policy.type=act", "--dataset.repo_id=x/y", "--dataset.root=/none/x"], False),
         (["lerobot-train", "--policy.type", "pnp_lstm", "--dataset.root=/none/x"], True),
+        (["lerobot-train", "--policy.type=pnp_pixels", "--dataset.root=/none/x"], True),
         (["lerobot-eval", "--env.type=baxter_pnp", "--policy.path=/none"], True),
         (["lerobot-train", "--policy.type=act", "--dataset.root=RECORDED"], True),
         (["lerobot-eval", "--env.type=aloha", "--policy.path=CHECKPOINT"], True),
