@@ -159,12 +159,22 @@ def make_pnp_lstm_pre_post_processors(
     PolicyProcessorPipeline[PolicyAction, PolicyAction],
 ]:
     """Build the (pre-processor, post-processor) pair; ``dataset_stats`` are the dataset's ``meta.stats``."""
+    return make_pipelines(config, dataset_stats, checked=(FeatureType.STATE, FeatureType.ENV))
+
+
+def make_pipelines(
+    config: PnpLstmConfig,
+    dataset_stats: dict[str, dict[str, torch.Tensor]] | None,
+    checked: tuple[FeatureType, ...],
+) -> tuple[
+    PolicyProcessorPipeline[dict[str, Any], dict[str, Any]],
+    PolicyProcessorPipeline[PolicyAction, PolicyAction],
+]:
+    """The pipelines of pnp_lstm and its siblings, which differ only in the input types the observation check
+    holds to the training features (``checked``): LeRobot's default steps behind that check, and the optional
+    gripper snap after unnormalising."""
     s = make_default_policy_processor_steps(config, dataset_stats, normalizer_device=config.device)
-    expected = {
-        key: list(ft.shape)
-        for key, ft in (config.input_features or {}).items()
-        if ft.type in (FeatureType.STATE, FeatureType.ENV)
-    }
+    expected = {key: list(ft.shape) for key, ft in (config.input_features or {}).items() if ft.type in checked}
     action = (config.output_features or {}).get(ACTION)
     check = CheckObservationStep(
         expected=expected,

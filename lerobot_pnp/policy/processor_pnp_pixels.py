@@ -12,16 +12,10 @@ from typing import Any
 
 import torch
 from lerobot.configs import FeatureType
-from lerobot.processor import (
-    PolicyAction,
-    PolicyProcessorPipeline,
-    make_default_policy_processor_steps,
-    make_policy_processor_pipelines,
-)
-from lerobot.utils.constants import ACTION
+from lerobot.processor import PolicyAction, PolicyProcessorPipeline
 
 from .configuration_pnp_pixels import PnpPixelsConfig
-from .processor_pnp_lstm import BinaryGripperStep, CheckObservationStep
+from .processor_pnp_lstm import make_pipelines
 
 
 def make_pnp_pixels_pre_post_processors(
@@ -32,20 +26,4 @@ def make_pnp_pixels_pre_post_processors(
     PolicyProcessorPipeline[PolicyAction, PolicyAction],
 ]:
     """Build the (pre-processor, post-processor) pair; ``dataset_stats`` are the dataset's ``meta.stats``."""
-    s = make_default_policy_processor_steps(config, dataset_stats, normalizer_device=config.device)
-    expected = {
-        key: list(ft.shape)
-        for key, ft in (config.input_features or {}).items()
-        if ft.type in (FeatureType.STATE, FeatureType.VISUAL)
-    }
-    action = (config.output_features or {}).get(ACTION)
-    check = CheckObservationStep(
-        expected=expected,
-        action_shape=list(action.shape) if action is not None else None,
-        fps=config.dataset_fps,
-        delta_indices=config.observation_delta_indices,
-    )
-    return make_policy_processor_pipelines(
-        input_steps=[check, s.rename_observations, s.add_batch_dim, s.to_device, s.normalize],
-        output_steps=[s.unnormalize, s.to_cpu, *([BinaryGripperStep()] if config.binary_gripper else [])],
-    )
+    return make_pipelines(config, dataset_stats, checked=(FeatureType.STATE, FeatureType.VISUAL))
