@@ -1,4 +1,6 @@
 import os
+import subprocess
+from pathlib import Path
 
 # Tiny models and a 2-core machine: one thread each, headless rendering.
 os.environ.setdefault("OMP_NUM_THREADS", "1")
@@ -10,6 +12,9 @@ import pytest
 from lerobot_pnp.registration import register_all
 
 register_all()  # the env, the policy and the task record, as LeRobot's plugin discovery does
+
+# the one-node SLURM cluster that .ci/run starts (the `cluster` fixture starts it where it is down, as root)
+CLUSTER = Path(__file__).resolve().parents[1] / "benchmarks" / "slurm_local_cluster.sh"
 
 
 def pytest_collection_modifyitems(config, items):
@@ -32,3 +37,14 @@ def keyframe_env():
     env = gym.make("lerobot_pnp/BaxterPnP-v0")
     yield env
     env.close()
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    """The one-node cluster's default partition, started first where SLURM is installed but down (as root)."""
+    up = subprocess.run(["sinfo", "-h", "-o", "%P %T"], capture_output=True, text=True, timeout=30)
+    if up.returncode != 0 and os.geteuid() == 0:
+        subprocess.run([str(CLUSTER), "start"], check=True, capture_output=True, timeout=120)
+        up = subprocess.run(["sinfo", "-h", "-o", "%P %T"], capture_output=True, text=True, timeout=30)
+    assert up.returncode == 0, f"SLURM is installed but no controller answers: {up.stderr.strip()}"
+    return up.stdout.split()[0].rstrip("*")  # the default partition

@@ -7,7 +7,6 @@ when none answers and this process may (root). Skipped only where SLURM is not i
 from __future__ import annotations
 
 import json
-import os
 import shutil
 import subprocess
 import time
@@ -23,17 +22,6 @@ pytestmark = [
     pytest.mark.slow,
     pytest.mark.skipif(bool(_MISSING), reason=f"SLURM is not installed ({', '.join(_MISSING)} not on PATH)"),
 ]
-CLUSTER = Path(__file__).resolve().parents[1] / "benchmarks" / "slurm_local_cluster.sh"
-
-
-@pytest.fixture(scope="module")
-def cluster():
-    up = subprocess.run(["sinfo", "-h", "-o", "%P %T"], capture_output=True, text=True, timeout=30)
-    if up.returncode != 0 and os.geteuid() == 0:
-        subprocess.run([str(CLUSTER), "start"], check=True, capture_output=True, timeout=120)
-        up = subprocess.run(["sinfo", "-h", "-o", "%P %T"], capture_output=True, text=True, timeout=30)
-    assert up.returncode == 0, f"SLURM is installed but no controller answers: {up.stderr.strip()}"
-    return up.stdout.split()[0].rstrip("*")  # the default partition
 
 
 def _wait_complete(root: Path, job_ids: list[str], timeout: float = 300) -> None:

@@ -15,13 +15,14 @@ import sys
 from pathlib import Path
 
 import pytest
+from clis import exe as _exe
+from clis import run
 
 from lerobot_pnp.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.recorded_task import write_recorded
 from lerobot_pnp.registration import hand_over_command_line
 
 REPO = Path(__file__).resolve().parents[1]
-BIN = Path(sys.executable).parent
 ENV = {
     **os.environ,
     "OMP_NUM_THREADS": "1",
@@ -32,15 +33,8 @@ ENV = {
 IMAGE_CONFIGS = ("train_act_images.json", "train_diffusion_images.json")
 
 
-def _exe(name: str) -> str:
-    path = BIN / name
-    if not path.exists():
-        pytest.skip(f"{name} is not installed next to {sys.executable}")
-    return str(path)
-
-
 def _run(cmd: list[str], cwd: Path, timeout: float = 180) -> subprocess.CompletedProcess:
-    return subprocess.run(cmd, cwd=cwd, env=ENV, capture_output=True, text=True, timeout=timeout)
+    return run(cmd, cwd, timeout, env=ENV)
 
 
 # ---------------------------------------------------------------------------------------------- fast

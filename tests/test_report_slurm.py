@@ -10,7 +10,6 @@ into cluster jobs is checked without SLURM.
 from __future__ import annotations
 
 import json
-import os
 import shutil
 import subprocess
 import sys
@@ -26,20 +25,9 @@ from lerobot_pnp.report.schedule import TRAINING, Job
 
 _MISSING = [b for b in ("sbatch", "squeue", "sinfo", "scancel") if shutil.which(b) is None]
 needs_slurm = pytest.mark.skipif(bool(_MISSING), reason=f"SLURM is not installed ({', '.join(_MISSING)} not on PATH)")
-CLUSTER = Path(__file__).resolve().parents[1] / "benchmarks" / "slurm_local_cluster.sh"
 STUDY = ["--preset", "quick", "--num_episodes", "10", "--epochs", "1", "--train_seeds", "[1000]",
          "--methods", "[lookup_table,clocked_lstm]", "--cli_check_episodes", "0",
          "--suites", "[{name: nominal, n_episodes: 2}]"]  # fmt: skip
-
-
-@pytest.fixture(scope="module")
-def cluster():
-    up = subprocess.run(["sinfo", "-h", "-o", "%P %T"], capture_output=True, text=True, timeout=30)
-    if up.returncode != 0 and os.geteuid() == 0:
-        subprocess.run([str(CLUSTER), "start"], check=True, capture_output=True, timeout=120)
-        up = subprocess.run(["sinfo", "-h", "-o", "%P %T"], capture_output=True, text=True, timeout=30)
-    assert up.returncode == 0, f"SLURM is installed but no controller answers: {up.stderr.strip()}"
-    return up.stdout.split()[0].rstrip("*")  # the default partition
 
 
 def _report(out: Path, *flags: str) -> int:
