@@ -53,12 +53,27 @@ class KeypointEncoder(nn.Module):
         self.softmax = SpatialSoftmax(h, w)
         self.shift = shift
         self.out_dim = 2 * num_keypoints
+        self.stride = 2 ** len(channels)  # image pixels per keypoint-map cell
+        self.map_shape = (h, w)
 
     def forward(self, images: Tensor) -> Tensor:
         x = images.float() / 255.0 if images.dtype == torch.uint8 else images
         if self.training and self.shift > 0:
             x = random_shift(x, self.shift)
         return self.softmax(self.conv((x - 0.5) * 4.0))
+
+    def pixel_coordinates(self, keypoints: Tensor) -> Tensor:
+        """``(N, 2K)`` keypoints as this encoder outputs them -> ``(N, K, 2)`` image coordinates (column, row).
+
+        A keypoint is ``(x, y)``: x runs along a map's columns (the image's width), y along its rows, each from -1
+        at the first cell's centre to 1 at the last's (``SpatialSoftmax``'s grid). Map cell ``j`` is centred on
+        image pixel ``stride * j``: every strided layer's kernel is centred on input index ``2 * j`` (odd kernel,
+        padding ``kernel // 2``) and the last conv keeps the resolution. The result is in the convention of image
+        viewers (pixel ``(i, j)`` covers ``[j, j + 1] x [i, i + 1]``), so its centre is at ``+ 0.5``."""
+        h, w = self.map_shape
+        xy = keypoints.reshape(keypoints.shape[0], -1, 2)
+        cells = (xy + 1) / 2 * xy.new_tensor([w - 1, h - 1])
+        return cells * self.stride + 0.5
 
 
 def random_shift(images: Tensor, shift: int) -> Tensor:

@@ -64,7 +64,10 @@ def visualize(cfg: VizConfig) -> dict:
     with tempfile.TemporaryDirectory(prefix="lerobot_pnp_viz_") as tmp:
         rrd = Path(cfg.save).expanduser() if cfg.save else Path(tmp) / "recording.rrd"
         rec = rr.RecordingStream(APPLICATION_ID, recording_id=None)
-        blueprint = make_blueprint([(run.name, run.is_rollout, list(run.images)) for run in runs])
+        blueprint = make_blueprint(
+            [(run.name, run.is_rollout, list(run.images)) for run in runs],
+            keypoints={run.name: list(run.keypoints) for run in runs},
+        )
         if cfg.save is not None or cfg.screenshot is not None:
             rrd.parent.mkdir(parents=True, exist_ok=True)
             rec.save(str(rrd), default_blueprint=blueprint)

@@ -16,6 +16,7 @@ import mujoco
 import numpy as np
 
 from lerobot_pnp import robot
+from lerobot_pnp.viz.keypoints import keypoint_points
 from lerobot_pnp.viz.sampling import Run, phase_name
 from lerobot_pnp.viz.scene import quat_xyzw
 
@@ -275,15 +276,22 @@ def _ee_or_nan(run: Run, action: np.ndarray, scratch) -> np.ndarray:
 
 
 def log_cameras_and_events(rec, run: Run) -> None:
-    """The camera images of each frame (``<run>/cameras/<camera>``) and the run's events (``<run>/events``)."""
+    """The camera images of each frame (``<run>/cameras/<camera>``), on them the keypoints the policy computed
+    (``<run>/cameras/<camera>/keypoints``, one colour per keypoint; none on the final observation, which it did not
+    act on), and the run's events (``<run>/events``)."""
     import rerun as rr
 
     t = run.samples["t"][run.frames.sample]
     for cam, images in run.images.items():
+        keypoints = run.keypoints.get(cam, [])
         for k, image in enumerate(images[: len(t)]):
             rec.set_time("frame_index", sequence=int(run.frames.frame_index[k]))
             rec.set_time("time", duration=float(t[k]))
             rec.log(f"{run.name}/cameras/{cam}", rr.Image(image))
+            if k < len(keypoints):
+                rec.log(f"{run.name}/cameras/{cam}/keypoints", keypoint_points(keypoints[k]))
+            elif keypoints:  # the final observation, which the policy did not act on: no points carried over
+                rec.log(f"{run.name}/cameras/{cam}/keypoints", rr.Points2D(np.zeros((0, 2), np.float32)))
     if run.events:
         ks = np.array([k for k, _, _ in run.events])
         rec.send_columns(
@@ -294,11 +302,33 @@ def log_cameras_and_events(rec, run: Run) -> None:
     rec.reset_time()
 
 
-def make_blueprint(runs: list[tuple[str, bool, list[str]]]):
-    """One tab per run (name, is a policy rollout, cameras): the 3D view framed on the workspace with the camera
-    images and the event log beside it, and plots titled with what they show."""
+def _scene_column(run: str, view3d, cameras: list[str], keypoints: list[str]):
+    """The 3D view with the camera images in a column beside it (large enough to read the keypoints drawn on
+    them), and the event log below."""
     import rerun.blueprint as rrb
 
+    events = rrb.TextLogView(origin=f"{run}/events", name="events: perturbations, failure cause, success")
+    if not cameras:
+        return rrb.Vertical(view3d, events, row_shares=[4, 1])
+    views = [
+        rrb.Spatial2DView(
+            origin=f"{run}/cameras/{cam}", name=f"camera: {cam} · keypoints" if cam in keypoints else f"camera: {cam}"
+        )
+        for cam in cameras
+    ]
+    scene = rrb.Horizontal(view3d, rrb.Vertical(*views), column_shares=[2, 1])
+    return rrb.Vertical(scene, events, row_shares=[5, 1])
+
+
+def make_blueprint(runs: list[tuple[str, bool, list[str]]], keypoints: dict[str, list[str]] | None = None):
+    """One tab per run (name, is a policy rollout, cameras): the 3D view framed on the workspace with the camera
+    images and the event log beside it, and plots titled with what they show.
+
+    ``keypoints`` (run -> the cameras it has policy keypoints on): where any run has them, the viewer opens on the
+    first frame, paused; the final observation, which a policy does not act on, is the one frame without them."""
+    import rerun.blueprint as rrb
+
+    keypoints = {run: cams for run, cams in (keypoints or {}).items() if cams}
     tabs = []
     for run, is_policy, cameras in runs:
         phase = rrb.Tabs(
@@ -339,14 +369,13 @@ def make_blueprint(runs: list[tuple[str, bool, list[str]]]):
             background=(28, 32, 38),
             eye_controls=rrb.EyeControls3D(position=EYE_POSITION, look_target=EYE_TARGET, eye_up=(0, 0, 1)),
         )
-        side = [rrb.Spatial2DView(origin=f"{run}/cameras/{cam}", name=f"camera: {cam}") for cam in cameras]
-        side.append(rrb.TextLogView(origin=f"{run}/events", name="events: perturbations, failure cause, success"))
-        left = rrb.Vertical(view3d, rrb.Horizontal(*side), row_shares=[3, 1])
+        left = _scene_column(run, view3d, cameras, keypoints.get(run, []))
         tabs.append(rrb.Horizontal(left, rrb.Vertical(*plots), column_shares=[3, 2], name=run))
     return rrb.Blueprint(
         rrb.Tabs(*tabs),
         rrb.BlueprintPanel(state="collapsed"),
         rrb.SelectionPanel(state="collapsed"),
-        # Open on the end of the run (the whole path drawn, the object placed); scrub or press play from there.
-        rrb.TimePanel(state="collapsed", play_state="following"),
+        # Open on the end of the run (the whole path drawn, the object placed), or on its first frame to show what
+        # a policy saw (see above); scrub or press play from there.
+        rrb.TimePanel(state="collapsed", play_state="paused" if keypoints else "following"),
     )

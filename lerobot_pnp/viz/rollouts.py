@@ -5,8 +5,9 @@ training config names the dataset, whose recorded task is read back, cameras inc
 ``lerobot-eval``. At every state the policy visits, the expert's label for that state (the DAgger teacher,
 ``dagger.rollouts.Teacher``) is what the policy should have commanded there, so the comparison stays
 meaningful after a recovery or a perturbation. The expert is also run in a second env from the same seed
-(same start pose and object), for its own path in 3D. The camera images the env rendered, the perturbations
-that fired and the failure cause are kept for the viewer.
+(same start pose and object), for its own path in 3D. The camera images the env rendered (the frames the policy
+received), the keypoints a keypoint encoder computed on them (``keypoints``), the perturbations that fired and
+the failure cause are kept for the viewer.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from lerobot_pnp import robot
 from lerobot_pnp.env_config import BaxterPnPEnvConfig, make_env
 from lerobot_pnp.errors import PnPError
 from lerobot_pnp.recorded_task import read_recorded
+from lerobot_pnp.viz.keypoints import KeypointTap
 from lerobot_pnp.viz.sampling import Frames, Run, Sampler, run_events
 from lerobot_pnp.viz.scene import SceneModel
 
@@ -70,8 +72,10 @@ def rollout_with_expert(
     frame_samples: list[int] = []
     labels: list[np.ndarray] = []
     teacher: list = []
+    tap = KeypointTap(loaded.policy)
 
     def on_step(k, obs, action):
+        tap.take()  # the policy has just acted on frame k
         if k == 0:
             sampler.start()
             physics.on_control_tick = sampler
@@ -81,7 +85,8 @@ def rollout_with_expert(
             labels.append(_label(teacher[0]))
 
     try:
-        pe = run_episode(env, loaded, seed, on_step=on_step)
+        with tap:
+            pe = run_episode(env, loaded, seed, on_step=on_step)
         frame_samples.append(sampler.sample())  # the final observation
         qpos = physics.data.qpos.copy()
         place_target = physics.place_target().round(4).tolist()
@@ -120,7 +125,7 @@ def rollout_with_expert(
     info["samples"] = len(samples["t"])
     return Run(
         name=name, scene=scene, qpos=qpos, samples=samples, frames=frames, info=info, is_rollout=True,
-        expert=expert, images=images, events=events,
+        expert=expert, images=images, events=events, keypoints=tap.per_frame,
     )  # fmt: skip
 
 

@@ -46,6 +46,8 @@ class Run:
     is_rollout: bool = False  # a policy rollout (else a dataset episode)
     expert: dict | None = None  # policy rollouts: the FSM expert's reference from the same start
     images: dict[str, list[np.ndarray]] = field(default_factory=dict)  # camera -> one HWC image per frame
+    # policy rollouts: camera -> the (K, 2) keypoints (pixel column, row) the policy computed on each frame it acted on
+    keypoints: dict[str, list[np.ndarray]] = field(default_factory=dict)
     events: list[tuple[int, str, str]] = field(default_factory=list)  # (frame, level, text): perturbations, failure
 
 
