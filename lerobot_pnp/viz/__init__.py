@@ -2,9 +2,10 @@
 
 Modules, one job each: ``config`` (flags), ``scene`` (MuJoCo model -> Rerun geometry), ``sampling`` (the
 simulation watched between frames), ``sources`` (dataset episodes replayed in their recorded task),
-``rollouts`` (policy rollouts beside the FSM expert), ``recording`` (what is logged, and the blueprint),
-``screenshot`` (the headless viewer's picture), ``app`` (``visualize``). The viewer reads datasets,
-checkpoints and the env's model through public APIs only and writes nothing back.
+``rollouts`` (policy rollouts beside the FSM expert), ``keypoints`` (what a camera policy computed on each
+frame), ``recording`` (what is logged, and the blueprint), ``screenshot`` (the headless viewer's picture),
+``app`` (``visualize``). The viewer reads datasets, checkpoints and the env's model through public APIs only
+and writes nothing back.
 
 Entity paths (stable; ``<run>`` is ``episode_<N>`` for dataset episode N, ``rollout_<i>`` for policy rollout i)
 ---------------------------------------------------------------------------------------------------------
@@ -23,11 +24,14 @@ Entity paths (stable; ``<run>`` is ``episode_<N>`` for dataset episode N, ``roll
 ``<run>/plots/phase``                        TextLog: FSM phase name, at each frame a phase is entered
 ``<run>/plots/phase_index``                  Scalars: FSM phase index (continuous samples and frames)
 ``<run>/plots/success``                      Scalars 0/1: the env's success check of the simulated state
+``<run>/cameras/<camera>``                   Image at frames: each camera frame the run observed
+``<run>/events``                             TextLog at frames: perturbations as they fire, failure cause, success
 Policy rollouts add (``<run>/world/keyframes`` of a rollout are the *predicted* keyframes):
 ``<run>/world/expert_keyframes``, ``<run>/world/expert_ee_path``   the FSM expert from the same start
 ``<run>/policy/pred/<name>``, ``<run>/policy/expert/<name>``       Scalars at frames: predicted vs expert keyframe
 ``<run>/policy/error/joints/<joint>``, ``.../error/gripper``       |predicted - expert| (rad; command)
 ``<run>/policy/error/ee_pos``                                      end-effector distance of the two keyframes (m)
+``<run>/cameras/<camera>/keypoints``   Points2D at frames: a keypoint encoder's keypoints on the frame (pixels)
 
 Timelines: ``time`` (simulated seconds since reset, every sample) and ``frame_index`` (the run's frames,
 with the dataset's own values); see ``recording``.
