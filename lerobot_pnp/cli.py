@@ -36,7 +36,13 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "expert": (
         "lerobot_pnp.expert_eval:ExpertEvalConfig",
         "lerobot_pnp.expert_eval:evaluate_expert",
-        "run the scripted expert on seeded episodes and report success and failures by cause",
+        "run the scripted expert on seeded episodes (or lerobot-eval's suites: --env.task, --output_dir) and "
+        "report success and failures by cause",
+    ),
+    "lookup-table": (
+        "lerobot_pnp.report.baselines:LookupTableCheckpointConfig",
+        "lerobot_pnp.report.baselines:write_lookup_table",
+        "write the lookup-table baseline over a dataset's training episodes as a checkpoint lerobot-eval loads",
     ),
     "dagger": (
         "lerobot_pnp.dagger:DaggerConfig",
@@ -110,7 +116,8 @@ def normalize_args(config_cls, args: list[str]) -> list[str]:
 
 def _usage() -> str:
     lines = ["usage: lerobot-pnp <command> [--config_path FILE] [--field value ...]", "", "commands:"]
-    lines += [f"  {name:<10} {help_}" for name, (_, _, help_) in COMMANDS.items()]
+    width = max(map(len, COMMANDS))
+    lines += [f"  {name:<{width}} {help_}" for name, (_, _, help_) in COMMANDS.items()]
     lines += ["", "`lerobot-pnp <command> --help` lists a command's options."]
     return "\n".join(lines)
 

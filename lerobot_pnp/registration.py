@@ -66,14 +66,17 @@ def register_env_config() -> None:
 
 
 def register_policy_config() -> None:
-    """``--policy.type=pnp_lstm`` / ``pnp_pixels`` / ``--policy.path``: importing the configuration modules registers
-    them (LeRobot finds each policy and its processors from its module's name when it builds them)."""
+    """``--policy.type=pnp_lstm`` / ``pnp_pixels`` / ``pnp_lookup_table`` / ``--policy.path``: importing the
+    configuration modules registers them (LeRobot finds each policy and its processors from its module's name when
+    it builds them)."""
     from lerobot_pnp.cli_help import annotate_stock_help
+    from lerobot_pnp.policy.configuration_pnp_lookup_table import PnpLookupTableConfig
     from lerobot_pnp.policy.configuration_pnp_lstm import PnpLstmConfig
     from lerobot_pnp.policy.configuration_pnp_pixels import PnpPixelsConfig
 
     annotate_stock_help(PnpLstmConfig)
     annotate_stock_help(PnpPixelsConfig)
+    annotate_stock_help(PnpLookupTableConfig)
 
 
 def register_task_record() -> None:

@@ -1,111 +1,110 @@
-"""The open-loop nearest-neighbour replay (the "lookup table"): the baseline a planner has to beat.
+"""The lookup table built from a dataset: the study's in-memory baseline and the checkpoint ``lerobot-eval`` loads.
 
-Same inputs and same data as the learned planners: at the first step of an episode it reads the observed
-``environment_state`` (object position, plus yaw features and goal when the task observes them), finds the
-training episode whose first ``environment_state`` is nearest (Euclidean, in metres), and then replays that
-episode's recorded actions one per step, ignoring every later observation; past the recorded actions it
-holds the last one. It is a ``PreTrainedPolicy`` so stock LeRobot ``eval_policy`` drives it exactly like a
-trained checkpoint (identity pre/post-processors: it works in raw units).
+One implementation, ``policy.modeling_pnp_lookup_table.PnpLookupTablePolicy`` (the open-loop nearest-neighbour
+replay, a registered LeRobot policy type). The study builds it in memory from the training episodes of its dataset
+(``LookupTablePolicy``, ``builders.lookup_eval``); ``lerobot-pnp lookup-table`` builds the same table from the same
+episodes and writes it as a checkpoint folder, with the dataset's recorded task and identity processors, so that
+``lerobot-eval --policy.path <output_dir>`` runs it like any trained checkpoint.
+
+A command of its own rather than ``lerobot-pnp train --policy.type pnp_lookup_table``: nothing is trained (no
+epochs, optimiser, seed or loss curve), and the fast trainer's config and checkpoint layout are those of a trained
+run; here one dataset read and one folder.
 """
 
 from __future__ import annotations
 
+import json
+import shutil
 from dataclasses import dataclass
+from pathlib import Path
 
-import numpy as np
-import torch
-from lerobot.configs import PreTrainedConfig
-from lerobot.optim import AdamConfig
-from lerobot.policies.pretrained import PreTrainedPolicy
 from lerobot.processor import PolicyProcessorPipeline
-from lerobot.utils.constants import OBS_ENV_STATE
 
-from lerobot_pnp.errors import PolicyError
+from lerobot_pnp.errors import ConfigError, DatasetError
+from lerobot_pnp.policy.configuration_pnp_lookup_table import PnpLookupTableConfig
+from lerobot_pnp.policy.modeling_pnp_lookup_table import PnpLookupTablePolicy, table_config
+from lerobot_pnp.policy.processor_pnp_lookup_table import make_pnp_lookup_table_pre_post_processors
 from lerobot_pnp.report.adapters import Episodes
 
 
+class LookupTablePolicy(PnpLookupTablePolicy):
+    """``PnpLookupTablePolicy`` over a dataset's ``Episodes`` (what the study and the command build)."""
+
+    def __init__(self, episodes: Episodes, source: str = ""):
+        first, actions = episodes.first_env_state, episodes.actions
+        super().__init__(table_config(first, actions, source))
+        self.fill(first, actions)
+
+
+def identity_processors(
+    config: PnpLookupTableConfig | None = None,
+) -> tuple[PolicyProcessorPipeline, PolicyProcessorPipeline]:
+    """Pre/post-processors of the lookup table (no normalisation): the ones its checkpoint records."""
+    return make_pnp_lookup_table_pre_post_processors(config or PnpLookupTableConfig())
+
+
 @dataclass
-class LookupTableConfig(PreTrainedConfig):
-    """Not registered as a LeRobot policy type: it is built in memory from a dataset, never saved."""
+class LookupTableCheckpointConfig:
+    """``lerobot-pnp lookup-table``: the lookup table over a dataset's training episodes, as a checkpoint folder."""
 
-    device: str | None = "cpu"
-    push_to_hub: bool = False
+    dataset_root: str = ""  # the dataset folder (lerobot-pnp generate's --root)
+    output_dir: str = "outputs/lookup_table"  # the checkpoint folder: lerobot-eval --policy.path <output_dir>
+    split: str = "train"  # the episodes of this split of meta/info.json (all episodes if the dataset has no splits)
+    n_episodes: int | None = None  # only the first n episodes of the split (None: all)
+    overwrite: bool = False  # replace a lookup-table checkpoint already in output_dir (any other folder is refused)
 
-    @property
-    def observation_delta_indices(self):
-        return None
-
-    @property
-    def action_delta_indices(self):
-        return None
-
-    @property
-    def reward_delta_indices(self):
-        return None
-
-    def get_optimizer_preset(self):
-        return AdamConfig()
-
-    def get_scheduler_preset(self):
-        return None
-
-    def validate_features(self) -> None:
-        return None
+    def __post_init__(self):
+        if self.n_episodes is not None and not (isinstance(self.n_episodes, int) and self.n_episodes >= 1):
+            raise ConfigError(f"n_episodes must be an integer >= 1 or None, got {self.n_episodes!r}")
 
 
-class LookupTablePolicy(PreTrainedPolicy):
-    """Replays the actions of the training episode whose start is nearest to the observed one."""
+def write_lookup_table(cfg: LookupTableCheckpointConfig) -> dict:
+    """Build the table from ``cfg.dataset_root`` and write it to ``cfg.output_dir``; returns a summary."""
+    from lerobot_pnp.dataset.layout import is_dataset
+    from lerobot_pnp.recorded_task import RECORDED_FILE, copy_recorded, dataset_task
+    from lerobot_pnp.report.adapters import load_train_episodes
 
-    config_class = LookupTableConfig
-    name = "pnp_lookup_table"
-
-    def __init__(self, episodes: Episodes):
-        super().__init__(LookupTableConfig())
-        if not episodes.actions:
-            raise PolicyError("the lookup table needs at least one training episode")
-        self.keys = torch.as_tensor(episodes.first_env_state, dtype=torch.float32)
-        length = max(len(a) for a in episodes.actions)
-        # (E, T_max, A), each episode padded with its last action (= hold)
-        padded = [np.concatenate([a, np.repeat(a[-1:], length - len(a), axis=0)]) for a in episodes.actions]
-        self.table = torch.as_tensor(np.stack(padded), dtype=torch.float32)
-        self.reset()
-
-    def reset(self) -> None:
-        self._rows: torch.Tensor | None = None
-        self._step = 0
-
-    def nearest(self, env_state: torch.Tensor) -> torch.Tensor:
-        """Row of the nearest training episode for each observed start ``(B, D)``."""
-        if env_state.shape[-1] != self.keys.shape[-1]:
-            raise PolicyError(
-                f"lookup table: observed environment_state has {env_state.shape[-1]} values, the training data "
-                f"{self.keys.shape[-1]} (evaluate on the task the dataset was recorded with)"
-            )
-        return torch.cdist(env_state.float().cpu(), self.keys).argmin(dim=1)
-
-    @torch.no_grad()
-    def select_action(self, batch: dict[str, torch.Tensor], **kwargs) -> torch.Tensor:
-        if self._rows is None:
-            self._rows = self.nearest(batch[OBS_ENV_STATE])
-        step = min(self._step, self.table.shape[1] - 1)
-        self._step += 1
-        return self.table[self._rows, step]
-
-    def predict_action_chunk(self, batch, **kwargs):
-        return self.select_action(batch).unsqueeze(1)
-
-    def forward(self, batch):
-        raise PolicyError("the lookup table is built from data, not trained")
-
-    def get_optim_params(self):
-        return []
+    root = Path(cfg.dataset_root).expanduser()
+    if not cfg.dataset_root or not is_dataset(root):
+        raise DatasetError(
+            f"lookup-table: --dataset_root {cfg.dataset_root!r} is not a dataset folder (no meta/info.json)"
+        )
+    if dataset_task(root) is None:
+        raise DatasetError(
+            f"lookup-table: {root} records no baxter_pnp task ({RECORDED_FILE}); give a dataset of lerobot-pnp generate"
+        )
+    out = Path(cfg.output_dir).expanduser()
+    _check_output(out, cfg.overwrite)
+    episodes = load_train_episodes(root, split=cfg.split, limit=cfg.n_episodes)
+    source = f"{root} split {cfg.split!r}" + (f", first {cfg.n_episodes} episodes" if cfg.n_episodes else "")
+    policy = LookupTablePolicy(episodes, source=source)
+    if out.exists():
+        shutil.rmtree(out)
+    policy.save_pretrained(out)
+    for pipeline in identity_processors(policy.config):
+        pipeline.save_pretrained(out)
+    copy_recorded(root, out)
+    return {
+        "output_dir": str(out),
+        "episodes": policy.config.table_episodes,
+        "steps": policy.config.table_steps,
+        "source": source,
+        "evaluate": f"lerobot-eval --policy.path={out} --env.type=baxter_pnp --policy.device=cpu",
+    }
 
 
-def identity_processors() -> tuple[PolicyProcessorPipeline, PolicyProcessorPipeline]:
-    """Pre/post-processors for a policy that works in raw units (no normalisation, no device move)."""
-    from lerobot.processor.converters import policy_action_to_transition, transition_to_policy_action
-
-    post = PolicyProcessorPipeline(
-        steps=[], to_transition=policy_action_to_transition, to_output=transition_to_policy_action
-    )
-    return PolicyProcessorPipeline(steps=[]), post
+def _check_output(out: Path, overwrite: bool) -> None:
+    """An absent or empty folder is written; a lookup-table checkpoint is replaced only with ``overwrite``."""
+    if not out.exists() or (out.is_dir() and not any(out.iterdir())):
+        return
+    config = out / "config.json"
+    try:
+        ours = json.loads(config.read_text()).get("type") == "pnp_lookup_table"
+    except (OSError, ValueError, AttributeError):
+        ours = False
+    if not ours:
+        raise ConfigError(
+            f"lookup-table: {out} exists and is not a lookup-table checkpoint; choose another --output_dir"
+        )
+    if not overwrite:
+        raise ConfigError(f"lookup-table: {out} already holds a lookup table; pass --overwrite true to replace it")

@@ -44,8 +44,9 @@ def lookup_eval(artifact, ctx, env_cfg, n, start_seed, batch_size):
     if key not in _EPISODES:  # one read per dataset and subset, not one per suite
         _EPISODES[key] = adapters.load_train_episodes(ctx.dataset_root, limit=ctx.n_demos)
     episodes = _EPISODES[key]
-    pre, post = identity_processors()
-    return eval_lerobot_policy(LookupTablePolicy(episodes), pre, post, env_cfg, n, start_seed, batch_size)
+    policy = LookupTablePolicy(episodes)  # the class lerobot-pnp lookup-table saves: the same table, the same replay
+    pre, post = identity_processors(policy.config)
+    return eval_lerobot_policy(policy, pre, post, env_cfg, n, start_seed, batch_size)
 
 
 def pnp_lstm_trainer(overrides: dict, batch_size: int | None) -> Callable[[TrainContext], Path]:
