@@ -107,16 +107,17 @@ def suite_configs(cfg: Any) -> dict[str, Any] | None:
                 f"env.task: suite {name!r} has {len(suite.parts)} parts; lerobot-eval runs one-part suites"
             )
         (part,) = suite.env_configs(base)
-        _check_control_mode(name, suite.parts[0], part)
+        _check_control_mode(name, part)
         out[name] = part
     return out
 
 
-def _check_control_mode(name: str, changes: dict, part: Any) -> None:
-    """A nudge suite pushes the object "after the first keyframe": env step ``nudge_at_step`` = 1 in keyframe
+def _check_control_mode(name: str, part: Any) -> None:
+    """A suite that nudges pushes the object "after the first keyframe": env step ``nudge_at_step`` = 1 in keyframe
     control. In dense control step 1 is one control period after the reset, before the arm has moved, a different
-    suite; the study times it from the dense demonstrations, which a checkpoint does not carry."""
-    if part.control_mode == "dense" and changes.get("nudge_max", 0) > 0 and part.nudge_at_step <= 1:
+    suite; the study times it from the dense demonstrations, which a checkpoint does not carry. The nudge may be the
+    suite's change or the task's own (on ``full`` every suite nudges), so the resolved config decides."""
+    if part.control_mode == "dense" and part.nudge_max > 0 and part.nudge_at_step <= 1:
         raise ConfigError(
             f"env.task: suite {name!r} nudges the object at env step {part.nudge_at_step}, the first keyframe in "
             f"keyframe control; this checkpoint's task is in dense control ({part.fps} fps), where that step comes "
