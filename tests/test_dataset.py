@@ -392,34 +392,6 @@ def test_dense_with_camera_video(tmp_path):
     assert tuple(frame.shape) == (3, 32, 32) and float(frame.std()) > 0
 
 
-@pytest.mark.slow
-def test_lerobot_dataset_viz_runs(kf, tmp_path):
-    root, _ = kf
-    out = tmp_path / "viz"
-    res = subprocess.run(
-        [
-            str(Path(sys.executable).parent / "lerobot-dataset-viz"),
-            "--repo-id",
-            REPO,
-            "--root",
-            str(root),
-            "--episode-index",
-            "0",
-            "--save",
-            "1",
-            "--output-dir",
-            str(out),
-        ],
-        capture_output=True,
-        text=True,
-        env=_cli_env(HF_HUB_OFFLINE="1"),
-        timeout=180,
-        cwd=tmp_path,
-    )
-    assert res.returncode == 0, res.stderr[-3000:]
-    assert list(out.glob("*.rrd"))
-
-
 def test_expert_failures_are_retried_with_disjoint_seeds_and_reported(tmp_path, monkeypatch):
     import lerobot_pnp.expert as expert
     from lerobot_pnp.errors import ExpertFailure, UnreachableError
