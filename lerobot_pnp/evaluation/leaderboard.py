@@ -86,9 +86,11 @@ def render(runs_dir: str | Path, episodes: int = 100, seed: int = 100_000) -> st
         f"lerobot-pnp leaderboard --runs_dir {runs_dir} --output docs/leaderboard.md",
         "```",
         "",
-        "The expert (privileged: it reads the simulator) and the lookup table (built in memory from a dataset) are no "
-        "checkpoints; their rates on the same suites and seeds are in "
-        "[the held-out study](results/study/heldout/report.md).",
+        "The lookup table is a checkpoint like the others (`lerobot-pnp lookup-table` writes it from a dataset's "
+        "training episodes). The expert is privileged (it reads the simulator), so it is no policy of observations "
+        "and no checkpoint: its row is `lerobot-pnp expert --env.task heldout`, which runs the same suites, env "
+        "configs and seeds as `lerobot-eval` and writes `lerobot-eval`'s `eval_info.json` layout. Each row's "
+        "commands are at the end of the page.",
         "",
         "| row | method | nominal | " + " | ".join(a.name for a in HELD_OUT_AXES) + " |",
         "|---|---|---|" + "---|" * len(HELD_OUT_AXES),
