@@ -24,6 +24,7 @@ A generated dataset records the resolved config (``recorded_task.write_recorded`
 from __future__ import annotations
 
 import logging
+import os
 from dataclasses import dataclass, field, fields
 from typing import ClassVar
 
@@ -237,14 +238,19 @@ class BaxterPnPEnvConfig(EnvConfig):
     def create_envs(self, n_envs: int, use_async_envs: bool = False):
         """LeRobot's vector envs (what ``lerobot-eval`` and in-training eval build), sync for keyframe control.
 
-        ``lerobot-eval`` asks for async envs by default; a keyframe step is short, so one worker process per env
-        (each importing LeRobot and MuJoCo) costs far more start-up time and memory than it saves. Keyframe
-        control gets a ``SyncVectorEnv`` with a warning; dense control keeps what was asked for.
+        ``lerobot-eval`` asks for async envs by default: one worker process per env, each importing LeRobot and
+        MuJoCo (several hundred MB). A keyframe step is short, so those workers cost far more start-up time and
+        memory than they save: keyframe control gets a ``SyncVectorEnv`` with a warning. Dense control keeps async
+        workers while there is a CPU for each; more workers than CPUs only contend for them (a batch of 50 on a
+        laptop would start 50 interpreters), so it then runs in this process too, with a warning.
         """
-        if use_async_envs and n_envs > 1 and self.control_mode == "keyframe":
+        cpus = os.cpu_count() or 1
+        if use_async_envs and n_envs > 1 and (self.control_mode == "keyframe" or n_envs > cpus):
+            why = "keyframe control" if self.control_mode == "keyframe" else f"dense control on {cpus} CPUs"
             logging.getLogger(__name__).warning(
-                "baxter_pnp: keyframe control runs its %d eval envs in this process (SyncVectorEnv) instead of "
-                "%d async worker processes, which would only add start-up time and memory",
+                "baxter_pnp: %s runs its %d eval envs in this process (SyncVectorEnv) instead of %d async worker "
+                "processes, which would only add start-up time and memory",
+                why,
                 n_envs,
                 n_envs,
             )
