@@ -106,3 +106,29 @@ def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys, demos, checkpoint):
         assert message in err and "\n" not in err, err
     assert not (tmp_path / "out").exists() and (tmp_path / "busy/notes.txt").is_file()
     assert json.loads((checkpoint / "config.json").read_text())["type"] == "pnp_lookup_table"
+
+
+def test_a_damaged_table_is_refused_when_loaded(checkpoint, tmp_path):
+    """lerobot-eval's feature check passes on the task the table was recorded for; a table holding NaN, or a file
+    without the table, is a PolicyError when loaded, never a replay of zeros or NaN."""
+    import shutil
+
+    from lerobot.configs import PreTrainedConfig
+    from safetensors.torch import load_file, save_file
+
+    from lerobot_pnp.errors import PolicyError
+    from lerobot_pnp.evaluation.checkpoints import check_policy_features
+    from lerobot_pnp.policy.modeling_pnp_lookup_table import PnpLookupTablePolicy
+
+    check_policy_features(
+        PreTrainedConfig.from_pretrained(checkpoint), len(BaxterPnPEnvConfig(preset="paper").environment_state_names)
+    )
+    bad = tmp_path / "bad"
+    shutil.copytree(checkpoint, bad)
+    tensors = load_file(bad / "model.safetensors")
+    save_file({**tensors, "actions": tensors["actions"] * float("nan")}, bad / "model.safetensors")
+    with pytest.raises(PolicyError, match="non-finite values in \\['actions'\\]"):
+        PnpLookupTablePolicy.from_pretrained(bad)
+    save_file({k: v for k, v in tensors.items() if k != "actions"}, bad / "model.safetensors")
+    with pytest.raises(RuntimeError, match="actions"):
+        PnpLookupTablePolicy.from_pretrained(bad)
