@@ -36,8 +36,7 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "expert": (
         "lerobot_pnp.expert_eval:ExpertEvalConfig",
         "lerobot_pnp.expert_eval:evaluate_expert",
-        "run the scripted expert on seeded episodes (or lerobot-eval's suites: --env.task, --output_dir) and "
-        "report success and failures by cause",
+        "run the scripted expert on seeded episodes or on lerobot-eval's suites: success, failures by cause",
     ),
     "lookup-table": (
         "lerobot_pnp.report.baselines:LookupTableCheckpointConfig",
