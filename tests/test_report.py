@@ -116,8 +116,9 @@ def test_quick_study_writes_a_report_where_the_planner_beats_the_lookup_table(tm
     from lerobot_pnp.report.run import StudyConfig, SuiteSpec, run_study
 
     out = tmp_path / "study"
-    # the quick preset cut to half its demonstrations and episodes (the nudge gap stays far beyond p = 0.05)
-    small = dict(num_episodes=150, epochs=250, suites=[SuiteSpec("nominal", 50), SuiteSpec("nudge_0.03", 50)])
+    # the quick preset cut to a third of its demonstrations and 40 % of its episodes (the nudge gap stays far
+    # beyond p = 0.05)
+    small = dict(num_episodes=100, epochs=250, suites=[SuiteSpec("nominal", 40), SuiteSpec("nudge_0.03", 40)])
     run_study(StudyConfig(output_dir=str(out), quick=True, workers=1, **small))
     report = (out / "report.md").read_text()
     assert "Success by suite" in report and "figures/heatmap_nominal.png" in report
