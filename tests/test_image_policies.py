@@ -99,14 +99,15 @@ def test_shipped_image_configs_are_offline(name):
 # ---------------------------------------------------------------------------------------------- slow
 @pytest.mark.slow
 def test_act_on_images_stock_train_then_eval_without_camera_flags(tmp_path):
-    pnp, train, evaluate = _exe("lerobot-pnp"), _exe("lerobot-train"), _exe("lerobot-eval")
+    from lerobot_pnp import cli
+
+    train, evaluate = _exe("lerobot-train"), _exe("lerobot-eval")  # the stock processes under test
     config = json.loads((REPO / "configs" / "train_act_images.json").read_text())
     ds = tmp_path / config["dataset"]["root"]  # the config's own (relative) dataset root, run from tmp_path
     repo_id = config["dataset"]["repo_id"]
-    gen = [pnp, "generate", f"--repo_id={repo_id}", f"--root={ds}", "--num_episodes=3", "--workers=1"]
+    gen = ["generate", f"--repo_id={repo_id}", f"--root={ds}", "--num_episodes=3", "--workers=1"]
     cams = ["--env.cameras=[front]", "--env.image_height=64", "--env.image_width=64", "--progress=false"]
-    proc = _run([*gen, *cams], tmp_path)
-    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert cli.main([*gen, *cams]) == 0
 
     out = tmp_path / "train"
     proc = _run(
