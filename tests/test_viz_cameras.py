@@ -121,6 +121,24 @@ def test_keypoint_pixels_put_x_on_the_columns():
     with torch.no_grad():
         xy = encoder.pixel_coordinates(encoder.softmax(maps))[0].numpy()
     np.testing.assert_allclose(xy, [[6 * 4 + 0.5, 1 * 4 + 0.5], [0.5, 7 * 4 + 0.5]], atol=1e-4)
+    # ... which is the centre of what that map cell sees: the centroid of its receptive field in the image
+    for m in encoder.conv:
+        if isinstance(m, torch.nn.Conv2d):
+            torch.nn.init.constant_(m.weight, 0.01)
+            torch.nn.init.zeros_(m.bias)
+    image = torch.ones(1, 3, SIZE, SIZE, requires_grad=True)
+    encoder.conv(image)[0, 0, 2, 5].backward()  # an inner cell: row 2, column 5
+    weight = image.grad[0].sum(0)
+    index = torch.arange(SIZE, dtype=torch.float32)
+    centroid = [
+        float((weight.sum(0) * index).sum() / weight.sum()),
+        float((weight.sum(1) * index).sum() / weight.sum()),
+    ]
+    maps = torch.full((1, 2, h, w), -1e4)
+    maps[0, :, 2, 5] = 0.0
+    with torch.no_grad():
+        xy = encoder.pixel_coordinates(encoder.softmax(maps))[0, 0].numpy()
+    np.testing.assert_allclose(xy - 0.5, centroid, atol=1e-4)  # pixel index i is drawn at i + 0.5
 
 
 def test_a_policy_without_keypoint_encoders_has_none():
