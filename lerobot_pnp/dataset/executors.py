@@ -11,11 +11,13 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import os
+import select
 import shutil
 import signal
 import subprocess
 import sys
 import threading
+import time
 import warnings
 from pathlib import Path
 
@@ -113,6 +115,40 @@ def die_with_parent(parent_pid: int | None) -> None:
         ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG = 1
     if os.getppid() != parent_pid:
         os._exit(1)
+
+
+def die_with_forking_parent(owner_pid: int) -> None:
+    """``die_with_parent`` for a worker forked by multiprocessing's fork server on behalf of ``owner_pid``.
+
+    The worker's parent is the server, which outlives the owner while any worker runs, so the parent-death signal
+    cannot tell: a daemon thread waits on the owner's process descriptor (Linux; elsewhere it polls the pid) and
+    ends the worker the moment the owner is gone, kill -9 included.
+    """
+
+    def watch(pidfd: int | None) -> None:
+        if pidfd is not None:
+            select.select([pidfd], [], [])
+        while pidfd is None and _alive(owner_pid):
+            time.sleep(1.0)
+        os._exit(1)
+
+    try:
+        pidfd = os.pidfd_open(owner_pid) if hasattr(os, "pidfd_open") else None
+    except ProcessLookupError:
+        os._exit(1)
+    except OSError:
+        pidfd = None
+    threading.Thread(target=watch, args=(pidfd,), name="die-with-owner", daemon=True).start()
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
 
 
 class _ForkGuard:

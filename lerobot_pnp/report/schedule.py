@@ -15,6 +15,10 @@ from lerobot_pnp.report.methods import get_methods
 # ``Job.part``: a method x seed's training and every suite in one job (one process), or the training alone
 ALL, TRAINING = "*", "training"
 
+# what every training or evaluation job imports, loaded once by the pool's fork server (no MuJoCo: its GL backend
+# is chosen where an env is built)
+JOB_IMPORTS = ("lerobot_pnp.train_fast", "lerobot_pnp.evaluation.episodes", "lerobot.policies.factory")
+
 
 @dataclass(frozen=True)
 class Job:
@@ -103,11 +107,16 @@ def run_jobs(jobs: list[Job], context: tuple, processes: int, fn):
     names = {j.key for j in jobs}
     done: set[tuple[str, str, str, int]] = set()
     pending, running = longest_first(jobs), {}
-    from lerobot_pnp.dataset.executors import die_with_parent
+    from lerobot_pnp.dataset.executors import die_with_forking_parent
 
-    # a worker dies with this process (kill -9 included), as the generation's do: none writes on alone
+    # Workers fork from multiprocessing's fork server, which imports what the jobs import (torch, LeRobot) once:
+    # a spawned worker would import it again each. The server is a fresh interpreter, not a fork of this
+    # process and its threads. A worker dies with this process (kill -9 included), as the generation's do: none
+    # writes on alone.
+    server = mp.get_context("forkserver")
+    server.set_forkserver_preload([fn.__module__, *JOB_IMPORTS])
     pool = ProcessPoolExecutor(
-        processes, mp_context=mp.get_context("spawn"), initializer=die_with_parent, initargs=(os.getpid(),)
+        processes, mp_context=server, initializer=die_with_forking_parent, initargs=(os.getpid(),)
     )
     with pool:
         while pending or running:
