@@ -9,7 +9,7 @@ import pytest
 
 from lerobot_pnp import cli
 from lerobot_pnp.errors import ConfigError
-from lerobot_pnp.evaluation.leaderboard import LeaderboardConfig, render
+from lerobot_pnp.evaluation.leaderboard import LeaderboardConfig, analyse_rows, render
 from lerobot_pnp.evaluation.stock_suites import suite_names
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -41,8 +41,8 @@ def test_rows_verdicts_and_the_command_to_add_one(tmp_path):
     assert cli.main([*args, "--check=true"]) == 2 and not out.exists()  # no page yet
     assert cli.main(args) == 0 and cli.main([*args, "--check=true"]) == 0
     page = out.read_text()
-    assert "| `a_good` | method a_good | 100.0% [72.2, 100.0] | 100.0 -> 100.0: generalises |" in page
-    assert "| `b_weak` | method b_weak | 30.0% [10.8, 60.3] | 30.0 -> 30.0: no_recovery |" in page
+    assert "| `a_good` | method a_good | - | 100.0% [72.2, 100.0] | 100.0 -> 100.0: generalises |" in page
+    assert "| `b_weak` | method b_weak | - | 30.0% [10.8, 60.3] | 30.0 -> 30.0: no_recovery |" in page
     assert "--env.task heldout --eval.n_episodes 10" in page and "lerobot-pnp leaderboard --runs_dir" in page
     assert page.count("| heldout_") == 11 and "- `b_weak`: `lerobot-eval ... b_weak`" in page
 
@@ -58,3 +58,20 @@ def test_a_row_that_does_not_pair_writes_nothing(tmp_path):
     _write_row(tmp_path / "short", "c", ok=3)
     with pytest.raises(ConfigError, match="every suite needs 100 episodes"):
         render(tmp_path / "short")
+
+
+def test_a_row_may_carry_a_short_name_and_its_budget_and_nothing_else(tmp_path):
+    _write_row(tmp_path / "runs", "a", ok=10)
+    meta_file = tmp_path / "runs" / "a" / "row.json"
+    meta = json.loads(meta_file.read_text())
+    meta_file.write_text(json.dumps({**meta, "name": "A", "budget": "10 demos, no training"}))
+    assert "| `a` | method a | 10 demos, no training | 100.0% [72.2, 100.0] |" in render(tmp_path / "runs", episodes=10)
+    rows, result, axes = analyse_rows(tmp_path / "runs", episodes=10)
+    assert rows[0] == ("a", {**meta, "name": "A", "budget": "10 demos, no training"})
+    assert str(result["table"]["nominal"]["a"].rate) == "100.0% [72.2, 100.0]" and axes[("timing", "a")].verdict
+    meta_file.write_text(json.dumps({**meta, "budgets": "typo"}))
+    with pytest.raises(ConfigError, match="unknown key 'budgets'; valid: .*'budget'"):
+        render(tmp_path / "runs", episodes=10)
+    meta_file.write_text(json.dumps({**meta, "budget": 300}))
+    with pytest.raises(ConfigError, match="'budget' must be text, not 300"):
+        render(tmp_path / "runs", episodes=10)
