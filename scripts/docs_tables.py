@@ -20,10 +20,10 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import posixpath
 import re
 import sys
 from pathlib import Path
+from unittest import mock
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "docs" / "results"
@@ -220,45 +220,11 @@ def cost_lines(base: str) -> str:
     )
 
 
-AXIS_MARK = {"generalises": "✓", "degrades": "≈", "fails": "✗", "no_recovery": "·"}
-LEADERBOARD_FLOOR = "untrained_pnp_lstm"  # the leaderboard's floor row: on the page, not in the README's table
-
-
 def leaderboard_table(base: str) -> str:
-    """The leaderboard's rows in one compact table (lerobot-pnp leaderboard's own analysis, so the page's numbers):
-    short name, budget, nominal with its interval, the held-out rate and verdict per axis; the floor left out."""
-    from lerobot_pnp.evaluation.leaderboard import ADD_ROW, LeaderboardConfig, analyse_rows
-    from lerobot_pnp.evaluation.suites import HELD_OUT_AXES
-    from lerobot_pnp.report.results import TARGET
+    """The leaderboard's page in one compact table, the page's numbers; the untrained floor is on the page only."""
+    from lerobot_pnp.evaluation.leaderboard import readme_block
 
-    cfg = LeaderboardConfig()
-    rows, result, axes = analyse_rows(ROOT / cfg.runs_dir, cfg.episodes)
-    nominal = result["table"]["nominal"]
-    shown = [(n, m) for n, m in rows if n != LEADERBOARD_FLOOR]
-    shown.sort(key=lambda r: (-nominal[r[0]].rate.rate, -sum(axes[(a.name, r[0])].outside.rate for a in HELD_OUT_AXES)))
-    lines = ["| method | budget | nominal | " + " | ".join(a.name for a in HELD_OUT_AXES) + " |"]
-    lines.append("|---" * (len(HELD_OUT_AXES) + 3) + "|")
-    for name, meta in shown:
-        res = [axes[(a.name, name)] for a in HELD_OUT_AXES]
-        cells = [f"{_pct(r.outside.rate)} {AXIS_MARK[r.verdict]}" for r in res]
-        rate = nominal[name].rate
-        nom = _cell({"rate": rate.rate, "interval": rate.interval})
-        lines.append(f"| {meta.get('name', name)} | {meta.get('budget', '-')} | {nom} | " + " | ".join(cells) + " |")
-    floor = [m.get("name", n) for n, m in rows if n == LEADERBOARD_FLOOR]
-    link = {page: posixpath.normpath(base + rel) for page, rel in (("heldout", "../benchmark/heldout.md"),
-                                                                   ("page", "../leaderboard.md"))}  # fmt: skip
-    legend = (
-        f"Success % with its 95 % interval on `nominal`; per axis of [the held-out protocol]({link['heldout']}) "
-        "the held-out rate: ✓ generalises, ≈ only partly, ✗ does not, · no verdict (below "
-        f"{100 * TARGET:.0f} % in distribution). One stock `lerobot-eval --env.task heldout` per row, "
-        f"{cfg.episodes} episodes per suite from seed {cfg.seed:,}; ACT counts latency in 20 fps steps, not "
-        f"keyframes. {''.join(f'Left out: the floor, {f}. ' for f in floor)}Every suite and each row's commands: "
-        f"[the leaderboard]({link['page']}). Budget: data, training, seeds and the training time on 2 CPU "
-        'cores (CPU time where measured, else wall time, "study": the study\'s own training). To add a row:'
-    )
-    add = ADD_ROW.format(runs_dir=cfg.runs_dir, episodes=cfg.episodes, seed=cfg.seed)
-    cmd = f"lerobot-pnp leaderboard  # rewrites {cfg.output}; then python scripts/docs_tables.py"
-    return "\n".join([*lines, "", legend, "", "```bash", add, cmd, "```"])
+    return readme_block(ROOT, docs=base + "../", leave_out=("untrained_pnp_lstm",))
 
 
 # ------------------------------------------------------------------------------------------- reference blocks
@@ -325,9 +291,7 @@ def cli_help(base: str) -> str:
     from lerobot_pnp import cli
     from lerobot_pnp.cli_help import command_help
 
-    old = os.environ.get("COLUMNS")
-    os.environ["COLUMNS"] = "100"
-    try:
+    with mock.patch.dict(os.environ, {"COLUMNS": "100"}):
         out = ["```text", "$ lerobot-pnp --help", cli._usage(), "```"]
         for name, (cfg_ref, _, summary) in cli.COMMANDS.items():
             out += [
@@ -338,11 +302,6 @@ def cli_help(base: str) -> str:
                 command_help(name, summary, cli._load(cfg_ref)),
                 "```",
             ]
-    finally:
-        if old is None:
-            del os.environ["COLUMNS"]
-        else:
-            os.environ["COLUMNS"] = old
     return "\n".join(out)
 
 

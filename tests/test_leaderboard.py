@@ -9,7 +9,7 @@ import pytest
 
 from lerobot_pnp import cli
 from lerobot_pnp.errors import ConfigError
-from lerobot_pnp.evaluation.leaderboard import LeaderboardConfig, analyse_rows, render
+from lerobot_pnp.evaluation.leaderboard import LeaderboardConfig, analyse_rows, compact_table, render
 from lerobot_pnp.evaluation.stock_suites import suite_names
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -69,6 +69,12 @@ def test_a_row_may_carry_a_short_name_and_its_budget_and_nothing_else(tmp_path):
     rows, result, axes = analyse_rows(tmp_path / "runs", episodes=10)
     assert rows[0] == ("a", {**meta, "name": "A", "budget": "10 demos, no training"})
     assert str(result["table"]["nominal"]["a"].rate) == "100.0% [72.2, 100.0]" and axes[("timing", "a")].verdict
+    _write_row(tmp_path / "runs", "b_floor", ok=0)
+    table, left_out = compact_table(tmp_path / "runs", episodes=10, leave_out=("b_floor",))
+    assert left_out == ["b_floor"] and "b_floor" not in table  # no short name: the row's folder stands in
+    assert table.splitlines()[2].replace("\N{NO-BREAK SPACE}", " ") == (
+        "| A | 10 demos, no training | 100 [72.2, 100] | 100 ✓ | 100 ✓ | 100 ✓ | 100 ✓ | 100 ✓ |"
+    )
     meta_file.write_text(json.dumps({**meta, "budgets": "typo"}))
     with pytest.raises(ConfigError, match="unknown key 'budgets'; valid: .*'budget'"):
         render(tmp_path / "runs", episodes=10)

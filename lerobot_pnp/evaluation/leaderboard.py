@@ -13,6 +13,7 @@ Every row is checked against the others (same suites, same episodes per suite), 
 from __future__ import annotations
 
 import json
+import posixpath
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -134,6 +135,60 @@ def render(runs_dir: str | Path, episodes: int = 100, seed: int = 100_000) -> st
     lines += ["", "## How each row was produced", ""]
     lines += [f"- `{name}`: `{meta['command']}`" for name, meta in rows]
     return "\n".join(lines) + "\n"
+
+
+AXIS_MARK = {"generalises": "✓", "degrades": "≈", "fails": "✗", "no_recovery": "○"}
+NBSP = "\N{NO-BREAK SPACE}"  # inside a compact table's cell, so a narrow column does not split it
+
+
+def _pct(x: float) -> str:
+    return f"{100 * x:.1f}".removesuffix(".0")
+
+
+def compact_table(runs_dir: str | Path, episodes: int = 100, leave_out: tuple[str, ...] = ()) -> tuple[str, list[str]]:
+    """(One line per row, strongest first: short name, budget, nominal % with its 95 % interval, held-out % per axis
+    with the verdict as ``AXIS_MARK``'s symbol; the short names of the rows in ``leave_out``): the README's table,
+    the page's numbers."""
+    from lerobot_pnp.evaluation.suites import HELD_OUT_AXES
+
+    rows, result, axes = analyse_rows(runs_dir, episodes)
+    nominal = result["table"]["nominal"]
+    held = {n: [axes.get((a.name, n)) for a in HELD_OUT_AXES] for n, _ in rows}  # None: the row lacks the axis
+    shown = [(n, m) for n, m in rows if n not in leave_out]
+    shown.sort(key=lambda r: (-nominal[r[0]].rate.rate, -sum(a.outside.rate for a in held[r[0]] if a)))
+    lines = ["| method | budget | nominal | " + " | ".join(a.name for a in HELD_OUT_AXES) + " |"]
+    lines.append("|---" * (len(HELD_OUT_AXES) + 3) + "|")
+    for n, meta in shown:
+        rate = nominal[n].rate
+        lo, hi = rate.interval
+        cells = [f"{_pct(rate.rate)}{NBSP}[{_pct(lo)},{NBSP}{_pct(hi)}]"]
+        cells += [f"{_pct(a.outside.rate)}{NBSP}{AXIS_MARK[a.verdict]}" if a else "-" for a in held[n]]
+        lines.append(f"| {meta.get('name', n)} | {meta.get('budget', '-')} | " + " | ".join(cells) + " |")
+    return "\n".join(lines), [m.get("name", n) for n, m in rows if n in leave_out]
+
+
+def readme_block(root: Path, docs: str, leave_out: tuple[str, ...] = ()) -> str:
+    """The README's leaderboard: ``compact_table`` of the default rows under ``root``, its legend (links relative
+    to ``docs``, the docs folder seen from the page) and the commands that add a row."""
+    from lerobot_pnp.report.results import TARGET
+
+    cfg = LeaderboardConfig()
+    table, left_out = compact_table(root / cfg.runs_dir, cfg.episodes, leave_out)
+    heldout, page = (posixpath.normpath(docs + rel) for rel in ("benchmark/heldout.md", Path(cfg.output).name))
+    legend = (
+        f"Success %: on `nominal` with its 95 % interval, and per axis of [the held-out protocol]({heldout}) "
+        "the held-out rate with the verdict: ✓ generalises, ≈ only partly, ✗ does not, ○ no verdict (below "
+        f"{100 * TARGET:.0f} % in distribution already). Budget: data, training, seeds and training time on 2 CPU "
+        'cores, CPU time where measured, else wall time ("(study)": the study\'s training wall time). One '
+        f"stock `lerobot-eval --env.task heldout` per row, {cfg.episodes} episodes per suite from seed {cfg.seed:,}; "
+        "ACT counts latency in 20 fps steps, not keyframes. "
+        + "".join(f"Left out: the floor, {f}. " for f in left_out)
+        + f"Every suite and each row's commands: [the leaderboard]({page}). To add a row:"
+    )
+    add = ADD_ROW.format(runs_dir=cfg.runs_dir, episodes=cfg.episodes, seed=cfg.seed)
+    add = add.replace(" --eval.batch_size", " \\\n  --eval.batch_size", 1)
+    cmd = f"lerobot-pnp leaderboard   # rewrites {cfg.output}; then python scripts/docs_tables.py"
+    return "\n".join([table, "", legend, "", "```bash", add, cmd, "```"])
 
 
 def _axis_cell(result) -> str:
