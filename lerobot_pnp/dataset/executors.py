@@ -117,7 +117,7 @@ def die_with_parent(parent_pid: int | None) -> None:
         os._exit(1)
 
 
-def die_with_forking_parent(owner_pid: int) -> None:
+def die_with_forking_parent(owner_pid: int | None) -> None:
     """``die_with_parent`` for a worker forked by multiprocessing's fork server on behalf of ``owner_pid``.
 
     The worker's parent is the server, which outlives the owner while any worker runs, so the parent-death signal
@@ -125,10 +125,13 @@ def die_with_forking_parent(owner_pid: int) -> None:
     ends the worker the moment the owner is gone, kill -9 included.
     """
 
+    if owner_pid is None or os.getpid() == owner_pid:  # in-process run, or a SLURM task
+        return
+
     def watch(pidfd: int | None) -> None:
         if pidfd is not None:
             select.select([pidfd], [], [])
-        while pidfd is None and _alive(owner_pid):
+        while pidfd is None and owner_alive(owner_pid):
             time.sleep(1.0)
         os._exit(1)
 
@@ -141,7 +144,7 @@ def die_with_forking_parent(owner_pid: int) -> None:
     threading.Thread(target=watch, args=(pidfd,), name="die-with-owner", daemon=True).start()
 
 
-def _alive(pid: int) -> bool:
+def owner_alive(pid: int) -> bool:
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
@@ -178,15 +181,24 @@ def run_local(step, tasks: int, workers: int, logging_dir: Path) -> None:
         _run_executor(step, tasks, workers, logging_dir)
 
 
+# what a shard imports, loaded once by the workers' fork server (no MuJoCo: its GL backend is chosen where an env
+# is built)
+SHARD_IMPORTS = ("lerobot_pnp.dataset.shards", "lerobot.datasets.lerobot_dataset", "lerobot.envs.configs")
+
+
 def _run_executor(step, tasks: int, workers: int, logging_dir: Path) -> None:
+    import multiprocess
     from datatrove.executor import LocalPipelineExecutor
 
+    # Workers fork from a fork server (a fresh interpreter: no inherited threads or locks) that imports what a shard
+    # imports once; a spawned worker would import torch and LeRobot again each.
+    multiprocess.get_context("forkserver").set_forkserver_preload(list(SHARD_IMPORTS))
     executor = LocalPipelineExecutor(
         pipeline=[step],
         tasks=tasks,
         workers=max(1, min(workers, tasks)),
         logging_dir=str(logging_dir),
-        start_method="spawn",  # fresh interpreters: no inherited threads or locks, same as LeRobot's tools
+        start_method="forkserver",
     )
     executor.run()
 

@@ -21,7 +21,7 @@ from pathlib import Path
 from datatrove.pipeline.base import PipelineStep
 
 from lerobot_pnp.dataset.episodes import episode_frames, make_recording_env, simulate_slot
-from lerobot_pnp.dataset.executors import die_with_parent
+from lerobot_pnp.dataset.executors import die_with_forking_parent, owner_alive
 from lerobot_pnp.dataset.schema import ROBOT_TYPE, dataset_features, saves_without_image_embedding
 from lerobot_pnp.dataset.validation import validate_dataset
 from lerobot_pnp.dataset.workdir import disk_error
@@ -82,7 +82,7 @@ class GenerateShard(PipelineStep):
         self.parent_pid = parent_pid
 
     def run(self, data=None, rank: int = 0, world_size: int = 1):
-        die_with_parent(self.parent_pid)
+        die_with_forking_parent(self.parent_pid)
         try:
             record = self.write(rank, world_size)
         except PnPError as err:
@@ -127,8 +127,8 @@ class GenerateShard(PipelineStep):
         sim_s = write_s = 0.0
         with saves_without_image_embedding(features):
             for slot in range(start, stop):
-                if self.parent_pid is not None and os.getppid() != self.parent_pid and os.getpid() != self.parent_pid:
-                    os._exit(1)
+                if self.parent_pid not in (None, os.getpid()) and not owner_alive(self.parent_pid):
+                    os._exit(1)  # where the watch of die_with_forking_parent is unavailable
                 t0 = time.perf_counter()
                 ep = simulate_slot(env, self.seed, self.num_episodes, slot, self.max_retries, failures)
                 t1 = time.perf_counter()
