@@ -36,7 +36,7 @@ study: $(STAMP)
 test: $(STAMP)
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/ruff format --check .
-	$(VENV)/bin/python -m pytest -q -n 2 --dist loadfile --no-loadscope-reorder  # both cores; a file on one worker, long files first (tests/conftest.py)
+	$(VENV)/bin/python -m pytest -q -n 2 --dist loadfile --no-loadscope-reorder -m ""  # every test, the slow end-to-end ones too; both cores; a file on one worker, long files first (tests/conftest.py)
 	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict --quiet  # a page off the nav, a broken link or anchor fails
 
 # the documentation site from docs/ (mkdocs.yml) into site/: open site/index.html, no server needed
