@@ -13,7 +13,7 @@ set -euo pipefail
 DIR=${SLURM_LOCAL_DIR:-/tmp/slurm_local}
 CONF=/etc/slurm/slurm.conf
 HOST=$(hostname -s)
-CPUS=$(nproc)
+CPUS=$(env -u OMP_NUM_THREADS -u OMP_THREAD_LIMIT nproc)  # nproc alone honours OMP_NUM_THREADS, which the tests set to 1
 MEM_MB=$(awk '/MemTotal/ {print int($2 / 1024 * 0.9)}' /proc/meminfo)
 
 start() {
@@ -64,6 +64,10 @@ EOF
 stop() {
   for d in slurmd slurmctld; do
     [ -f "$DIR/$d.pid" ] && kill "$(cat "$DIR/$d.pid")" 2>/dev/null || true
+  done
+  for _ in $(seq 1 40); do  # gone before returning, so that a start right after starts them again
+    pgrep -x slurmctld >/dev/null || pgrep -x slurmd >/dev/null || return 0
+    sleep 0.25
   done
 }
 
