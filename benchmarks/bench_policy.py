@@ -19,6 +19,8 @@ c. ``select_action`` latency (mean and median) of pnp_lstm at batch 1 and 50 nex
    (first select_action after reset, which computes the 100-step chunk) and per step amortised over a full
    chunk (100 select_action calls / 100). One torch thread for both, as everything here.
    ``--sections c --checkpoint DIR`` times an existing checkpoint alone (e.g. one written before a change).
+   Beside them, at batch 1 on pre-rendered 64x64 front and wrist images (the env's rendering excluded): the
+   camera planner ``pnp_pixels`` and image ACT, each with its shipped config's architecture.
 d. Memory and feedback: the default recurrent policy vs the memoryless variant (``recurrent=False``, trained
    the same way) under nominal / nudge 3 cm / noise (object 5 mm, joints 0.01 rad) / all together;
    ``--robust_episodes`` episodes each, in-process rollouts (``--robust_backend lerobot-eval`` runs the real
@@ -135,12 +137,59 @@ def bench_latency(args, ckpt: Path) -> dict:
                 act.select_action(batch)
             chunk.append((time.perf_counter() - t) / cfg.n_action_steps)
         res["act"][f"b{bsz}_per_step_amortised"] = _ms(chunk)
-    for name in ("pnp_lstm", "act"):
+    res |= bench_image_latency(reps)
+    for name in res:
         r = res[name]
         log(
             f"  {name:9s} ({r['params'] / 1e6:.3f} M params): "
             + ", ".join(f"{k} {v['mean_ms']:.3f} ms" for k, v in r.items() if isinstance(v, dict))
         )
+    return res
+
+
+IMAGE_FEATURES = {"observation.images.front": (3, 64, 64), "observation.images.wrist": (3, 64, 64)}
+
+
+def _shipped(config: str, cls, drop=("type", "input_features")):
+    """A policy built from a shipped ``configs/`` file's policy fields, on joints + the two 64x64 cameras."""
+    from lerobot.configs import FeatureType, PolicyFeature
+
+    fields = json.loads((Path(__file__).resolve().parents[1] / "configs" / config).read_text())["policy"]
+    cfg = cls(**{k: v for k, v in fields.items() if k not in drop})
+    cfg.input_features = {"observation.state": PolicyFeature(FeatureType.STATE, (8,))} | {
+        k: PolicyFeature(FeatureType.VISUAL, shape) for k, shape in IMAGE_FEATURES.items()
+    }
+    cfg.output_features = {"action": PolicyFeature(FeatureType.ACTION, (8,))}
+    return cfg
+
+
+@torch.inference_mode()
+def bench_image_latency(reps: int) -> dict:
+    """``select_action`` at batch 1 of the camera planner and of image ACT (the shipped configs' architectures,
+    untrained: the cost does not depend on the weights) on pre-rendered 64x64 front and wrist images, so the
+    env's rendering is not in it; per call over whole 15-keyframe episodes, a reset between episodes. Image ACT
+    runs one model call per step (``n_action_steps`` 1, as the keyframe recipe uses it)."""
+    from lerobot.policies.act.configuration_act import ACTConfig
+    from lerobot.policies.act.modeling_act import ACTPolicy
+
+    from lerobot_pnp.policy.configuration_pnp_pixels import PnpPixelsConfig
+    from lerobot_pnp.policy.modeling_pnp_pixels import PnpPixelsPolicy
+
+    policies = {
+        "pnp_pixels": PnpPixelsPolicy(_shipped("train_pnp_pixels.json", PnpPixelsConfig)),
+        "act_images": ACTPolicy(_shipped("train_act_images.json", ACTConfig)),
+    }
+    batch = {"observation.state": torch.randn(1, 8)} | {k: torch.rand(1, *s) for k, s in IMAGE_FEATURES.items()}
+    res = {}
+    for name, pol in policies.items():
+        pol.eval()
+        pol.reset()
+        pol.select_action(dict(batch))  # warm-up
+        times = []
+        for _ in range(max(3, reps // 10)):
+            pol.reset()
+            times += _time_calls(lambda pol=pol: pol.select_action(dict(batch)), 15)
+        res[name] = {"params": sum(p.numel() for p in pol.parameters()), "b1": _ms(times)}
     return res
 
 

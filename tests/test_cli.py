@@ -123,6 +123,12 @@ def test_train_refuses_another_policy_type_in_a_lerobot_train_config(tmp_path, c
     assert "the fast path trains ['pnp_lstm', 'pnp_pixels']; the policy type is 'act'" in err and err.count("\n") == 1
 
 
+def test_train_points_a_lookup_table_to_its_command(capsys):
+    assert cli.main(["train", "--policy.type", "pnp_lookup_table"]) == 2
+    err = capsys.readouterr().err
+    assert "a lookup table is written by 'lerobot-pnp lookup-table'" in err and err.count("\n") == 1
+
+
 def test_unknown_command_exits_2(capsys):
     assert cli.main(["frobnicate"]) == 2
     err = capsys.readouterr().err

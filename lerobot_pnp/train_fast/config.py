@@ -27,6 +27,12 @@ from .output import check_output
 FAST_POLICIES: dict[str, type[PnpLstmConfig]] = {"pnp_lstm": PnpLstmConfig, "pnp_pixels": PnpPixelsConfig}
 
 
+def _not_fast(ptype: str, what: str) -> str:
+    """The refusal of a policy type the fast path does not train, naming the command that makes it if any."""
+    hint = "; a lookup table is written by 'lerobot-pnp lookup-table'" if ptype == "pnp_lookup_table" else ""
+    return f"the fast path trains {sorted(FAST_POLICIES)}; {what} is {ptype!r}{hint}"
+
+
 @dataclass
 class TrainFastConfig:
     """Configuration of :func:`lerobot_pnp.train_fast.train_fast`.
@@ -151,7 +157,7 @@ class TrainFastConfig:
             else:
                 rest.append(arg)
         if ptype not in FAST_POLICIES:
-            raise ConfigError(f"the fast path trains {sorted(FAST_POLICIES)}; the policy type is {ptype!r}")
+            raise ConfigError(_not_fast(ptype, "the policy type"))
         return (TrainFastPixelsConfig if ptype == "pnp_pixels" else TrainFastConfig), rest
 
     @classmethod
@@ -177,9 +183,7 @@ class TrainFastConfig:
             policy = dict(data["policy"])
             ptype = policy.pop("type", "pnp_lstm")
             if ptype not in FAST_POLICIES:
-                raise ConfigError(
-                    f"the fast path trains {sorted(FAST_POLICIES)}; the config's policy type is {ptype!r}"
-                )
+                raise ConfigError(_not_fast(ptype, "the config's policy type"))
             out["policy"] = policy
         for key in ("batch_size", "seed"):
             if data.get(key) is not None:
