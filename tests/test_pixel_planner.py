@@ -190,6 +190,17 @@ def test_needs_a_camera_and_the_joints():
         PnpPixelsPolicy(cfg)
     with pytest.raises(ConfigError, match="num_keypoints must be >= 1"):
         _config(num_keypoints=0)
+    with pytest.raises(ConfigError, match="image_downsample=3 must divide the images'"):
+        PnpPixelsPolicy(_config(image_downsample=3))
+
+
+def test_a_downsampled_encoder_trains_on_the_same_images():
+    policy = _policy(image_downsample=2)
+    policy.train()
+    loss, _ = policy.forward(_episodes())
+    loss.backward()
+    assert policy.encoders[0].map_shape == (SIZE // 8, SIZE // 8)
+    assert all(p.grad is not None for p in policy.encoders.parameters())
 
 
 # ---------------------------------------------------------------------------------------------- the fast path

@@ -141,6 +141,39 @@ def test_keypoint_pixels_put_x_on_the_columns():
     np.testing.assert_allclose(xy - 0.5, centroid, atol=1e-4)  # pixel index i is drawn at i + 0.5
 
 
+def test_keypoint_pixels_of_a_pooled_encoder_are_the_centres_of_what_their_cells_see():
+    """With the image average-pooled by 2 first, a map cell covers twice the image pixels: the keypoint of a map
+    peaked on an inner cell lands on the centroid of that cell's receptive field in the full-size image."""
+    import torch
+
+    from lerobot_pnp.policy.image_encoder import KeypointEncoder
+
+    size = 2 * SIZE  # an inner cell's receptive field lies inside the image
+    encoder = KeypointEncoder((3, size, size), [8, 8], num_keypoints=1, pool=2)
+    h, w = encoder.map_shape
+    assert (h, w, encoder.stride) == (size // 8, size // 8, 8)
+    for m in encoder.conv:
+        if isinstance(m, torch.nn.Conv2d):
+            torch.nn.init.constant_(m.weight, 0.01)
+            torch.nn.init.zeros_(m.bias)
+    image = torch.ones(1, 3, size, size, requires_grad=True)
+    encoder.conv(torch.nn.functional.avg_pool2d(image, 2))[0, 0, 2, 5].backward()  # row 2, column 5
+    weight = image.grad[0].sum(0)
+    index = torch.arange(size, dtype=torch.float32)
+    centroid = [
+        float((weight.sum(0) * index).sum() / weight.sum()),
+        float((weight.sum(1) * index).sum() / weight.sum()),
+    ]
+    maps = torch.full((1, 1, h, w), -1e4)
+    maps[0, 0, 2, 5] = 0.0
+    with torch.no_grad():
+        xy = encoder.pixel_coordinates(encoder.softmax(maps))[0, 0].numpy()
+    np.testing.assert_allclose(xy - 0.5, centroid, atol=1e-4)
+    with torch.no_grad():  # and the encoder's own forward pools: one keypoint per camera image, in [-1, 1]
+        out = encoder.eval()(torch.rand(2, 3, size, size))
+    assert out.shape == (2, 2) and bool((out.abs() <= 1).all())
+
+
 def test_a_policy_without_keypoint_encoders_has_none():
     from lerobot_pnp.viz.keypoints import KeypointTap, keypoint_colors
 

@@ -49,6 +49,10 @@ class PnpPixelsConfig(PnpLstmConfig):
     num_keypoints: int = 16
     """Spatial-softmax keypoints per camera: the encoder gives each camera's ``2 * num_keypoints`` image
     coordinates to the planner."""
+    image_downsample: int = 1
+    """The encoder reads each image average-pooled by this factor (1: at the recorded resolution; it must divide
+    the image's height and width). It sets the resolution the policy works at apart from the one the benchmark
+    renders, which is part of the recorded task."""
     image_shift: int = 4
     """Training only: each image shifted by a random whole number of pixels up to this in x and y (0: off)."""
     pose_loss_weight: float = 0.1
@@ -64,6 +68,7 @@ class PnpPixelsConfig(PnpLstmConfig):
             ),
             (self.num_keypoints >= 1, f"num_keypoints must be >= 1, got {self.num_keypoints}"),
             (self.image_shift >= 0, f"image_shift must be >= 0, got {self.image_shift}"),
+            (self.image_downsample >= 1, f"image_downsample must be >= 1, got {self.image_downsample}"),
             (self.pose_loss_weight >= 0, f"pose_loss_weight must be >= 0, got {self.pose_loss_weight}"),
         ]
         for ok, message in checks:
@@ -89,6 +94,12 @@ class PnpPixelsConfig(PnpLstmConfig):
         shapes = {tuple(ft.shape) for ft in self.image_features.values()}
         if len(shapes) != 1 or len(next(iter(shapes))) != 3:
             raise ConfigError(f"pnp_pixels needs its cameras' images of one size (C, H, W); got {sorted(shapes)}")
+        _, h, w = next(iter(shapes))
+        if h % self.image_downsample or w % self.image_downsample or h < 8 * self.image_downsample:
+            raise ConfigError(
+                f"policy.image_downsample={self.image_downsample} must divide the images' {h}x{w} and leave at "
+                "least 8 pixels a side"
+            )
         for key, ft in {**inputs, **(self.output_features or {})}.items():
             if ft.type is not FeatureType.VISUAL and len(ft.shape) != 1:
                 raise ConfigError(f"pnp_pixels expects 1-D features; '{key}' has shape {tuple(ft.shape)}")

@@ -6,6 +6,9 @@ gives an expected (x, y) position. The output is ``2 * num_keypoints`` numbers i
 the image the things that matter are (the cube, the target, the gripper), which is what a planner that otherwise
 reads the cube's coordinates needs, at a small fraction of a ResNet's cost on a CPU.
 
+The encoder may read each image average-pooled (``pool``): the resolution it sees is then a choice of the
+policy, measured against success, apart from the resolution the benchmark renders and records.
+
 Training-time augmentation: a random shift of up to ``shift`` pixels per image (DrQ's pad-and-crop, as
 robomimic's crop randomiser), so that a few hundred demonstrations do not teach exact pixel positions.
 """
@@ -40,9 +43,12 @@ class KeypointEncoder(nn.Module):
     ``channels``: the conv layers before the keypoint maps, the first 5x5 and the rest 3x3, each with stride 2;
     the keypoint maps are a 3x3 conv on the last layer's resolution."""
 
-    def __init__(self, image_shape: tuple[int, int, int], channels: list[int], num_keypoints: int, shift: int = 0):
+    def __init__(
+        self, image_shape: tuple[int, int, int], channels: list[int], num_keypoints: int, shift: int = 0, pool: int = 1
+    ):
         super().__init__()
         c, h, w = image_shape
+        h, w = h // pool, w // pool  # the resolution the conv net sees (``pool``: average-pooling factor)
         layers: list[nn.Module] = []
         for i, out in enumerate(channels):
             k = 5 if i == 0 else 3
@@ -53,13 +59,16 @@ class KeypointEncoder(nn.Module):
         self.softmax = SpatialSoftmax(h, w)
         self.shift = shift
         self.out_dim = 2 * num_keypoints
-        self.stride = 2 ** len(channels)  # image pixels per keypoint-map cell
+        self.pool = pool
+        self.stride = pool * 2 ** len(channels)  # image pixels per keypoint-map cell
         self.map_shape = (h, w)
 
     def forward(self, images: Tensor) -> Tensor:
         x = images.float() / 255.0 if images.dtype == torch.uint8 else images
         if self.training and self.shift > 0:
             x = random_shift(x, self.shift)
+        if self.pool > 1:
+            x = F.avg_pool2d(x, self.pool)
         return self.softmax(self.conv((x - 0.5) * 4.0))
 
     def pixel_coordinates(self, keypoints: Tensor) -> Tensor:
@@ -67,13 +76,14 @@ class KeypointEncoder(nn.Module):
 
         A keypoint is ``(x, y)``: x runs along a map's columns (the image's width), y along its rows, each from -1
         at the first cell's centre to 1 at the last's (``SpatialSoftmax``'s grid). Map cell ``j`` is centred on
-        image pixel ``stride * j``: every strided layer's kernel is centred on input index ``2 * j`` (odd kernel,
-        padding ``kernel // 2``) and the last conv keeps the resolution. The result is in the convention of image
-        viewers (pixel ``(i, j)`` covers ``[j, j + 1] x [i, i + 1]``), so its centre is at ``+ 0.5``."""
+        pooled pixel ``2 ** layers * j``: every strided layer's kernel is centred on input index ``2 * j`` (odd
+        kernel, padding ``kernel // 2``) and the last conv keeps the resolution; pooled pixel ``q`` averages image
+        pixels ``pool * q`` to ``pool * q + pool - 1``. The result is in the convention of image viewers (pixel
+        ``(i, j)`` covers ``[j, j + 1] x [i, i + 1]``), so a pooled pixel's centre is at ``+ pool / 2``."""
         h, w = self.map_shape
         xy = keypoints.reshape(keypoints.shape[0], -1, 2)
         cells = (xy + 1) / 2 * xy.new_tensor([w - 1, h - 1])
-        return cells * self.stride + 0.5
+        return cells * self.stride + self.pool / 2
 
 
 def random_shift(images: Tensor, shift: int) -> Tensor:

@@ -36,7 +36,9 @@ class PnpPixelsPolicy(PnpLstmPolicy):
         self.camera_keys = config.camera_keys
         shape = tuple(int(n) for n in config.image_features[self.camera_keys[0]].shape)
         self.encoders = nn.ModuleList(
-            KeypointEncoder(shape, list(config.conv_channels), config.num_keypoints, config.image_shift)
+            KeypointEncoder(
+                shape, list(config.conv_channels), config.num_keypoints, config.image_shift, config.image_downsample
+            )
             for _ in self.camera_keys
         )
         width = sum(enc.out_dim for enc in self.encoders)
