@@ -244,7 +244,8 @@ class BaxterPnPEnvConfig(EnvConfig):
         workers while there is a CPU for each; more workers than CPUs only contend for them (a batch of 50 on a
         laptop would start 50 interpreters), so it then runs in this process too, with a warning.
         """
-        cpus = os.cpu_count() or 1
+        # the CPUs this process may run on (a SLURM job or taskset may allow fewer than the machine has)
+        cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
         if use_async_envs and n_envs > 1 and (self.control_mode == "keyframe" or n_envs > cpus):
             why = "keyframe control" if self.control_mode == "keyframe" else f"dense control on {cpus} CPUs"
             logging.getLogger(__name__).warning(

@@ -127,6 +127,7 @@ def test_dense_eval_envs_beyond_the_cpu_count_are_sync_with_a_warning(caplog, mo
     from lerobot_pnp.env_config import BaxterPnPEnvConfig
 
     monkeypatch.setattr("os.cpu_count", lambda: 1)
+    monkeypatch.setattr("os.sched_getaffinity", lambda pid: {0}, raising=False)  # one CPU allowed
     with caplog.at_level("WARNING"):
         envs = BaxterPnPEnvConfig(control_mode="dense").create_envs(n_envs=2, use_async_envs=True)["baxter_pnp"][0]
     envs.close()
