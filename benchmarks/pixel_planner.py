@@ -18,6 +18,7 @@
 5. What the keypoints know: the held-out episodes' environment state predicted by the auxiliary pose head of the
    last checkpoint, mean absolute error per dimension in the state's units (m; sin/cos of 4 x yaw), over every
    frame and over the first frame (nothing in the gripper, nothing hidden).
+6. How the last checkpoint fails: its nominal episodes of step 3 again, in process, by cause and furthest phase.
 """
 
 from __future__ import annotations
@@ -148,6 +149,21 @@ def pose_error(ckpt: Path, root: Path) -> dict:
     }
 
 
+def failures(ckpt: Path, n: int) -> dict:
+    """The last checkpoint's nominal episodes (the seeds of step 3) through ``lerobot-eval``'s own ``eval_policy``
+    in this process, which keeps each episode's final info: failures by cause and by furthest FSM phase."""
+    from lerobot_pnp.env_config import BaxterPnPEnvConfig
+    from lerobot_pnp.evaluation.checkpoints import load_policy
+    from lerobot_pnp.evaluation.episodes import eval_lerobot_policy
+    from lerobot_pnp.evaluation.records import summarize
+    from lerobot_pnp.recorded_task import read_recorded
+
+    env_cfg = BaxterPnPEnvConfig.from_dict(read_recorded(ckpt) or {})
+    loaded = load_policy(ckpt, env_cfg=env_cfg)
+    records = eval_lerobot_policy(loaded.policy, loaded.preprocessor, loaded.postprocessor, env_cfg, n, EVAL_SEED, 50)
+    return summarize(records)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--episodes", type=int, default=300)
@@ -173,10 +189,12 @@ def main() -> None:
     print("select_action:", cost, flush=True)
     pose = pose_error(args.work / "train" / "checkpoints" / "last" / "pretrained_model", args.work / "data")
     print("pose error:", pose, flush=True)
+    fails = failures(args.work / "train" / "checkpoints" / "last" / "pretrained_model", args.eval_episodes)
+    print("failures:", fails, flush=True)
     result = {"command": " ".join(["benchmarks/pixel_planner.py", *sys.argv[1:]]), "cpu_count": os.cpu_count(),
               "cameras": args.cameras.split(","), "size": args.size, "train_args": args.train_args,
               "load_before": round(load, 2), "generate": data, "train_wall_s": run["train_wall_s"],
-              "train_summary": run["summary"], "loss_curve": run["curve"], "nominal": curve, "select_action": cost, "pose_error": pose}  # fmt: skip
+              "train_summary": run["summary"], "loss_curve": run["curve"], "nominal": curve, "select_action": cost, "pose_error": pose, "failures": fails}  # fmt: skip
     if args.out:
         args.out.write_text(json.dumps(result, indent=1) + "\n")
 
