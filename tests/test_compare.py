@@ -144,3 +144,16 @@ def test_reads_another_benchmarks_eval_info(tmp_path):
     path = _bad(tmp_path, "libero", data)
     assert read_eval_info(path) == {"libero_spatial": {0: [True, False], 1: [True, True]}}
     assert run_compare(CompareConfig(runs=[path])) == {"written": []}
+
+
+def test_suites_pools_seeds_evaluated_on_different_sets_of_suites(tmp_path, capsys):
+    """One seed evaluated on the whole protocol, another on a part of it: --suites compares the part they share,
+    with the seeds pooled; a suite one of them lacks is refused in one line."""
+    whole = _bad(tmp_path, "s1", eval_info({"nominal": [True, False], "drop": [False, False], "far": [True, True]}))
+    part = _bad(tmp_path, "s2", eval_info({"nominal": [True, True], "drop": [True, False]}))
+    result = run_compare(CompareConfig(runs=[f"x={whole},{part}"], suites="nominal,drop"))
+    assert result == {"written": []}
+    out = capsys.readouterr().out
+    assert "| nominal | 4 | 75.0%" in out and "| drop | 4 | 25.0%" in out and "| far |" not in out
+    with pytest.raises(ConfigError, match=r"holds no suite 'far'; it holds \['drop', 'nominal'\]"):
+        run_compare(CompareConfig(runs=[f"x={whole},{part}"], suites="nominal,far"))

@@ -38,6 +38,7 @@ class CompareConfig:
     alpha: float = 0.05  # significance level of the paired tests (every training seed's p below it)
     margin: float = 0.05  # a difference whose 95 % interval lies within +-margin "held"; wider: "underpowered"
     control: str = "nominal"  # the unperturbed suite each other suite is set beside (same seeds)
+    suites: str | None = None  # only these suites, comma-separated (every run must hold them); none: all suites
 
 
 @dataclass(frozen=True)
@@ -97,24 +98,39 @@ def _counts(suites: dict[str, dict[int, list[bool]]]) -> dict[str, dict[int, int
     return {s: {t: len(v) for t, v in tasks.items()} for s, tasks in suites.items()}
 
 
-def _read_run(spec: str) -> Run:
+def _only(suites: dict[str, dict[int, list[bool]]], keep: list[str] | None, path: str) -> dict:
+    """The suites named in ``keep`` (all when None); a run that lacks one is refused, naming what it holds."""
+    if keep is None:
+        return suites
+    missing = [s for s in keep if s not in suites]
+    if missing:
+        raise ConfigError(f"compare: {path} holds no suite {missing[0]!r}; it holds {sorted(suites)}")
+    return {s: suites[s] for s in keep}
+
+
+def _read_run(spec: str, keep: list[str] | None = None) -> Run:
     name, _, paths = spec.rpartition("=") if "=" in spec else (Path(spec).name or spec, "", spec)
     parts = tuple(p for p in paths.split(",") if p)
     if not name or not parts:
         raise ConfigError(f"compare: run {spec!r} is not PATH or NAME=PATH[,PATH...]")
-    suites = tuple(read_eval_info(p) for p in parts)
+    suites = tuple(_only(read_eval_info(p), keep, p) for p in parts)
     for p, s in zip(parts[1:], suites[1:], strict=True):
         if _counts(s) != _counts(suites[0]):
             raise ConfigError(f"compare: run {name!r}: {p} does not hold the suites and episode counts of {parts[0]}")
     return Run(name, parts, suites)
 
 
-def parse_runs(specs: list[str]) -> list[Run]:
+def parse_runs(specs: list[str], suites: str | None = None) -> list[Run]:
     """Each spec read and checked: a run's paths hold the same tasks and counts (its training seeds pool on the
-    same episodes); runs share at least one suite, with the same counts on every suite they share."""
+    same episodes); runs share at least one suite, with the same counts on every suite they share. ``suites``
+    (comma-separated) keeps only those suites of every path, so that runs evaluated on different sets of
+    suites pool and pair on the ones they share."""
     if not specs:
         raise ConfigError("compare: give at least one run (PATH or NAME=PATH[,PATH...])")
-    runs = [_read_run(spec) for spec in specs]
+    keep = None if suites is None else [s.strip() for s in suites.split(",") if s.strip()]
+    if keep is not None and not keep:
+        raise ConfigError("compare: suites is empty; give suite names, comma-separated")
+    runs = [_read_run(spec, keep) for spec in specs]
     if len({r.name for r in runs}) != len(runs):
         raise ConfigError(f"compare: run names repeat: {[r.name for r in runs]}; name them NAME=PATH")
     for i, a in enumerate(runs):
@@ -231,6 +247,8 @@ def _intro(result: dict, cfg: CompareConfig) -> list[str]:
     lines += [
         f"- `{r.name}`: {len(r.paths)} run(s) pooled: " + ", ".join(f"`{p}`" for p in r.paths) for r in result["runs"]
     ]
+    if cfg.suites is not None:
+        lines.append(f"- suites compared: {cfg.suites} (`--suites`; the runs may hold others)")
     return lines + [
         "",
         "Success with its 95 % Wilson interval (training seeds pooled). Episodes pair by index: episode i of every "
@@ -299,7 +317,7 @@ def run_compare(cfg: CompareConfig) -> dict:
     Every input is checked and every number computed before anything is written."""
     if not 0 < cfg.alpha < 1 or not 0 <= cfg.margin < 1:
         raise ConfigError(f"compare: alpha must be in (0, 1) and margin in [0, 1), got {cfg.alpha}, {cfg.margin}")
-    result = analyse(parse_runs(cfg.runs), cfg)
+    result = analyse(parse_runs(cfg.runs, cfg.suites), cfg)
     text, data = markdown(result, cfg), to_json(result, cfg)
     print(text)
     if cfg.output_dir is None:
