@@ -84,8 +84,9 @@ def bench_latency(args, ckpt: Path) -> dict:
     pol = loaded.policy
     reps = args.latency_reps
     res: dict = {"pnp_lstm": {"params": sum(p.numel() for p in pol.parameters())}, "act": {}}
+    env_dim = int(pol.config.input_features["observation.environment_state"].shape[0])  # 3 (paper) or 7 (full)
     for bsz in (1, 50):
-        batch = {"observation.state": torch.randn(bsz, 8), "observation.environment_state": torch.randn(bsz, 3)}
+        batch = {"observation.state": torch.randn(bsz, 8), "observation.environment_state": torch.randn(bsz, env_dim)}
         for _ in range(3):  # warm-up
             pol.reset()
             pol.select_action(batch)
@@ -97,7 +98,7 @@ def bench_latency(args, ckpt: Path) -> dict:
         # The whole step as lerobot-eval runs it: pre-processor + select_action + post-processor.
         raw = {
             "observation.state": torch.randn(bsz, 8),
-            "observation.environment_state": torch.randn(bsz, 3),
+            "observation.environment_state": torch.randn(bsz, env_dim),
             "task": ["pick"] * bsz,
         }
 
