@@ -106,6 +106,25 @@ def test_camera_frames_and_keypoints_are_logged(pixels_checkpoint, tmp_path):
         np.testing.assert_allclose(xy[0], expected, atol=1e-4)
 
 
+def _receptive_field_centroid(encoder, size: int, row: int, col: int) -> list[float]:
+    """(column, row) centroid, in image pixel indices, of what map cell (row, col) sees: the gradient of that cell
+    through the encoder's own maps (pooling included) with every conv weight equal."""
+    import torch
+
+    for m in encoder.conv:
+        if isinstance(m, torch.nn.Conv2d):
+            torch.nn.init.constant_(m.weight, 0.01)
+            torch.nn.init.zeros_(m.bias)
+    image = torch.ones(1, 3, size, size, requires_grad=True)
+    encoder.eval().feature_maps(image)[0, 0, row, col].backward()
+    weight = image.grad[0].sum(0)
+    index = torch.arange(size, dtype=torch.float32)
+    return [
+        float((weight.sum(0) * index).sum() / weight.sum()),
+        float((weight.sum(1) * index).sum() / weight.sum()),
+    ]
+
+
 def test_keypoint_pixels_put_x_on_the_columns():
     """A map peaked at cell (row r, column c) gives the keypoint on image pixel (row stride*r, column stride*c)."""
     import torch
@@ -122,18 +141,7 @@ def test_keypoint_pixels_put_x_on_the_columns():
         xy = encoder.pixel_coordinates(encoder.softmax(maps))[0].numpy()
     np.testing.assert_allclose(xy, [[6 * 4 + 0.5, 1 * 4 + 0.5], [0.5, 7 * 4 + 0.5]], atol=1e-4)
     # ... which is the centre of what that map cell sees: the centroid of its receptive field in the image
-    for m in encoder.conv:
-        if isinstance(m, torch.nn.Conv2d):
-            torch.nn.init.constant_(m.weight, 0.01)
-            torch.nn.init.zeros_(m.bias)
-    image = torch.ones(1, 3, SIZE, SIZE, requires_grad=True)
-    encoder.conv(image)[0, 0, 2, 5].backward()  # an inner cell: row 2, column 5
-    weight = image.grad[0].sum(0)
-    index = torch.arange(SIZE, dtype=torch.float32)
-    centroid = [
-        float((weight.sum(0) * index).sum() / weight.sum()),
-        float((weight.sum(1) * index).sum() / weight.sum()),
-    ]
+    centroid = _receptive_field_centroid(encoder, SIZE, 2, 5)  # an inner cell: row 2, column 5
     maps = torch.full((1, 2, h, w), -1e4)
     maps[0, :, 2, 5] = 0.0
     with torch.no_grad():
@@ -152,18 +160,7 @@ def test_keypoint_pixels_of_a_pooled_encoder_are_the_centres_of_what_their_cells
     encoder = KeypointEncoder((3, size, size), [8, 8], num_keypoints=1, pool=2)
     h, w = encoder.map_shape
     assert (h, w, encoder.stride) == (size // 8, size // 8, 8)
-    for m in encoder.conv:
-        if isinstance(m, torch.nn.Conv2d):
-            torch.nn.init.constant_(m.weight, 0.01)
-            torch.nn.init.zeros_(m.bias)
-    image = torch.ones(1, 3, size, size, requires_grad=True)
-    encoder.conv(torch.nn.functional.avg_pool2d(image, 2))[0, 0, 2, 5].backward()  # row 2, column 5
-    weight = image.grad[0].sum(0)
-    index = torch.arange(size, dtype=torch.float32)
-    centroid = [
-        float((weight.sum(0) * index).sum() / weight.sum()),
-        float((weight.sum(1) * index).sum() / weight.sum()),
-    ]
+    centroid = _receptive_field_centroid(encoder, size, 2, 5)  # row 2, column 5
     maps = torch.full((1, 1, h, w), -1e4)
     maps[0, 0, 2, 5] = 0.0
     with torch.no_grad():

@@ -64,12 +64,17 @@ class KeypointEncoder(nn.Module):
         self.map_shape = (h, w)
 
     def forward(self, images: Tensor) -> Tensor:
+        return self.softmax(self.feature_maps(images))
+
+    def feature_maps(self, images: Tensor) -> Tensor:
+        """The keypoint maps ``(N, num_keypoints, *map_shape)`` before the softmax: scaled, shifted (training),
+        pooled and convolved images."""
         x = images.float() / 255.0 if images.dtype == torch.uint8 else images
         if self.training and self.shift > 0:
             x = random_shift(x, self.shift)
         if self.pool > 1:
             x = F.avg_pool2d(x, self.pool)
-        return self.softmax(self.conv((x - 0.5) * 4.0))
+        return self.conv((x - 0.5) * 4.0)
 
     def pixel_coordinates(self, keypoints: Tensor) -> Tensor:
         """``(N, 2K)`` keypoints as this encoder outputs them -> ``(N, K, 2)`` image coordinates (column, row).
