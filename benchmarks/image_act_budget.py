@@ -9,7 +9,7 @@
    is the same run as one planned for that many steps: the process is stopped at the first checkpoint past
    ``--budget_s`` of training (timed from LeRobot's "Start offline training" line, so dataset loading is not in
    it, as it is not in the camera planner's loss-curve times).
-2. Each checkpoint: stock ``lerobot-eval`` on the nominal task, ``--eval_episodes`` seeded episodes from 100000,
+2. The last checkpoint within each quarter of the budget: stock ``lerobot-eval`` on the nominal task, ``--eval_episodes`` seeded episodes from 100000,
    success with its 95 % Wilson interval, and the training time at which it was written.
 """
 
@@ -57,7 +57,7 @@ def train(root: Path, repo_id: str, out: Path, budget_s: float, save_freq: int, 
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                             env={**os.environ, "OMP_NUM_THREADS": "1"})  # fmt: skip
     started: list[float] = []
-    log = open(out.parent / "train.log", "w")  # noqa: SIM115 (written by the reader thread)
+    log = open(out.parent / "train.log", "w")  # noqa: SIM115 (written by the reader thread, closed below)
 
     def read() -> None:
         for line in proc.stdout:
@@ -80,31 +80,23 @@ def train(root: Path, repo_id: str, out: Path, budget_s: float, save_freq: int, 
             proc.terminate()
             proc.wait()
     reader.join(timeout=10)
+    log.close()
     if not seen:
         raise SystemExit(f"lerobot-train wrote no checkpoint; see {out.parent / 'train.log'}")
     return {"command": " ".join(cmd), "checkpoint_time_s": {str(k): v for k, v in sorted(seen.items())}}
 
 
 def evaluate(out: Path, times: dict[str, float], n: int, budget_s: float) -> list[dict]:
-    from lerobot_pnp.evaluation.stats import wilson_interval
-    from lerobot_pnp.report.cli_eval import EvalSpec, run_eval
+    """``pixel_planner.nominal_row`` of the last checkpoint within each quarter of the budget: success against
+    training time."""
+    from pixel_planner import nominal_row
 
-    # the last checkpoint within each quarter of the budget: success against training time
     picked = {
         max((s for s, t in times.items() if t <= q * budget_s), default=None, key=int) for q in (0.25, 0.5, 0.75, 1)
     }
-    rows = []
-    for step in sorted((s for s in picked if s is not None), key=int):
-        t = times[step]
-        ckpt = next(p for p in (out / "checkpoints").glob("[0-9]*") if int(p.name) == int(step)) / "pretrained_model"
-        res = run_eval(ckpt, out.parent / "eval" / step, EvalSpec("nominal", n), EVAL_SEED, 50)
-        wins = sum(res["per_episode"].values())
-        low, high = wilson_interval(wins, n)
-        row = {"step": int(step), "train_time_s": t, "successes": wins, "n": n, "success_pct": round(100 * wins / n, 1),
-               "wilson95_pct": [round(100 * low, 1), round(100 * high, 1)]}  # fmt: skip
-        print(row, flush=True)
-        rows.append(row)
-    return rows
+    folders = {int(p.name): p for p in (out / "checkpoints").glob("[0-9]*")}
+    steps = sorted(int(s) for s in picked if s is not None)
+    return [nominal_row(folders[s], out.parent / "eval" / str(s), times[str(s)], n) for s in steps]
 
 
 def main() -> None:

@@ -80,23 +80,26 @@ def train(root: Path, out: Path, epochs: int, every: int, extra: list[str]) -> d
     return {"summary": summary, "train_wall_s": round(wall, 1), "curve": curve}
 
 
-def evaluate(out: Path, curve: list[dict], n: int) -> list[dict]:
-    """Stock ``lerobot-eval`` of each checkpoint on the nominal task; success and its Wilson interval."""
+def nominal_row(ckpt: Path, out: Path, train_time_s: float, n: int) -> dict:
+    """Stock ``lerobot-eval`` of one checkpoint folder (``<step>/pretrained_model`` inside it) on the nominal task,
+    ``n`` episodes from ``EVAL_SEED`` into ``out``; its success with the 95 % Wilson interval."""
     from lerobot_pnp.evaluation.stats import wilson_interval
     from lerobot_pnp.report.cli_eval import EvalSpec, run_eval
 
+    res = run_eval(ckpt / "pretrained_model", out, EvalSpec("nominal", n), EVAL_SEED, 50)
+    wins = sum(res["per_episode"].values())
+    low, high = wilson_interval(wins, n)
+    row = {"step": int(ckpt.name), "train_time_s": round(train_time_s, 1), "successes": wins, "n": n,
+           "success_pct": round(100 * wins / n, 1), "wilson95_pct": [round(100 * low, 1), round(100 * high, 1)]}  # fmt: skip
+    print(row, flush=True)
+    return row
+
+
+def evaluate(out: Path, curve: list[dict], n: int) -> list[dict]:
+    """``nominal_row`` of each checkpoint: success against training time."""
     time_at = {int(p["step"]): p["time_s"] for p in curve}
-    rows = []
-    for ckpt in sorted((out / "checkpoints").glob("[0-9]*"), key=lambda p: int(p.name)):
-        step = int(ckpt.name)
-        res = run_eval(ckpt / "pretrained_model", out / "eval" / ckpt.name, EvalSpec("nominal", n), EVAL_SEED, 50)
-        wins = sum(res["per_episode"].values())
-        low, high = wilson_interval(wins, n)
-        row = {"step": step, "train_time_s": round(time_at.get(step, float("nan")), 1), "successes": wins, "n": n,
-               "success_pct": round(100 * wins / n, 1), "wilson95_pct": [round(100 * low, 1), round(100 * high, 1)]}  # fmt: skip
-        print(row, flush=True)
-        rows.append(row)
-    return rows
+    ckpts = sorted((out / "checkpoints").glob("[0-9]*"), key=lambda p: int(p.name))
+    return [nominal_row(c, out / "eval" / c.name, time_at.get(int(c.name), float("nan")), n) for c in ckpts]
 
 
 def _ms(xs: list[float]) -> dict:
