@@ -192,7 +192,20 @@ def test_a_small_generation_starts_no_worker_pool():
 
     assert [tasks(n) for n in (3, 10, 99, 100, 150, 250)] == [1, 1, 1, 2, 2, 3]
     assert [tasks(n, control_mode="dense", fps=20) for n in (9, 19, 20, 40)] == [1, 1, 2, 2]
-    assert [tasks(n, control_mode="dense", cameras=["front"]) for n in (1, 3, 4)] == [1, 1, 2]
+    assert [tasks(n, control_mode="dense", cameras=["front"]) for n in (1, 23, 24, 100)] == [1, 1, 2, 4]
+
+
+def test_a_large_local_generation_has_a_bounded_number_of_shards():
+    """The merge rewrites the growing merged video for every shard it appends: locally the auto shard count stops
+    at ``MAX_LOCAL_SHARDS`` and the shards grow instead; on SLURM (parallel tasks) it does not."""
+    from lerobot_pnp.dataset.generation import MAX_LOCAL_SHARDS
+    from lerobot_pnp.env_config import BaxterPnPEnvConfig
+
+    cams = BaxterPnPEnvConfig(cameras=["front", "wrist"])
+    assert _cfg("/nowhere", num_episodes=3600, env=cams).auto_tasks(workers=2) == MAX_LOCAL_SHARDS
+    assert _cfg("/nowhere", num_episodes=1200, env=cams).auto_tasks(workers=2) == 48
+    assert _cfg("/nowhere", num_episodes=100_000).auto_tasks(workers=2) == MAX_LOCAL_SHARDS
+    assert _cfg("/nowhere", num_episodes=100_000, executor="slurm").auto_tasks(workers=2) == 100
 
 
 # ---------------------------------------------------------------------------------------------- existing roots

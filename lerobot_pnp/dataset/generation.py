@@ -50,7 +50,10 @@ from lerobot_pnp.errors import ConfigError, DatasetError, OtherSettingsError
 EXECUTORS = ("local", "slurm")
 MAX_EPISODES = 10_000_000  # above this, --allow_huge must say it is meant (memory and disk grow with N)
 # Episodes per shard when --tasks is 0 (auto); SLURM tasks are 10x larger (a task start costs seconds).
-SHARD_SIZE = {"keyframe": 100, "dense": 20, "cameras": 5}
+SHARD_SIZE = {"keyframe": 100, "dense": 20, "cameras": 25}
+# At most this many auto shards locally: LeRobot's ``aggregate_datasets`` appends each shard's videos by rewriting
+# the growing merged file, so the merge costs about the square of the shard count; local workers are few anyway.
+MAX_LOCAL_SHARDS = 64
 # What a resumed run must share with the run on disk.
 _CONTENT_FIELDS = ("repo_id", "seed", "num_episodes", "max_retries", "train_fraction", "env")
 
@@ -138,7 +141,7 @@ class GenerateConfig:
         if self.executor == "local":
             # every worker gets a shard while a shard keeps half its size: a smaller one would cost its worker's
             # start-up (LeRobot and torch imported in a spawned process) more than it saves
-            tasks = max(tasks, min(workers, self.num_episodes // max(1, size // 2)))
+            tasks = max(min(tasks, MAX_LOCAL_SHARDS), min(workers, self.num_episodes // max(1, size // 2)))
         return tasks
 
     def run_record(self, tasks: int) -> dict:
