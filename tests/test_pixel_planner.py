@@ -254,6 +254,13 @@ def test_fast_path_loads_the_frames_and_learns(image_dataset, tmp_path):
     row, col = divmod(int(blue.argmax()), SIZE)
     expected = _image_of(data.env_state[3, 0].numpy())[..., 2].astype(int) - 60
     assert expected[row, col] > 0
+    # episodes shorter than the longest are padded with their last real frame, like every other feature
+    from lerobot_pnp.train_fast.images import episode_images
+
+    ds, _ = load_keyframe_data("test/pixels", image_dataset, max_length=10)
+    short = episode_images(ds, "observation.images.front", np.arange(12), np.full(12, 7), t_max=10)
+    assert torch.equal(short[:, :7], frames[:, :7])
+    assert torch.equal(short[:, 7:], frames[:, 6:7].expand(-1, 3, -1, -1, -1))
     policy = PnpPixelsConfig(hidden_size=32, conv_channels=[8, 8], num_keypoints=4, max_episode_length=10)
     cfg = TrainFastConfig(dataset_repo_id="test/pixels", dataset_root=str(image_dataset), policy=policy, steps=40,
                           batch_size=4, lr=3e-3, output_dir=str(tmp_path / "out"), progress=False)  # fmt: skip

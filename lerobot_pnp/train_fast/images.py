@@ -30,14 +30,18 @@ def episode_images(ds: Any, key: str, episodes: np.ndarray, counts: np.ndarray, 
     if meta.features[key].get("dtype") != "video":
         raise DatasetError(f"dataset '{meta.repo_id}': camera {key} is not stored as video; regenerate it")
     fps = float(meta.fps)
-    out = []
-    for ep, n in zip(episodes.tolist(), counts.tolist(), strict=True):
+    out: torch.Tensor | None = None  # filled in place: a list of episodes then stacked would hold every frame twice
+    for row, (ep, n) in enumerate(zip(episodes.tolist(), counts.tolist(), strict=True)):
         start = float(meta.episodes[int(ep)][f"videos/{key}/from_timestamp"])
         path = ds.root / meta.get_video_file_path(int(ep), key)
         stamps = [start + k / fps for k in range(int(n))]
         frames = decode_video_frames(path, stamps, 0.5 / fps, backend="pyav", return_uint8=True)
         if frames.shape[0] != n:
             raise DatasetError(f"dataset '{meta.repo_id}': episode {ep} of {key} decodes to {frames.shape[0]} frames")
-        pad = frames[-1:].expand(t_max - int(n), *frames.shape[1:])
-        out.append(torch.cat([frames, pad]))
-    return torch.stack(out)
+        if out is None:
+            out = torch.empty((len(episodes), t_max, *frames.shape[1:]), dtype=frames.dtype)
+        out[row, : int(n)] = frames
+        out[row, int(n) :] = frames[-1:]
+    if out is None:
+        raise DatasetError(f"dataset '{meta.repo_id}': no episode to decode for {key}")
+    return out
