@@ -1,0 +1,64 @@
+"""The camera planner's success against training time, one line per run of ``pixel_planner.py``: data, encoder input
+and steps apart, with each checkpoint's 95 % Wilson interval (the curve of docs/results/pixel_planner.md).
+
+It reads only the committed result files, so the figure changes only when a record does:
+
+    .venv/bin/python benchmarks/pixel_planner_plot.py --out docs/results/pixel_planner_curve.png
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+RESULTS = Path(__file__).resolve().parents[1] / "docs" / "results"
+# (record, label): each record's checkpoints as pixel_planner.py writes them ("nominal") or the longer-schedule form
+RUNS = (
+    ("pixel_planner.json", "300 demos, 64x64, 800 steps"),
+    ("pixel_baselines/longer_schedule.json", "300 demos, 64x64, 3200 steps"),
+    ("pixel_planner_1200.json", "1200 demos, 64x64, 2000 steps"),
+    ("pixel_planner_1200_32px.json", "1200 demos, 32x32, 2000 steps"),
+    ("pixel_planner_1200_32px_long.json", "1200 demos, 32x32, 6000 steps"),
+    ("pixel_planner_3600_32px.json", "3600 demos, 32x32, 6000 steps"),
+)
+
+
+def checkpoints(record: dict) -> list[dict]:
+    """Each checkpoint's training time, success and interval, in training order."""
+    return sorted(record.get("nominal") or record["curve"], key=lambda r: r["train_time_s"])
+
+
+def main() -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=Path, default=RESULTS / "pixel_planner_curve.png")
+    args = parser.parse_args()
+    fig, ax = plt.subplots(figsize=(7.5, 4.2), dpi=110)
+    for name, label in RUNS:
+        rows = checkpoints(json.loads((RESULTS / name).read_text()))
+        t = [r["train_time_s"] / 60 for r in rows]
+        y = [r["success_pct"] for r in rows]
+        low = [r["success_pct"] - r["wilson95_pct"][0] for r in rows]
+        high = [r["wilson95_pct"][1] - r["success_pct"] for r in rows]
+        ax.errorbar(t, y, yerr=[low, high], marker="o", capsize=3, label=label)
+    ax.axvline(30, color="grey", linestyle=":", linewidth=1)
+    ax.axhline(95, color="grey", linestyle="--", linewidth=1)
+    ax.text(30.5, 88, "30 min budget", color="grey", fontsize=8)
+    ax.text(36, 96.5, "95 % target", color="grey", fontsize=8)
+    ax.set_xlabel("training time (minutes, one core)")
+    ax.set_ylabel("nominal success, % (100 episodes, 95 % Wilson)")
+    ax.set_ylim(0, 100)
+    ax.set_title("Camera planner on full: success against training time", fontsize=10)
+    ax.legend(fontsize=7.5, loc="lower right")
+    fig.tight_layout()
+    fig.savefig(args.out)
+    print(args.out)
+
+
+if __name__ == "__main__":
+    main()
