@@ -245,8 +245,9 @@ def test_fast_path_loads_the_frames_and_learns(image_dataset, tmp_path):
     from lerobot_pnp.policy import PnpPixelsConfig, PnpPixelsPolicy
     from lerobot_pnp.train_fast import TrainFastConfig, train_fast
     from lerobot_pnp.train_fast.data import load_keyframe_data
+    from lerobot_pnp.train_fast.images import episode_images
 
-    _, data = load_keyframe_data("test/pixels", image_dataset, max_length=10, with_images=True)
+    ds, data = load_keyframe_data("test/pixels", image_dataset, max_length=10, with_images=True)
     frames = data.images["observation.images.front"]
     assert frames.shape == (12, 10, 3, SIZE, SIZE) and frames.dtype == torch.uint8
     # the decoded video shows the object where the recorded state puts it (lossy codec: the bright square)
@@ -255,9 +256,6 @@ def test_fast_path_loads_the_frames_and_learns(image_dataset, tmp_path):
     expected = _image_of(data.env_state[3, 0].numpy())[..., 2].astype(int) - 60
     assert expected[row, col] > 0
     # episodes shorter than the longest are padded with their last real frame, like every other feature
-    from lerobot_pnp.train_fast.images import episode_images
-
-    ds, _ = load_keyframe_data("test/pixels", image_dataset, max_length=10)
     short = episode_images(ds, "observation.images.front", np.arange(12), np.full(12, 7), t_max=10)
     assert torch.equal(short[:, :7], frames[:, :7])
     assert torch.equal(short[:, 7:], frames[:, 6:7].expand(-1, 3, -1, -1, -1))
