@@ -58,7 +58,19 @@ def _run(args: list[str]) -> tuple[dict, float]:
 
 
 def generate(root: Path, episodes: int, workers: int, cameras: str, size: int) -> dict:
-    if (root / "meta" / "info.json").is_file():
+    if (root / "meta" / "info.json").is_file():  # reused only where it is the dataset these settings make
+        info = json.loads((root / "meta" / "info.json").read_text())
+        shapes = {
+            k.rsplit(".", 1)[-1]: ft["shape"][:2]
+            for k, ft in info["features"].items()
+            if k.startswith("observation.images.")
+        }
+        want = {c: [size, size] for c in cameras.split(",")}
+        if info.get("total_episodes") != episodes or shapes != want or not (root.parent / "generate.json").is_file():
+            raise SystemExit(
+                f"{root} holds a dataset of {info.get('total_episodes')} episodes with cameras {shapes}, not "
+                f"{episodes} with {want}: pass another --work"
+            )
         return json.loads((root.parent / "generate.json").read_text())
     camera = [f"--env.cameras=[{cameras}]", f"--env.image_height={size}", f"--env.image_width={size}"]
     args = [PNP, "generate", f"--repo_id={REPO_ID}", f"--root={root}", "--seed=0", f"--num_episodes={episodes}"]

@@ -268,6 +268,33 @@ def test_fast_path_loads_the_frames_and_learns(image_dataset, tmp_path):
     assert loaded.config.type == "pnp_pixels" and loaded.config.num_keypoints == 4
 
 
+def test_the_training_split_shares_the_frames_and_its_loss_is_taken_in_chunks(image_dataset, monkeypatch):
+    """The fast path holds camera frames once (a consecutive split is a view of them), and a whole split's loss,
+    taken a few episodes at a time to bound its activations, is the loss of the split at once."""
+    import torch
+    from lerobot.policies.factory import make_policy, make_pre_post_processors
+
+    from lerobot_pnp.policy import PnpPixelsConfig
+    from lerobot_pnp.train_fast import loop
+    from lerobot_pnp.train_fast.data import load_keyframe_data
+
+    ds, data = load_keyframe_data("test/pixels", image_dataset, max_length=10, with_images=True)
+    cfg = PnpPixelsConfig(hidden_size=16, conv_channels=[8], num_keypoints=4, max_episode_length=10)
+    policy = make_policy(cfg, ds_meta=ds.meta)
+    pre, _ = make_pre_post_processors(cfg, dataset_stats=ds.meta.stats)
+    train = loop._normalised(pre, data, data.train_idx, "cpu")
+    key = "observation.images.front"
+    assert train[key].untyped_storage().data_ptr() == data.images[key].untyped_storage().data_ptr()
+    scattered = loop._normalised(pre, data, data.train_idx.flip(0), "cpu")  # not consecutive: a copy, right rows
+    assert torch.equal(scattered[key], data.images[key][data.train_idx.flip(0)])
+    pad = torch.zeros(train["action"].shape[:2], dtype=torch.bool)
+    pad[:4, 6:] = True  # episodes of unequal length weigh by their real frames
+    train["action_is_pad"] = pad
+    whole = loop._mse(policy, train)
+    monkeypatch.setattr(loop, "MSE_CHUNK", 3)
+    assert abs(loop._mse(policy, train) - whole) < 1e-5 * whole
+
+
 def test_the_shipped_config_trains_on_both_paths(image_dataset, tmp_path):
     """configs/train_pnp_pixels.json: a stock ``lerobot-train`` config of LeRobot's registered ``pnp_pixels``, and
     ``lerobot-pnp train --config_path`` of it (or ``--policy.type=pnp_pixels``) runs the fast path."""

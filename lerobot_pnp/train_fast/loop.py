@@ -115,22 +115,44 @@ def seed_everything(seed: int) -> None:
     torch.manual_seed(seed)
 
 
+MSE_CHUNK = 256  # episodes per forward pass of a whole-split loss: a camera split at once is many GB of activations
+
+
 @torch.no_grad()
 def _mse(policy: PnpLstmPolicy, batch: dict[str, torch.Tensor] | None) -> float:
+    """The policy's loss over every episode of ``batch``, in chunks of ``MSE_CHUNK`` episodes: each chunk's mean
+    weighted by its real frames, which is the whole split's mean (the loss is a mean over real frames)."""
     if batch is None:
         return float("nan")
     was_training = policy.training
     policy.eval()
-    loss, _ = policy.forward(batch)
+    n = len(batch[ACTION])
+    total, frames = 0.0, 0
+    for start in range(0, n, MSE_CHUNK):
+        part = {k: v[start : start + MSE_CHUNK] for k, v in batch.items()}
+        loss, _ = policy.forward(part)
+        pad = part.get(f"{ACTION}_is_pad")
+        real = int((~pad).sum()) if pad is not None else part[ACTION].shape[0] * part[ACTION].shape[1]
+        total += float(loss) * real
+        frames += real
     policy.train(was_training)
-    return float(loss)
+    return total / max(frames, 1)
+
+
+def _rows(values: torch.Tensor, rows: torch.Tensor) -> torch.Tensor:
+    """``values[rows]``, as a view where ``rows`` are consecutive (the usual split): camera frames are the bulk
+    of the fast path's memory and the training split would otherwise hold a second copy of most of them."""
+    if len(rows) and bool((rows.diff() == 1).all()):
+        first = int(rows[0])
+        return values[first : first + len(rows)]
+    return values[rows]
 
 
 def _normalised(preprocessor, data, rows: torch.Tensor, device) -> dict[str, torch.Tensor] | None:
     """The episodes ``rows`` normalised once, with the same pre-processor lerobot-train uses (None if empty)."""
     if not len(rows):
         return None
-    images = {k: v[rows] for k, v in (data.images or {}).items()}  # uint8 (checked, not normalised): the encoder scales
+    images = {k: _rows(v, rows) for k, v in (data.images or {}).items()}  # uint8, not normalised: the encoder scales
     out = preprocessor({**data.batch(rows), **images})
     out = {k: out[k].to(device) for k in (OBS_STATE, OBS_ENV_STATE, ACTION, *images)}
     return {**out, **{k: v.to(device) for k, v in data.extras(rows).items()}}
