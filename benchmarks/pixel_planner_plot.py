@@ -11,16 +11,33 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
+from typing import NamedTuple
 
 RESULTS = Path(__file__).resolve().parents[1] / "docs" / "results"
-# (record, label): each record's checkpoints as pixel_planner.py writes them ("nominal") or the longer-schedule form
+
+
+class Run(NamedTuple):
+    """One run of ``pixel_planner.py`` on the page: its record (under docs/results/) and what it trained."""
+
+    record: str
+    demos: int
+    encoder: str  # the resolution the encoder reads
+    steps: int
+    note: str = ""  # how it ran, where it differs from one torch thread
+
+    @property
+    def label(self) -> str:
+        return f"{self.demos}, {self.encoder}, {self.steps} steps{self.note}"
+
+
+# each record's checkpoints as pixel_planner.py writes them ("nominal") or the longer-schedule form ("curve")
 RUNS = (
-    ("pixel_planner.json", "300 demos, 64x64, 800 steps"),
-    ("pixel_baselines/longer_schedule.json", "300 demos, 64x64, 3200 steps"),
-    ("pixel_planner_1200.json", "1200 demos, 64x64, 2000 steps"),
-    ("pixel_planner_1200_32px.json", "1200 demos, 32x32, 2000 steps"),
-    ("pixel_planner_1200_32px_long.json", "1200 demos, 32x32, 6000 steps"),
-    ("pixel_planner_3600_32px.json", "3600 demos, 32x32, 6000 steps"),
+    Run("pixel_planner.json", 300, "64x64", 800),
+    Run("pixel_baselines/longer_schedule.json", 300, "64x64", 3200),
+    Run("pixel_planner_1200.json", 1200, "64x64", 2000),
+    Run("pixel_planner_1200_32px.json", 1200, "32x32 (pooled)", 2000),
+    Run("pixel_planner_1200_32px_long.json", 1200, "32x32 (pooled)", 6000),
+    Run("pixel_planner_3600_32px.json", 3600, "32x32 (pooled)", 6000),
 )
 
 
@@ -39,13 +56,13 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=RESULTS / "pixel_planner_curve.png")
     args = parser.parse_args()
     fig, ax = plt.subplots(figsize=(7.5, 4.2), dpi=110)
-    for name, label in RUNS:
-        rows = checkpoints(json.loads((RESULTS / name).read_text()))
+    for run in RUNS:
+        rows = checkpoints(json.loads((RESULTS / run.record).read_text()))
         t = [r["train_time_s"] / 60 for r in rows]
         y = [r["success_pct"] for r in rows]
         low = [r["success_pct"] - r["wilson95_pct"][0] for r in rows]
         high = [r["wilson95_pct"][1] - r["success_pct"] for r in rows]
-        ax.errorbar(t, y, yerr=[low, high], marker="o", capsize=3, label=label)
+        ax.errorbar(t, y, yerr=[low, high], marker="o", capsize=3, label=f"{run.label.replace(', ', ' demos, ', 1)}")
     ax.axvline(30, color="grey", linestyle=":", linewidth=1)
     ax.axhline(95, color="grey", linestyle="--", linewidth=1)
     ax.text(30.5, 88, "30 min budget", color="grey", fontsize=8)

@@ -330,7 +330,11 @@ def policy_fields(base: str) -> str:
 
 
 # ----------------------------------------------------------------------------------------------------- render
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from docs_pixel_tables import BLOCKS as PIXEL_BLOCKS  # noqa: E402  (the camera planner page's blocks)
+
 BLOCKS = {
+    **PIXEL_BLOCKS,
     "paper-table": paper_table,
     "heldout-verdicts": heldout_verdicts,
     "heldout-suites": heldout_suites,

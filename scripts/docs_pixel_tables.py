@@ -1,0 +1,120 @@
+"""The camera planner page's tables (docs/results/pixel_planner.md), generated from its committed records.
+
+``scripts/docs_tables.py`` owns the page's generated blocks; this module holds the blocks of that one page: the
+runs of ``benchmarks/pixel_planner.py`` (one catalogue, ``RUNS`` of ``benchmarks/pixel_planner_plot.py``, which
+also draws the curve), what their keypoints know, how their episodes fail, and the 3-seed protocols pooled by
+``lerobot-pnp compare``.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "docs" / "results"
+sys.path.insert(0, str(ROOT / "benchmarks"))
+from pixel_planner_plot import RUNS, checkpoints  # noqa: E402
+
+TRAIN_SUITES = ("nominal", "train_grasp_miss", "train_drop", "train_displace", "train_nudge", "train_latency",
+                "train_mixture")  # fmt: skip
+CAUSES = ("not_grasped", "dropped", "not_transported", "not_placed", "not_released")
+# the protocols on the page, newest first: (folder under docs/results/, its demonstrations)
+PROTOCOLS = (("pixel_protocol_7200", 7200), ("pixel_protocol_3600", 3600), ("pixel_protocol", 1200))
+
+
+def _record(name: str) -> dict:
+    return json.loads((RESULTS / name).read_text())
+
+
+def _minutes(seconds: float) -> str:
+    m = seconds / 60
+    return f"{m:.1f}" if m < 10 else f"{m:.0f}"
+
+
+def _pct(rate: float) -> str:
+    return f"{100 * rate:.1f}".removesuffix(".0")
+
+
+def _rate(cell: dict) -> str:
+    lo, hi = cell["interval"]
+    return f"{_pct(cell['rate'])} % [{100 * lo:.1f}, {100 * hi:.1f}]"
+
+
+def runs_table(base: str) -> str:
+    """One row per run: its data, encoder input and steps, each checkpoint's time and nominal success."""
+    lines = [
+        "| demonstrations | encoder input | steps | checkpoints: training time -> nominal success | held-out action MSE at the end | record |",
+        "|---|---|---|---|---|---|",
+    ]  # fmt: skip
+    for run in RUNS:
+        rec = _record(run.record)
+        rows = checkpoints(rec)
+        cells = [f"{_minutes(r['train_time_s'])} min: {r['success_pct']:g} %" for r in rows]
+        lo, hi = rows[-1]["wilson95_pct"]
+        cells[-1] += f" [{lo}, {hi}]"
+        mse = (rec.get("train_summary") or {}).get("final_test_mse", rows[-1].get("test_mse"))
+        name = run.record.rsplit("/", 1)[-1]
+        lines.append(f"| {run.demos} | {run.encoder} | {run.steps}{run.note} | {', '.join(cells)} | {mse:.3f} | "
+                     f"[{name}]({base}{run.record}) |")  # fmt: skip
+    return "\n".join(lines)
+
+
+def _measured(key: str) -> list[tuple]:
+    return [(run, _record(run.record)[key]) for run in RUNS if _record(run.record).get(key)]
+
+
+def pose_table(base: str) -> str:
+    """The auxiliary head's mean absolute error on the held-out episodes, every frame and the first."""
+    lines = [
+        "| demonstrations, encoder input, steps | cube x | cube y | yaw (sin 4x) | target x | target y | first frame: cube x | cube y | yaw (sin 4x) |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]  # fmt: skip
+    for run, pose in _measured("pose_error"):
+        a, f = pose["all_frames"], pose["first_frame"]
+        cm = [f"{100 * v:.1f} cm" for v in (a["object_x"], a["object_y"])]
+        goal = [f"{100 * v:.1f} cm" for v in (a["goal_x"], a["goal_y"])]
+        first = [f"{100 * v:.1f} cm" for v in (f["object_x"], f["object_y"])]
+        lines.append(f"| {run.label} | {' | '.join(cm)} | {a['object_yaw_sin4']:.2f} | {' | '.join(goal)} | "
+                     f"{' | '.join(first)} | {f['object_yaw_sin4']:.2f} |")  # fmt: skip
+    return "\n".join(lines)
+
+
+def failures_table(base: str) -> str:
+    """Each run's last checkpoint's nominal episodes by failure cause, and the 300-demonstration state planner."""
+    lines = ["| checkpoint | successes | " + " | ".join(f"`{c}`" for c in CAUSES) + " |", "|---|---" + "|---" * 5 + "|"]
+    rows = [(f"camera planner, {run.label}", fails) for run, fails in _measured("failures")]
+    state = _record("pixel_baselines/baselines.json")["state_planner"]["failures"]
+    for label, fails in [*rows, ("state planner, 300 demonstrations, 800 steps", state)]:
+        counts = " | ".join(str(fails["by_cause"].get(c, 0)) for c in CAUSES)
+        lines.append(f"| {label} | {fails['successes']} / {fails['n']} | {counts} |")
+    return "\n".join(lines)
+
+
+def protocol_table(base: str) -> str:
+    """The newest protocol's camera planner pooled over its seeds and per seed, the state planner on the same data,
+    and the camera planner of each earlier protocol."""
+    (folder, demos), *earlier = [(f, n) for f, n in PROTOCOLS if (RESULTS / f / "compare" / "compare.json").is_file()]
+    new = _record(f"{folder}/compare/compare.json")["success"]
+    old = [(n, _record(f"{f}/compare/compare.json")["success"]) for f, n in earlier]
+    cam, state = new["nominal"]["camera_planner"], new["nominal"]["state_planner"]
+    head = [f"camera planner, {len(cam['per_seed'])} seeds pooled (n = {cam['n']})", "per seed (1000, 1001, 1002)",
+            f"state planner, same data (n = {state['n']})"]  # fmt: skip
+    head += [f"camera planner, {n} demonstrations (n = {s['nominal']['camera_planner']['n']})" for n, s in old]
+    lines = ["| suite | " + " | ".join(head) + " |", "|---" * (len(head) + 1) + "|"]
+    for suite in TRAIN_SUITES:
+        c = new[suite]["camera_planner"]
+        seeds = ", ".join(_pct(r) for r in c["per_seed"]) + " %"
+        cells = [
+            _rate(c),
+            seeds,
+            _rate(new[suite]["state_planner"]),
+            *(_rate(s[suite]["camera_planner"]) for _, s in old),
+        ]
+        lines.append(f"| `{suite}` | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+BLOCKS = {"pixel-runs": runs_table, "pixel-pose": pose_table, "pixel-failures": failures_table,
+          "pixel-protocol": protocol_table}  # fmt: skip
