@@ -103,3 +103,20 @@ def test_held_out_figure_puts_each_axis_trained_suites_before_its_held_out_ones(
     assert rates["lookup_table label"]["train_drop"] == Rate(0, 20)
     # a study without a held-out suite (the paper task) draws no such figure
     assert figures._held_out(_Layout(tmp_path), _METHODS, _RESULTS, ["nominal", "train_drop"], "test") == []
+
+
+def test_a_long_command_footer_is_broken_into_lines_that_fit_the_figure():
+    """A compare command's run paths hold no space: its footer is still broken into lines inside the figure."""
+    import matplotlib.pyplot as plt
+
+    from lerobot_pnp.report.plots import FOOTER_PT, footer_lines
+
+    command = "lerobot-pnp compare camera=" + ",".join(f"docs/results/protocol/camera_seed{s}" for s in range(6))
+    fig = plt.figure(figsize=(6.4, 4.8), dpi=110)
+    lines = footer_lines(fig, command)
+    assert len(lines) > 1 and "".join(lines).replace(" ", "") == command.replace(" ", "")  # nothing lost
+    texts = [fig.text(0.01, 0.1 * i, line, fontsize=FOOTER_PT) for i, line in enumerate(lines)]
+    fig.canvas.draw()
+    width = fig.bbox.width
+    assert all(t.get_window_extent().x1 <= width for t in texts)
+    plt.close(fig)

@@ -7,6 +7,7 @@ conditions) and failures by FSM phase and cause. Functions take plain data (no s
 
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 
 import matplotlib
@@ -22,6 +23,9 @@ from lerobot_pnp.evaluation.stats import Rate
 PANELS_PER_ROW = 4  # heat maps and failure panels wrap after this many methods
 
 
+FOOTER_PT = 6  # the provenance footer's font size
+
+
 def series_colors(n: int) -> list:
     """``n`` distinct colours, one per method: matplotlib's default cycle (``C0``..``C9``) up to 10, else tab20
     (its dark shades, then its light ones). The default cycle repeats after 10, which gave the study's eleventh
@@ -35,9 +39,19 @@ def series_colors(n: int) -> list:
     return list(order[:n])
 
 
+def footer_lines(fig, text: str) -> list[str]:
+    """``text`` in lines of the footer's font that fit ``fig``'s width, broken anywhere if need be."""
+    per_line = int(fig.get_figwidth() * 72 / (FOOTER_PT * 0.62))  # characters of the footer's font per line
+    return textwrap.wrap(text, per_line, break_long_words=True, break_on_hyphens=False) or [""]
+
+
 def _finish(fig, path: Path, provenance: str) -> Path:
-    fig.text(0.01, 0.005, provenance, fontsize=6, color="0.35", ha="left", va="bottom", wrap=True)
-    fig.tight_layout(rect=(0, 0.04, 1, 1))
+    """Save ``fig`` with its provenance (the command) as a footer, broken into lines that fit the figure's width
+    anywhere, since a command's run paths hold no space to wrap at (matplotlib's ``wrap`` breaks at spaces only)."""
+    lines = footer_lines(fig, provenance)
+    fig.text(0.01, 0.005, "\n".join(lines), fontsize=FOOTER_PT, color="0.35", ha="left", va="bottom")
+    footer = (len(lines) * FOOTER_PT * 1.3 + 4) / (fig.get_figheight() * 72)  # its share of the height
+    fig.tight_layout(rect=(0, min(footer, 0.3), 1, 1))
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
     plt.close(fig)
