@@ -116,5 +116,18 @@ def protocol_table(base: str) -> str:
     return "\n".join(lines)
 
 
-BLOCKS = {"pixel-runs": runs_table, "pixel-pose": pose_table, "pixel-failures": failures_table,
+def joints_table(base: str) -> str:
+    """Each run's held-out next-keyframe error per joint (mean absolute and RMS, degrees): where the camera
+    planner's actions are off, beside the state planner's."""
+    runs = _record("pixel_keyframe_error.json")["runs"]
+    joints = list(next(iter(runs.values()))["per_joint_mae_deg"])
+    lines = ["| run | " + " | ".join(f"`{j}`" for j in joints) + " |", "|---" * (len(joints) + 1) + "|"]
+    for label, rec in runs.items():
+        mae, rmse = rec["per_joint_mae_deg"], rec["per_joint_rmse_deg"]
+        lines.append(f"| {label} | " + " | ".join(f"{mae[j]:.2f} / {rmse[j]:.1f}" for j in joints) + " |")
+    return "\n".join(lines)
+
+
+BLOCKS = {
+    "pixel-joints": joints_table,"pixel-runs": runs_table, "pixel-pose": pose_table, "pixel-failures": failures_table,
           "pixel-protocol": protocol_table}  # fmt: skip
