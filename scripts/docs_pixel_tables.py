@@ -20,8 +20,12 @@ from pixel_planner_plot import RUNS, checkpoints  # noqa: E402
 TRAIN_SUITES = ("nominal", "train_grasp_miss", "train_drop", "train_displace", "train_nudge", "train_latency",
                 "train_mixture")  # fmt: skip
 CAUSES = ("not_grasped", "dropped", "not_transported", "not_placed", "not_released")
-# the protocols on the page, newest first: (folder under docs/results/, its demonstrations)
-PROTOCOLS = (("pixel_protocol_7200", 7200), ("pixel_protocol_3600", 3600), ("pixel_protocol", 1200))
+# the protocols on the page, newest first: (folder under docs/results/, its demonstrations, its state planner's data)
+PROTOCOLS = (
+    ("pixel_protocol_7200", 7200, "3600 of these demonstrations"),
+    ("pixel_protocol_3600", 3600, "same data"),
+    ("pixel_protocol", 1200, "same data"),
+)
 
 
 def _record(name: str) -> dict:
@@ -95,12 +99,13 @@ def failures_table(base: str) -> str:
 def protocol_table(base: str) -> str:
     """The newest protocol's camera planner pooled over its seeds and per seed, the state planner on the same data,
     and the camera planner of each earlier protocol."""
-    (folder, demos), *earlier = [(f, n) for f, n in PROTOCOLS if (RESULTS / f / "compare" / "compare.json").is_file()]
+    shown = [p for p in PROTOCOLS if (RESULTS / p[0] / "compare" / "compare.json").is_file()]
+    (folder, _, state_data), *earlier = shown
     new = _record(f"{folder}/compare/compare.json")["success"]
-    old = [(n, _record(f"{f}/compare/compare.json")["success"]) for f, n in earlier]
+    old = [(n, _record(f"{f}/compare/compare.json")["success"]) for f, n, _ in earlier]
     cam, state = new["nominal"]["camera_planner"], new["nominal"]["state_planner"]
     head = [f"camera planner, {len(cam['per_seed'])} seeds pooled (n = {cam['n']})", "per seed (1000, 1001, 1002)",
-            f"state planner, same data (n = {state['n']})"]  # fmt: skip
+            f"state planner, {state_data} (n = {state['n']})"]  # fmt: skip
     head += [f"camera planner, {n} demonstrations (n = {s['nominal']['camera_planner']['n']})" for n, s in old]
     lines = ["| suite | " + " | ".join(head) + " |", "|---" * (len(head) + 1) + "|"]
     for suite in TRAIN_SUITES:
