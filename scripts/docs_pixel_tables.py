@@ -133,6 +133,20 @@ def joints_table(base: str) -> str:
     return "\n".join(lines)
 
 
+def headline(base: str) -> str:
+    """The newest protocol's pooled nominal rate beside its state planner's, for the results overview."""
+    folder, demos, _ = next(p for p in PROTOCOLS if (RESULTS / p[0] / "compare" / "compare.json").is_file())
+    nominal = _record(f"{folder}/compare/compare.json")["success"]["nominal"]
+    cam, state = nominal["camera_planner"], nominal["state_planner"]
+    wins = round(state["rate"] * state["n"])
+    return (
+        f"Trained from {demos} demonstrations for at most 30 minutes on 2 cores, it succeeds on {_rate(cam)} of nominal "
+        f"episodes ({len(cam['per_seed'])} seeds, {cam['n']} episodes), where the state planner succeeds on {wins} of "
+        f"{state['n']}: [its results, baselines and what limits it]({base}pixel_planner.md)."
+    )
+
+
 BLOCKS = {
+    "pixel-headline": headline,
     "pixel-joints": joints_table,"pixel-runs": runs_table, "pixel-pose": pose_table, "pixel-failures": failures_table,
           "pixel-protocol": protocol_table}  # fmt: skip
