@@ -334,21 +334,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from docs_pixel_tables import BLOCKS as PIXEL_BLOCKS  # noqa: E402  (the camera planner page's blocks)
 
 BLOCKS = {
-    **PIXEL_BLOCKS,
-    "paper-table": paper_table,
-    "heldout-verdicts": heldout_verdicts,
-    "heldout-suites": heldout_suites,
-    "gate-table": gate_table,
-    "memory-table": memory_table,
-    "planner-table": planner_table,
-    "cost": cost_lines,
-    "leaderboard": leaderboard_table,
-    "presets": presets_table,
-    "suite-catalogue": suite_catalogue,
-    "cli-help": cli_help,
-    "env-fields": env_fields,
-    "policy-fields": policy_fields,
-}
+    **PIXEL_BLOCKS, "paper-table": paper_table, "heldout-verdicts": heldout_verdicts, "heldout-suites": heldout_suites,
+    "gate-table": gate_table, "memory-table": memory_table, "planner-table": planner_table, "cost": cost_lines,
+    "leaderboard": leaderboard_table, "presets": presets_table, "suite-catalogue": suite_catalogue,
+    "cli-help": cli_help, "env-fields": env_fields, "policy-fields": policy_fields,
+}  # fmt: skip
 
 
 def pages() -> list[Path]:
