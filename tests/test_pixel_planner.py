@@ -291,7 +291,7 @@ def test_the_training_split_shares_the_frames_and_its_loss_is_taken_in_chunks(im
     pad[:4, 6:] = True  # episodes of unequal length weigh by their real frames
     train["action_is_pad"] = pad
     whole = loop._mse(policy, train)
-    monkeypatch.setattr(loop, "MSE_CHUNK", 3)
+    monkeypatch.setattr(loop, "CHUNK_EPISODES", 3)
     assert abs(loop._mse(policy, train) - whole) < 1e-5 * whole
 
 

@@ -29,7 +29,7 @@ from lerobot_pnp.registration import register_task_record
 from .config import TrainFastConfig
 from .data import load_keyframe_data
 from .output import clear_previous_run, locked_output
-from .report import action_names, keyframe_error, write_curve
+from .report import CHUNK_EPISODES, action_names, keyframe_error, write_curve
 
 logger = logging.getLogger(__name__)
 
@@ -115,12 +115,9 @@ def seed_everything(seed: int) -> None:
     torch.manual_seed(seed)
 
 
-MSE_CHUNK = 256  # episodes per forward pass of a whole-split loss: a camera split at once is many GB of activations
-
-
 @torch.no_grad()
 def _mse(policy: PnpLstmPolicy, batch: dict[str, torch.Tensor] | None) -> float:
-    """The policy's loss over every episode of ``batch``, in chunks of ``MSE_CHUNK`` episodes: each chunk's mean
+    """The policy's loss over every episode of ``batch``, in chunks of ``CHUNK_EPISODES`` episodes: each chunk's mean
     weighted by its real frames, which is the whole split's mean (the loss is a mean over real frames)."""
     if batch is None:
         return float("nan")
@@ -128,8 +125,8 @@ def _mse(policy: PnpLstmPolicy, batch: dict[str, torch.Tensor] | None) -> float:
     policy.eval()
     n = len(batch[ACTION])
     total, frames = 0.0, 0
-    for start in range(0, n, MSE_CHUNK):
-        part = {k: v[start : start + MSE_CHUNK] for k, v in batch.items()}
+    for start in range(0, n, CHUNK_EPISODES):
+        part = {k: v[start : start + CHUNK_EPISODES] for k, v in batch.items()}
         loss, _ = policy.forward(part)
         pad = part.get(f"{ACTION}_is_pad")
         real = int((~pad).sum()) if pad is not None else part[ACTION].shape[0] * part[ACTION].shape[1]

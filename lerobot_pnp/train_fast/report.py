@@ -24,6 +24,9 @@ def action_names(meta: Any) -> list[str]:
     return [str(n) for n in names]
 
 
+CHUNK_EPISODES = 256  # episodes per forward pass over a whole split (its loss, its keyframe error)
+
+
 @torch.no_grad()
 def keyframe_error(
     policy: PnpLstmPolicy,
@@ -37,7 +40,12 @@ def keyframe_error(
 
     ``pad`` ``(E, T)``: padded frames of variable-length episodes, left out of every statistic."""
     policy.eval()
-    pred = postprocessor(policy.predict_sequence(norm_batch)).to(torch.float32).cpu()
+    n = len(raw_action)
+    parts = [  # a few episodes at a time: a camera split's activations at once are many GB
+        policy.predict_sequence({k: v[i : i + CHUNK_EPISODES] for k, v in norm_batch.items()})
+        for i in range(0, n, CHUNK_EPISODES)
+    ]
+    pred = postprocessor(torch.cat(parts)).to(torch.float32).cpu()
     err = pred - raw_action.cpu()
     n_episodes = int(raw_action.shape[0])
     if pad is not None:
