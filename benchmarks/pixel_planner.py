@@ -142,6 +142,7 @@ def select_action_cost(ckpt: Path, episodes: int = 20, steps: int = 15) -> dict:
 
 
 @torch.inference_mode()
+@torch.no_grad()
 def pose_error(ckpt: Path, root: Path) -> dict:
     """Mean absolute error of the pose head's environment state on the held-out episodes (unnormalised)."""
     from lerobot_pnp.evaluation.checkpoints import load_policy
@@ -154,18 +155,16 @@ def pose_error(ckpt: Path, root: Path) -> dict:
         return {}
     ds, data = load_keyframe_data(REPO_ID, root, max_length=policy.config.max_episode_length)
     rows = data.test_idx  # only these episodes' frames are decoded, a few at a time: the dataset's would be GBs
-    counts = (~data.pad[rows]).sum(1).numpy()
-    episodes, t_max = data.episode_index[rows].numpy(), data.pad.shape[1]
+    pad = data.pad[rows]
+    counts, episodes, t_max = (~pad).sum(1).numpy(), data.episode_index[rows].numpy(), pad.shape[1]
     parts = []
     for i in range(0, len(rows), 64):
         part = slice(i, i + 64)
         images = {k: episode_images(ds, k, episodes[part], counts[part], t_max) for k in policy.camera_keys}
-        with torch.no_grad():
-            parts.append(policy.keypoints({**images, "action_is_pad": data.pad[rows][part]}))
+        parts.append(policy.keypoints({**images, "action_is_pad": pad[part]}))
     feats, real = torch.cat([f for f, _ in parts]), torch.cat([r for _, r in parts])
     stats = ds.meta.stats["observation.environment_state"]
-    with torch.no_grad():
-        pred = policy.pose_head(feats) * torch.as_tensor(stats["std"]) + torch.as_tensor(stats["mean"])
+    pred = policy.pose_head(feats) * torch.as_tensor(stats["std"]) + torch.as_tensor(stats["mean"])
     err = (pred - data.env_state[rows]).abs()
     names = ds.meta.features["observation.environment_state"]["names"]
     return {

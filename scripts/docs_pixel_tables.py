@@ -66,7 +66,14 @@ def runs_table(base: str) -> str:
 
 
 def _measured(key: str) -> list[tuple]:
-    return [(run, _record(run.record)[key]) for run in RUNS if _record(run.record).get(key)]
+    """``(run, record[key])`` of each run whose record measured ``key``."""
+    records = [(run, _record(run.record)) for run in RUNS]
+    return [(run, rec[key]) for run, rec in records if rec.get(key)]
+
+
+def _protocols() -> list[tuple[str, int, str]]:
+    """The protocols of ``PROTOCOLS`` whose comparison is committed, newest first."""
+    return [p for p in PROTOCOLS if (RESULTS / p[0] / "compare" / "compare.json").is_file()]
 
 
 def pose_table(base: str) -> str:
@@ -99,21 +106,21 @@ def failures_table(base: str) -> str:
 def protocol_table(base: str) -> str:
     """The newest protocol's camera planner pooled over its seeds and per seed, the state planner on the same data,
     and the camera planner of each earlier protocol."""
-    shown = [p for p in PROTOCOLS if (RESULTS / p[0] / "compare" / "compare.json").is_file()]
-    (folder, _, state_data), *earlier = shown
-    new = _record(f"{folder}/compare/compare.json")["success"]
+    (folder, _, state_data), *earlier = _protocols()
+    compared = _record(f"{folder}/compare/compare.json")
+    new = compared["success"]
+    seeds = ", ".join(path.rsplit("seed", 1)[-1] for path in compared["runs"]["camera_planner"])
     old = [(n, _record(f"{f}/compare/compare.json")["success"]) for f, n, _ in earlier]
     cam, state = new["nominal"]["camera_planner"], new["nominal"]["state_planner"]
-    head = [f"camera planner, {len(cam['per_seed'])} seeds pooled (n = {cam['n']})", "per seed (1000, 1001, 1002)",
+    head = [f"camera planner, {len(cam['per_seed'])} seeds pooled (n = {cam['n']})", f"per seed ({seeds})",
             f"state planner, {state_data} (n = {state['n']})"]  # fmt: skip
     head += [f"camera planner, {n} demonstrations (n = {s['nominal']['camera_planner']['n']})" for n, s in old]
     lines = ["| suite | " + " | ".join(head) + " |", "|---" * (len(head) + 1) + "|"]
     for suite in TRAIN_SUITES:
         c = new[suite]["camera_planner"]
-        seeds = ", ".join(_pct(r) for r in c["per_seed"]) + " %"
         cells = [
             _rate(c),
-            seeds,
+            ", ".join(_pct(r) for r in c["per_seed"]) + " %",
             _rate(new[suite]["state_planner"]),
             *(_rate(s[suite]["camera_planner"]) for _, s in old),
         ]
@@ -135,7 +142,7 @@ def joints_table(base: str) -> str:
 
 def headline(base: str) -> str:
     """The newest protocol's pooled nominal rate beside its state planner's, for the results overview."""
-    folder, demos, _ = next(p for p in PROTOCOLS if (RESULTS / p[0] / "compare" / "compare.json").is_file())
+    folder, demos, _ = _protocols()[0]
     nominal = _record(f"{folder}/compare/compare.json")["success"]["nominal"]
     cam, state = nominal["camera_planner"], nominal["state_planner"]
     wins = round(state["rate"] * state["n"])
@@ -148,5 +155,9 @@ def headline(base: str) -> str:
 
 BLOCKS = {
     "pixel-headline": headline,
-    "pixel-joints": joints_table,"pixel-runs": runs_table, "pixel-pose": pose_table, "pixel-failures": failures_table,
-          "pixel-protocol": protocol_table}  # fmt: skip
+    "pixel-joints": joints_table,
+    "pixel-runs": runs_table,
+    "pixel-pose": pose_table,
+    "pixel-failures": failures_table,
+    "pixel-protocol": protocol_table,
+}
