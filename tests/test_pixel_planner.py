@@ -203,6 +203,52 @@ def test_a_downsampled_encoder_trains_on_the_same_images():
     assert all(p.grad is not None for p in policy.encoders.parameters())
 
 
+def test_keypoint_strength_is_the_map_value_where_each_keypoint_looks():
+    """With ``strength``, the encoder gives each keypoint's attended feature value after the same positions."""
+    import torch
+
+    from lerobot_pnp.policy.image_encoder import KeypointEncoder
+
+    torch.manual_seed(0)
+    plain = KeypointEncoder((3, SIZE, SIZE), [8, 8], num_keypoints=2).eval()
+    strong = KeypointEncoder((3, SIZE, SIZE), [8, 8], num_keypoints=2, strength=True).eval()
+    strong.load_state_dict(plain.state_dict())  # no new parameters: the same weights
+    images = torch.rand(5, 3, SIZE, SIZE)
+    with torch.no_grad():
+        out = strong(images)
+        assert out.shape == (5, 6) and strong.out_dim == 6 and plain.out_dim == 4
+        torch.testing.assert_close(out[:, :4], plain(images))
+        np.testing.assert_allclose(strong.pixel_coordinates(out), plain.pixel_coordinates(plain(images)))
+        h, w = strong.map_shape
+        maps = torch.full((2, 2, h, w), -50.0)
+        maps[0, 0, 1, 6], maps[0, 1, 7, 0], maps[1, 0, 3, 3], maps[1, 1, 3, 3] = 3.0, -2.0, 0.5, 7.0
+        xy, value = strong.softmax.attend(maps)
+    torch.testing.assert_close(value, torch.tensor([[3.0, -2.0], [0.5, 7.0]]))
+    torch.testing.assert_close(xy, strong.softmax(maps))
+
+
+def test_a_planner_with_keypoint_strength_trains_and_round_trips(tmp_path):
+    import torch
+
+    from lerobot_pnp.policy import PnpPixelsPolicy
+
+    policy = _policy(keypoint_strength=True)
+    policy.train()
+    batch = _episodes()
+    loss, _ = policy.forward(batch)
+    loss.backward()
+    assert policy.keypoints(batch)[0].shape == (3, 6, 3 * 4)
+    assert all(p.grad is not None and bool(p.grad.abs().sum() > 0) for p in policy.encoders.parameters())
+    policy.eval()
+    policy.save_pretrained(tmp_path)
+    loaded = PnpPixelsPolicy.from_pretrained(tmp_path)
+    loaded.eval()
+    assert loaded.config.keypoint_strength is True
+    frames = _frames("absent")
+    assert all(torch.equal(a, b) for a, b in zip(_act(policy, frames), _act(loaded, frames), strict=True))
+    assert _policy().config.keypoint_strength is False  # checkpoints saved without the field read back as before
+
+
 # ---------------------------------------------------------------------------------------------- the fast path
 def _image_of(obj, size: int = SIZE) -> np.ndarray:
     """A grey table with the object as a bright square where it lies (x, y in the synthetic data's ranges)."""

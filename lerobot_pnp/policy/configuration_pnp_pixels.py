@@ -49,6 +49,9 @@ class PnpPixelsConfig(PnpLstmConfig):
     num_keypoints: int = 16
     """Spatial-softmax keypoints per camera: the encoder gives each camera's ``2 * num_keypoints`` image
     coordinates to the planner."""
+    keypoint_strength: bool = False
+    """Each camera also gives each keypoint's feature value where its softmax looks (``num_keypoints`` more
+    numbers): how strongly a feature fires, which carries what the positions do not, such as the cube's yaw."""
     image_downsample: int = 1
     """The encoder reads each image average-pooled by this factor (1: at the recorded resolution; it must divide
     the image's height and width). It sets the resolution the policy works at apart from the one the benchmark

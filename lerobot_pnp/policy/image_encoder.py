@@ -23,7 +23,8 @@ from torch import Tensor, nn
 class SpatialSoftmax(nn.Module):
     """``(N, K, H, W)`` feature maps -> ``(N, 2K)`` expected (x, y) of each map's softmax, in [-1, 1].
 
-    The temperature is learned (robomimic's ``learnable_temperature``): sharp maps localise, soft ones average."""
+    The temperature is learned (robomimic's ``learnable_temperature``): sharp maps localise, soft ones average.
+    ``strength`` also gives each map's value where its softmax looks (``(N, K)``)."""
 
     def __init__(self, height: int, width: int):
         super().__init__()
@@ -32,19 +33,35 @@ class SpatialSoftmax(nn.Module):
         self.log_temperature = nn.Parameter(torch.zeros(()))
 
     def forward(self, maps: Tensor) -> Tensor:
+        return self.attend(maps)[0]
+
+    def attend(self, maps: Tensor) -> tuple[Tensor, Tensor]:
+        """The expected positions ``(N, 2K)`` and the attention-weighted map values ``(N, K)``."""
         n, k = maps.shape[:2]
-        attention = torch.softmax(maps.reshape(n, k, -1) / self.log_temperature.exp(), dim=-1)
-        return (attention @ self.grid).reshape(n, 2 * k)
+        flat = maps.reshape(n, k, -1)
+        attention = torch.softmax(flat / self.log_temperature.exp(), dim=-1)
+        return (attention @ self.grid).reshape(n, 2 * k), (attention * flat).sum(-1)
 
 
 class KeypointEncoder(nn.Module):
-    """One camera's images ``(N, 3, H, W)`` (float in [0, 1], or uint8) -> keypoints ``(N, 2 * num_keypoints)``.
+    """One camera's images ``(N, 3, H, W)`` (float in [0, 1], or uint8) -> keypoints ``(N, 2 * num_keypoints)``,
+    followed, with ``strength``, by each keypoint's map value where it is attended (``(N, 3 * num_keypoints)``).
 
     ``channels``: the conv layers before the keypoint maps, the first 5x5 and the rest 3x3, each with stride 2;
-    the keypoint maps are a 3x3 conv on the last layer's resolution."""
+    the keypoint maps are a 3x3 conv on the last layer's resolution.
+
+    Why ``strength``: a keypoint is where a feature fires, not how strongly. The cube looks the same every 90
+    degrees, so an orientation-tuned feature fires around its centre at every yaw and its expected position
+    carries little of the yaw; how strongly it fires there carries it."""
 
     def __init__(
-        self, image_shape: tuple[int, int, int], channels: list[int], num_keypoints: int, shift: int = 0, pool: int = 1
+        self,
+        image_shape: tuple[int, int, int],
+        channels: list[int],
+        num_keypoints: int,
+        shift: int = 0,
+        pool: int = 1,
+        strength: bool = False,
     ):
         super().__init__()
         c, h, w = image_shape
@@ -58,13 +75,16 @@ class KeypointEncoder(nn.Module):
         self.conv = nn.Sequential(*layers)
         self.softmax = SpatialSoftmax(h, w)
         self.shift = shift
-        self.out_dim = 2 * num_keypoints
+        self.num_keypoints = num_keypoints
+        self.strength = strength
+        self.out_dim = (3 if strength else 2) * num_keypoints
         self.pool = pool
         self.stride = pool * 2 ** len(channels)  # image pixels per keypoint-map cell
         self.map_shape = (h, w)
 
     def forward(self, images: Tensor) -> Tensor:
-        return self.softmax(self.feature_maps(images))
+        xy, strength = self.softmax.attend(self.feature_maps(images))
+        return torch.cat([xy, strength], dim=-1) if self.strength else xy
 
     def feature_maps(self, images: Tensor) -> Tensor:
         """The keypoint maps ``(N, num_keypoints, *map_shape)`` before the softmax: scaled, shifted (training),
@@ -77,7 +97,8 @@ class KeypointEncoder(nn.Module):
         return self.conv((x - 0.5) * 4.0)
 
     def pixel_coordinates(self, keypoints: Tensor) -> Tensor:
-        """``(N, 2K)`` keypoints as this encoder outputs them -> ``(N, K, 2)`` image coordinates (column, row).
+        """``(N, 2K)`` keypoints as this encoder outputs them (a strength after them is ignored) -> ``(N, K, 2)``
+        image coordinates (column, row).
 
         A keypoint is ``(x, y)``: x runs along a map's columns (the image's width), y along its rows, each from -1
         at the first cell's centre to 1 at the last's (``SpatialSoftmax``'s grid). Map cell ``j`` is centred on
@@ -86,7 +107,7 @@ class KeypointEncoder(nn.Module):
         pixels ``pool * q`` to ``pool * q + pool - 1``. The result is in the convention of image viewers (pixel
         ``(i, j)`` covers ``[j, j + 1] x [i, i + 1]``), so a pooled pixel's centre is at ``+ pool / 2``."""
         h, w = self.map_shape
-        xy = keypoints.reshape(keypoints.shape[0], -1, 2)
+        xy = keypoints[:, : 2 * self.num_keypoints].reshape(keypoints.shape[0], -1, 2)
         cells = (xy + 1) / 2 * xy.new_tensor([w - 1, h - 1])
         return cells * self.stride + self.pool / 2
 

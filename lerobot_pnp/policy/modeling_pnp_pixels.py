@@ -1,7 +1,8 @@
 """``PnpPixelsPolicy``: the recovering planner on joint state + camera images (``configuration_pnp_pixels``).
 
 It is ``PnpLstmPolicy`` with a keypoint encoder in front (``image_encoder.KeypointEncoder``, one per camera): each
-frame's images become ``2 * num_keypoints`` image coordinates per camera, put into the batch as
+frame's images become ``2 * num_keypoints`` image coordinates per camera (and, with ``keypoint_strength``,
+``num_keypoints`` feature values), put into the batch as
 ``observation.image_keypoints`` and concatenated after the joint state, the planner's whole input. The planner,
 its losses, windows, augmentation, inference state and checkpoints are the state planner's, unchanged.
 
@@ -37,7 +38,12 @@ class PnpPixelsPolicy(PnpLstmPolicy):
         shape = tuple(int(n) for n in config.image_features[self.camera_keys[0]].shape)
         self.encoders = nn.ModuleList(
             KeypointEncoder(
-                shape, list(config.conv_channels), config.num_keypoints, config.image_shift, config.image_downsample
+                shape,
+                list(config.conv_channels),
+                config.num_keypoints,
+                config.image_shift,
+                config.image_downsample,
+                config.keypoint_strength,
             )
             for _ in self.camera_keys
         )

@@ -95,6 +95,6 @@ class KeypointTap:
         for cam, enc in self.encoders.items():
             kp = self._latest.pop(cam, None)
             if kp is None:
-                self.per_frame[cam].append(np.full((enc.out_dim // 2, 2), np.nan, np.float32))
+                self.per_frame[cam].append(np.full((enc.num_keypoints, 2), np.nan, np.float32))
             else:
                 self.per_frame[cam].append(enc.pixel_coordinates(kp)[0].cpu().numpy().astype(np.float32))
