@@ -205,14 +205,14 @@ def main(argv: list[str] | None = None) -> int:
         config_cls, func = _load(config_ref), _load(func_ref)
         if name == "compare":  # its runs are positional: RUN_A RUN_B ...
             args = _load("lerobot_pnp.evaluation.compare:positional_runs")(args)
-        if "-h" in args or "--help" in args:
+        config_path, args = _split_config_path(args)
+        if hasattr(config_cls, "command_class"):  # a config class chosen by the input (train: the policy type)
+            config_cls, args = config_cls.command_class(config_path, args)
+        if "-h" in args or "--help" in args:  # the options of the class chosen (train: of its policy type)
             from lerobot_pnp.cli_help import command_help
 
             print(command_help(name, summary, config_cls))
             return 0
-        config_path, args = _split_config_path(args)
-        if hasattr(config_cls, "command_class"):  # a config class chosen by the input (train: the policy type)
-            config_cls, args = config_cls.command_class(config_path, args)
         args = normalize_args(config_cls, args)
         try:
             with tempfile.TemporaryDirectory(prefix="lerobot_pnp_cfg_") as tmp:

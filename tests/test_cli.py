@@ -82,6 +82,19 @@ def test_command_help_describes_every_field_in_one_entry(name, capsys, monkeypat
     assert max(len(line) for line in text.split("\n")) <= 120
 
 
+def test_train_help_lists_the_options_of_the_policy_type_asked_for(capsys, monkeypatch):
+    """``lerobot-pnp train --policy.type=pnp_pixels --help`` (or a pnp_pixels config file) lists the camera planner's
+    options; without a type, the state planner's."""
+    monkeypatch.setenv("COLUMNS", "120")
+    config = str(Path(__file__).resolve().parents[1] / "configs" / "train_pnp_pixels.json")
+    for args in (["--policy.type=pnp_pixels", "--help"], ["--help", f"--config_path={config}"]):
+        assert cli.main(["train", *args]) == 0
+        entries = _help_entries(capsys.readouterr().out)
+        assert "--policy.keypoint_strength" in entries and "--policy.image_downsample" in entries, args
+    assert cli.main(["train", "--help"]) == 0
+    assert "--policy.keypoint_strength" not in _help_entries(capsys.readouterr().out)
+
+
 def test_help_keeps_a_default_on_one_line():
     from lerobot_pnp.cli_help import command_help
     from lerobot_pnp.env_config import BaxterPnPEnvConfig
