@@ -249,65 +249,6 @@ def test_a_planner_with_keypoint_strength_trains_and_round_trips(tmp_path):
     assert _policy().config.keypoint_strength is False  # checkpoints saved without the field read back as before
 
 
-def test_nearest_equivalent_target_moves_by_whole_periods_toward_the_prediction():
-    import torch
-
-    from lerobot_pnp.policy.recovering import nearest_equivalent
-
-    period = torch.tensor([0.0, 2.0])
-    target = torch.tensor([[0.9, 0.9], [0.9, 0.9], [0.9, -0.9], [0.0, 0.2]])
-    pred = torch.tensor([[-0.95, -0.95], [0.5, 1.5], [0.0, 0.9], [9.0, 9.0]])
-    moved = nearest_equivalent(pred, target, period)
-    # the first dimension never repeats; the second goes to the equivalent the prediction is nearest (at most one
-    # period either way)
-    torch.testing.assert_close(moved, torch.tensor([[0.9, -1.1], [0.9, 0.9], [0.9, 1.1], [0.0, 2.2]]))
-
-
-class _Meta:
-    fps = 1
-    episodes = None
-    features = {"action": {"names": [f"j{i}" for i in range(ACTION_DIM - 1)] + ["wrist_roll"]}}
-
-
-def _stats(std: float = 0.5) -> dict:
-    import torch
-
-    return {"action": {"mean": torch.zeros(ACTION_DIM), "std": torch.full((ACTION_DIM,), std)}}
-
-
-def test_a_symmetric_joint_learns_either_equivalent_target(tmp_path):
-    """With ``symmetric_joint``, a target one period away costs what the target itself does; the period is the
-    joint's in normalised units, saved with the weights; an unknown joint is named with the choices."""
-    import math
-
-    import torch
-
-    from lerobot_pnp.policy import PnpPixelsPolicy
-
-    torch.manual_seed(0)
-    policy = PnpPixelsPolicy(_config(symmetric_joint="wrist_roll"), dataset_stats=_stats(), dataset_meta=_Meta())
-    period = math.radians(90) / 0.5
-    assert policy.action_period.tolist() == [0.0] * (ACTION_DIM - 1) + [pytest.approx(period)]
-    policy.eval()  # no augmentation: the two losses see the same predictions
-    batch = _episodes()
-    batch["action"][..., -1] *= 0.2  # within half a period of the untrained predictions
-    shifted = {**batch, "action": batch["action"].clone()}
-    shifted["action"][..., -1] += period
-    torch.testing.assert_close(policy.forward(shifted)[0], policy.forward(batch)[0])
-    other = _policy()  # without the option a shifted target is a different, worse target
-    other.eval()
-    assert float(other.forward(shifted)[0]) > float(other.forward(batch)[0]) + 1.0
-    policy.save_pretrained(tmp_path)
-    loaded = PnpPixelsPolicy.from_pretrained(tmp_path)
-    torch.testing.assert_close(loaded.action_period, policy.action_period)
-    with pytest.raises(ConfigError, match=r"symmetric_joint='left_w9' is not an action joint; choose from \['j0'"):
-        PnpPixelsPolicy(_config(symmetric_joint="left_w9"), dataset_stats=_stats(), dataset_meta=_Meta())
-    with pytest.raises(ConfigError, match="needs the dataset's action statistics"):
-        PnpPixelsPolicy(_config(symmetric_joint="wrist_roll")).forward(batch)
-    with pytest.raises(ConfigError, match="symmetry_deg must be > 0"):
-        _config(symmetric_joint="wrist_roll", symmetry_deg=0)
-
-
 # ---------------------------------------------------------------------------------------------- the fast path
 def _image_of(obj, size: int = SIZE) -> np.ndarray:
     """A grey table with the object as a bright square where it lies (x, y in the synthetic data's ranges)."""

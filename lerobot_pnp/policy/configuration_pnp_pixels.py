@@ -62,23 +62,9 @@ class PnpPixelsConfig(PnpLstmConfig):
     """Training only: weight of the auxiliary MSE of the normalised ``observation.environment_state`` predicted
     from the keypoints, where the batch carries it (0: off; the policy then never looks at that feature)."""
 
-    symmetric_joint: str | None = None
-    """Training only: an action joint whose targets repeat every ``symmetry_deg``; the wrist roll ``left_w2``
-    grasps the cube by any of its four faces (90). The action loss then takes, frame by frame, the equivalent
-    target nearest the prediction (one period either way). Why: the expert turns the wrist to the grasp nearest
-    zero, which jumps by 90 degrees where the cube's yaw crosses +-45; a planner that sees the yaw only roughly
-    would learn the average of the two grasps there, a grasp by the cube's edges. None: off."""
-    symmetry_deg: float = 90.0
-    """With ``symmetric_joint``: its targets' period, in degrees."""
-
     def __post_init__(self) -> None:
         super().__post_init__()
         checks = [
-            (self.symmetry_deg > 0, f"symmetry_deg must be > 0, got {self.symmetry_deg}"),
-            (
-                self.symmetric_joint is None or self.recovering,
-                "symmetric_joint is the recovering planner's (mode='recovering')",
-            ),
             (
                 len(self.conv_channels) >= 1 and all(isinstance(c, int) and c >= 1 for c in self.conv_channels),
                 f"conv_channels must be one or more positive integers, got {list(self.conv_channels)}",

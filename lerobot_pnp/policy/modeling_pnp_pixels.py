@@ -12,14 +12,11 @@ and the fast path pads episodes to the longest; padded frames get zero keypoints
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import torch
 from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_STATE
 from torch import Tensor, nn
-
-from lerobot_pnp.errors import ConfigError
 
 from .configuration_pnp_pixels import PnpPixelsConfig
 from .image_encoder import KeypointEncoder
@@ -33,11 +30,6 @@ class PnpPixelsPolicy(PnpLstmPolicy):
 
     config_class = PnpPixelsConfig
     name = "pnp_pixels"
-
-    def __init__(self, config: PnpPixelsConfig, dataset_stats: Any = None, dataset_meta: Any = None, **kwargs):
-        super().__init__(config, dataset_stats=dataset_stats, dataset_meta=dataset_meta, **kwargs)
-        if config.symmetric_joint is not None:  # saved with the weights: a warm start has no dataset stats
-            self.register_buffer("action_period", _action_period(config, dataset_stats, dataset_meta, self.action_dim))
 
     def _planner_inputs(self, config: PnpPixelsConfig) -> tuple[list[str], int]:
         """Build the encoders (one per camera) and the auxiliary pose head; the planner reads the joint state and
@@ -90,13 +82,6 @@ class PnpPixelsPolicy(PnpLstmPolicy):
         """The state planner's loss on joints + keypoints, plus (``pose_loss_weight``, where the batch records the
         environment state) the auxiliary MSE of that state predicted from the keypoints."""
         batch, feats, real = self._with_keypoints(batch)
-        if self.config.symmetric_joint is not None:
-            if not bool(self.action_period.any()):
-                raise ConfigError(
-                    f"policy.symmetric_joint={self.config.symmetric_joint!r} needs the dataset's action statistics "
-                    "and names when the policy is made (make_policy with ds_meta, as lerobot-train and the fast path do)"
-                )
-            self.model.action_period = self.action_period
         loss, info = super().forward(batch, reduction)
         target = batch.get(OBS_ENV_STATE)
         if self.pose_head is not None and isinstance(target, Tensor) and target.shape[:-1] == real.shape:
@@ -116,20 +101,3 @@ class PnpPixelsPolicy(PnpLstmPolicy):
 
     def predict_sequence(self, batch: dict[str, Tensor]) -> Tensor:
         return super().predict_sequence(self._with_keypoints(batch)[0])
-
-
-def _action_period(config: PnpPixelsConfig, stats: Any, meta: Any, action_dim: int) -> Tensor:
-    """``symmetric_joint``'s period in normalised action units at its index, zeros elsewhere (all zeros without the
-    dataset's stats and names: the checkpoint's saved buffer is loaded over them)."""
-    period = torch.zeros(action_dim)
-    if stats is None or meta is None:
-        return period
-    names = list(meta.features[ACTION]["names"])
-    if config.symmetric_joint not in names:
-        raise ConfigError(
-            f"policy.symmetric_joint={config.symmetric_joint!r} is not an action joint; choose from {names}"
-        )
-    index = names.index(config.symmetric_joint)
-    std = float(torch.as_tensor(stats[ACTION]["std"]).reshape(-1)[index])
-    period[index] = math.radians(config.symmetry_deg) / max(std, 1e-8)
-    return period

@@ -89,9 +89,6 @@ class RecoveringPlanner(nn.Module):
         self.subtask_head = nn.Linear(width, N_SUBTASKS)
         self.phase_head = nn.Linear(width, N_PHASES)
         self.action_dim = action_dim
-        # the normalised period of each action dimension whose targets repeat (0: none), set by a policy that
-        # declares one (``pnp_pixels``' ``symmetric_joint``); None: every target is the one to regress
-        self.action_period: Tensor | None = None
 
     @property
     def per_attempt(self) -> bool:
@@ -168,8 +165,6 @@ class RecoveringPlanner(nn.Module):
         frames = torch.arange(1, valid.shape[1] + 1, device=valid.device)
         lengths = (valid * frames).amax(dim=1)  # up to the last frame in the loss: nothing after it matters
         out = self(x, lengths)
-        if self.action_period is not None:
-            y = nearest_equivalent(out["action"].detach(), y, self.action_period)
         loss, per_sample, info = recovering_loss(
             out, y, valid, subtask, phase, cfg.subtask_loss_weight, cfg.phase_loss_weight
         )
@@ -324,14 +319,6 @@ class Attempts:
         total = per_attempt.new_zeros(bsz).index_add(0, episode, per_attempt * weight)
         frames = per_attempt.new_zeros(bsz).index_add(0, episode, weight)
         return total / frames.clamp(min=1.0)
-
-
-def nearest_equivalent(prediction: Tensor, target: Tensor, period: Tensor) -> Tensor:
-    """``target`` moved, in each dimension with a ``period > 0``, by the whole period (-1, 0 or +1 of it) that
-    brings it nearest ``prediction``: of equivalent targets, the one the prediction is heading for."""
-    repeats = period > 0
-    shift = torch.round((prediction - target) / torch.where(repeats, period, 1.0)).clamp(-1, 1)
-    return target + shift * period * repeats
 
 
 def recovering_loss(
