@@ -20,11 +20,13 @@ from pixel_planner_plot import RUNS, checkpoints  # noqa: E402
 TRAIN_SUITES = ("nominal", "train_grasp_miss", "train_drop", "train_displace", "train_nudge", "train_latency",
                 "train_mixture")  # fmt: skip
 CAUSES = ("not_grasped", "dropped", "not_transported", "not_placed", "not_released")
-# the protocols on the page, newest first: (folder under docs/results/, its demonstrations, its state planner's data)
+# the protocols on the page, newest first: (folder under docs/results/, its demonstrations, what sets it apart,
+# its state planner's data)
 PROTOCOLS = (
-    ("pixel_protocol_7200", 7200, "3600 of these demonstrations"),
-    ("pixel_protocol_3600", 3600, "same data"),
-    ("pixel_protocol", 1200, "same data"),
+    ("pixel_protocol_strength", 7200, "7200 demonstrations", "3600 of these demonstrations"),
+    ("pixel_protocol_7200", 7200, "7200 demonstrations, keypoint positions only", "3600 of these demonstrations"),
+    ("pixel_protocol_3600", 3600, "3600 demonstrations, positions only", "same data"),
+    ("pixel_protocol", 1200, "1200 demonstrations, positions only", "same data"),
 )
 
 
@@ -71,7 +73,7 @@ def _measured(key: str) -> list[tuple]:
     return [(run, rec[key]) for run, rec in records if rec.get(key)]
 
 
-def _protocols() -> list[tuple[str, int, str]]:
+def _protocols() -> list[tuple[str, int, str, str]]:
     """The protocols of ``PROTOCOLS`` whose comparison is committed, newest first."""
     return [p for p in PROTOCOLS if (RESULTS / p[0] / "compare" / "compare.json").is_file()]
 
@@ -106,15 +108,15 @@ def failures_table(base: str) -> str:
 def protocol_table(base: str) -> str:
     """The newest protocol's camera planner pooled over its seeds and per seed, the state planner on the same data,
     and the camera planner of each earlier protocol."""
-    (folder, _, state_data), *earlier = _protocols()
+    (folder, _, _, state_data), *earlier = _protocols()
     compared = _record(f"{folder}/compare/compare.json")
     new = compared["success"]
     seeds = ", ".join(path.rsplit("seed", 1)[-1] for path in compared["runs"]["camera_planner"])
-    old = [(n, _record(f"{f}/compare/compare.json")["success"]) for f, n, _ in earlier]
+    old = [(label, _record(f"{f}/compare/compare.json")["success"]) for f, _, label, _ in earlier]
     cam, state = new["nominal"]["camera_planner"], new["nominal"]["state_planner"]
     head = [f"camera planner, {len(cam['per_seed'])} seeds pooled (n = {cam['n']})", f"per seed ({seeds})",
             f"state planner, {state_data} (n = {state['n']})"]  # fmt: skip
-    head += [f"camera planner, {n} demonstrations (n = {s['nominal']['camera_planner']['n']})" for n, s in old]
+    head += [f"camera planner, {label} (n = {s['nominal']['camera_planner']['n']})" for label, s in old]
     lines = ["| suite | " + " | ".join(head) + " |", "|---" * (len(head) + 1) + "|"]
     for suite in TRAIN_SUITES:
         c = new[suite]["camera_planner"]
@@ -140,9 +142,23 @@ def joints_table(base: str) -> str:
     return "\n".join(lines)
 
 
+def heldout_table(base: str) -> str:
+    """The leaderboard row's held-out axes: in distribution against held out, with the study's verdict."""
+    sys.path.insert(0, str(ROOT))
+    from lerobot_pnp.evaluation.leaderboard import analyse_rows
+
+    _, _, axes = analyse_rows(RESULTS / "leaderboard")
+    lines = ["| axis | in distribution | held out | verdict |", "|---|---|---|---|"]
+    for (axis, row), result in axes.items():
+        if row == "pnp_pixels":
+            inside, outside = _pct(result.inside.rate), _pct(result.outside.rate)
+            lines.append(f"| {axis} | {inside} % | {outside} % | {result.verdict} |")
+    return "\n".join(lines)
+
+
 def headline(base: str) -> str:
     """The newest protocol's pooled nominal rate beside its state planner's, for the results overview."""
-    folder, demos, _ = _protocols()[0]
+    folder, demos, _, _ = _protocols()[0]
     nominal = _record(f"{folder}/compare/compare.json")["success"]["nominal"]
     cam, state = nominal["camera_planner"], nominal["state_planner"]
     wins = round(state["rate"] * state["n"])
@@ -160,4 +176,5 @@ BLOCKS = {
     "pixel-pose": pose_table,
     "pixel-failures": failures_table,
     "pixel-protocol": protocol_table,
+    "pixel-heldout": heldout_table,
 }
