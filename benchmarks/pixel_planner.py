@@ -142,7 +142,6 @@ def select_action_cost(ckpt: Path, episodes: int = 20, steps: int = 15) -> dict:
 
 
 @torch.inference_mode()
-@torch.no_grad()
 def pose_error(ckpt: Path, root: Path) -> dict:
     """Mean absolute error of the pose head's environment state on the held-out episodes (unnormalised)."""
     from lerobot_pnp.evaluation.checkpoints import load_policy

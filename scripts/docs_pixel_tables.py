@@ -144,7 +144,6 @@ def joints_table(base: str) -> str:
 
 def heldout_table(base: str) -> str:
     """The leaderboard row's held-out axes: in distribution against held out, with the study's verdict."""
-    sys.path.insert(0, str(ROOT))
     from lerobot_pnp.evaluation.leaderboard import analyse_rows
 
     _, _, axes = analyse_rows(RESULTS / "leaderboard")
