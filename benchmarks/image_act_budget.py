@@ -1,11 +1,12 @@
 """Stock image ACT on the camera planner's data at the camera planner's wall-clock budget.
 
     .venv/bin/python benchmarks/image_act_budget.py --dataset_root D [--budget_s 1800] [--save_freq 200]
-        [--eval_episodes 100] [--work outputs/image_act_budget] [--out docs/results/pixel_baselines/image_act.json]
+        [--eval_episodes 100] [--threads 1] [--work outputs/image_act_budget]
+        [--out docs/results/pixel_baselines/image_act.json]
 
 1. Training: stock ``lerobot-train`` of ACT (ResNet-18 from scratch, the ``configs/train_act_images.json``
-   architecture) on the dataset's joints and every camera it records (no object or goal coordinates), one torch
-   thread, a checkpoint every ``--save_freq`` steps. ACT's optimiser has no schedule, so stopping it at the budget
+   architecture) on the dataset's joints and every camera it records (no object or goal coordinates), on
+   ``--threads`` torch threads (the camera planner's recipe trains on two), a checkpoint every ``--save_freq`` steps. ACT's optimiser has no schedule, so stopping it at the budget
    is the same run as one planned for that many steps: the process is stopped at the first checkpoint past
    ``--budget_s`` of training (timed from LeRobot's "Start offline training" line, so dataset loading is not in
    it, as it is not in the camera planner's loss-curve times).
@@ -49,13 +50,13 @@ def act_flags(root: Path) -> list[str]:
     return flags
 
 
-def train(root: Path, repo_id: str, out: Path, budget_s: float, save_freq: int, seed: int) -> dict:
+def train(root: Path, repo_id: str, out: Path, budget_s: float, save_freq: int, seed: int, threads: int) -> dict:
     """Stock ``lerobot-train`` until the first checkpoint past the budget; each checkpoint's training time."""
     cmd = [str(BIN / "lerobot-train"), f"--dataset.repo_id={repo_id}", f"--dataset.root={root}",
            "--dataset.video_backend=pyav", *act_flags(root), f"--seed={seed}", "--num_workers=0", "--batch_size=16",
            "--steps=1000000", f"--save_freq={save_freq}", "--log_freq=50", "--env_eval_freq=0", f"--output_dir={out}"]  # fmt: skip
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                            env={**os.environ, "OMP_NUM_THREADS": "1"})  # fmt: skip
+                            env={**os.environ, "OMP_NUM_THREADS": str(threads)})  # fmt: skip
     started: list[float] = []
     log = open(out.parent / "train.log", "w")  # noqa: SIM115 (written by the reader thread, closed below)
 
@@ -107,14 +108,17 @@ def main() -> None:
     parser.add_argument("--save_freq", type=int, default=200)
     parser.add_argument("--seed", type=int, default=1000)
     parser.add_argument("--eval_episodes", type=int, default=100)
+    parser.add_argument("--threads", type=int, default=1, help="torch threads of the training (OMP_NUM_THREADS)")
     parser.add_argument("--work", type=Path, default=REPO / "outputs" / "image_act_budget")
     parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args()
     args.work.mkdir(parents=True, exist_ok=True)
-    run = train(args.dataset_root, args.repo_id, args.work / "train", args.budget_s, args.save_freq, args.seed)
+    run = train(
+        args.dataset_root, args.repo_id, args.work / "train", args.budget_s, args.save_freq, args.seed, args.threads
+    )
     rows = evaluate(args.work / "train", run["checkpoint_time_s"], args.eval_episodes, args.budget_s)
     result = {"command": " ".join(["benchmarks/image_act_budget.py", *sys.argv[1:]]), "cpu_count": os.cpu_count(),
-              "budget_s": args.budget_s, "train": run, "nominal": rows}  # fmt: skip
+              "budget_s": args.budget_s, "threads": args.threads, "train": run, "nominal": rows}  # fmt: skip
     if args.out:
         args.out.write_text(json.dumps(result, indent=1) + "\n")
 

@@ -168,6 +168,78 @@ def headline(base: str) -> str:
     )
 
 
+def _act_row(name: str, data: str) -> str:
+    """Image ACT at each evaluated checkpoint of one ``benchmarks/image_act_budget.py`` record."""
+    rec = _record(f"pixel_baselines/{name}")
+    rows = rec["nominal"]
+    threads = rec.get("threads", 1)
+    cells = [f"{_minutes(r['train_time_s'])} min (step {r['step']}): {r['success_pct']:g} %" for r in rows]
+    lo, hi = rows[-1]["wilson95_pct"]
+    budget = f"{threads} torch thread{'s' * (threads > 1)} for {_minutes(rec['budget_s'])} minutes of training"
+    return f"| image ACT | {data}; {budget}, batch 16 | {', '.join(cells)} [{lo}, {hi}] |"
+
+
+def _pair(folder: str, run: str, reference: str, suite: str) -> str:
+    """``run`` minus ``reference`` on ``suite`` (same eval seeds), with its interval and the largest per-seed p."""
+    pair = next(
+        p for p in _record(f"{folder}/compare/compare.json")["pairs"]
+        if (p["run"], p["reference"], p["suite"]) == (run, reference, suite)
+    )  # fmt: skip
+    lo, hi = pair["interval"]
+    return f"{100 * pair['difference']:+.1f} pts [{100 * lo:+.1f}, {100 * hi:+.1f}], p <= {pair['study']['max_p']:.1g}"
+
+
+def baselines_table(base: str) -> str:
+    """Every baseline's nominal success on the data of a camera planner run, beside that run where they pair."""
+    lines = ["| baseline | data and budget | nominal success [95 % Wilson] |", "|---|---|---|"]
+    lines.append(_act_row("image_act.json", "1200 demonstrations"))
+    if (RESULTS / "pixel_baselines" / "image_act_7200.json").is_file():
+        lines.append(_act_row("image_act_7200.json", "7200 demonstrations (the recipe's)"))
+    small = _record("pixel_baselines/compare/compare.json")["success"]["baxter_pnp"]
+    pair = _pair("pixel_baselines", "pixels_memoryless", "pixels_recurrent", "baxter_pnp")
+    lines.append(f"| memoryless control | 300 demonstrations, 800 steps | {_rate(small['pixels_memoryless'])}; the "
+                 f"camera planner {_rate(small['pixels_recurrent'])} on the same data and steps ({pair}) |")  # fmt: skip
+    if (RESULTS / "pixel_protocol_memoryless" / "compare" / "compare.json").is_file():
+        big = _record("pixel_protocol_memoryless/compare/compare.json")["success"]["nominal"]
+        ml, cam = big["memoryless"], big["camera_planner"]
+        pair = _pair("pixel_protocol_memoryless", "memoryless", "camera_planner", "nominal")
+        lines.append(f"| memoryless control | 7200 demonstrations, the recipe's 9000 steps, {len(ml['per_seed'])} seeds | "
+                     f"{_rate(ml)} (per seed {', '.join(_pct(r) for r in ml['per_seed'])} %); the camera planner "
+                     f"{_rate(cam)} ({pair}) |")  # fmt: skip
+    states = [("pixel_baselines/baselines.json", "300 demonstrations, 800 steps"),
+              ("pixel_protocol", "1200 demonstrations, 2000 steps"),
+              ("pixel_protocol_3600", "3600 demonstrations, 6000 steps")]  # fmt: skip
+    for where, data in states:
+        if where.endswith(".json"):
+            rec = _record(where)["state_planner"]
+            last = rec["nominal"][-1]
+            rate, seconds = (
+                f"{last['success_pct']:g} % [{last['wilson95_pct'][0]}, {last['wilson95_pct'][1]}]",
+                last["train_time_s"],
+            )
+        else:
+            rate = _rate(_record(f"{where}/compare/compare.json")["success"]["nominal"]["state_planner"])
+            seconds = _record(f"{where}/protocol.json")["train"]["state_planner"]["train_time_s"]
+        lines.append(f"| state planner (reads the environment state) | {data} ({seconds:.0f} s of training) | {rate} |")
+    return "\n".join(lines)
+
+
+def memoryless_table(base: str) -> str:
+    """The memoryless control beside the recipe, per suite, pooled over the same training and eval seeds."""
+    compared = _record("pixel_protocol_memoryless/compare/compare.json")
+    nominal = compared["success"]["nominal"]
+    head = [f"camera planner (n = {nominal['camera_planner']['n']})", f"memoryless control (n = {nominal['memoryless']['n']})",
+            "per seed", "memoryless minus camera planner, paired", "verdict"]  # fmt: skip
+    lines = ["| suite | " + " | ".join(head) + " |", "|---" * (len(head) + 1) + "|"]
+    verdicts = {(p["run"], p["suite"]): p["verdict"] for p in compared["pairs"]}
+    for suite, cell in compared["success"].items():
+        ml = cell["memoryless"]
+        pair = _pair("pixel_protocol_memoryless", "memoryless", "camera_planner", suite)
+        lines.append(f"| `{suite}` | {_rate(cell['camera_planner'])} | {_rate(ml)} | "
+                     f"{', '.join(_pct(r) for r in ml['per_seed'])} % | {pair} | {verdicts[('memoryless', suite)]} |")  # fmt: skip
+    return "\n".join(lines)
+
+
 BLOCKS = {
     "pixel-headline": headline,
     "pixel-joints": joints_table,
@@ -176,4 +248,6 @@ BLOCKS = {
     "pixel-failures": failures_table,
     "pixel-protocol": protocol_table,
     "pixel-heldout": heldout_table,
+    "pixel-baselines": baselines_table,
+    "pixel-memoryless": memoryless_table,
 }
