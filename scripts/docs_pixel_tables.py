@@ -23,7 +23,7 @@ CAUSES = ("not_grasped", "dropped", "not_transported", "not_placed", "not_releas
 # the protocols on the page, newest first: (folder under docs/results/, its demonstrations, what sets it apart,
 # its state planner's data)
 PROTOCOLS = (
-    ("pixel_protocol_strength", 7200, "7200 demonstrations", "3600 of these demonstrations"),
+    ("pixel_protocol_strength", 7200, "7200 demonstrations", "same data"),
     ("pixel_protocol_7200", 7200, "7200 demonstrations, keypoint positions only", "3600 of these demonstrations"),
     ("pixel_protocol_3600", 3600, "3600 demonstrations, positions only", "same data"),
     ("pixel_protocol", 1200, "1200 demonstrations, positions only", "same data"),
@@ -208,7 +208,8 @@ def baselines_table(base: str) -> str:
                      f"{_rate(cam)} ({pair}) |")  # fmt: skip
     states = [("pixel_baselines/baselines.json", "300 demonstrations, 800 steps"),
               ("pixel_protocol", "1200 demonstrations, 2000 steps"),
-              ("pixel_protocol_3600", "3600 demonstrations, 6000 steps")]  # fmt: skip
+              ("pixel_protocol_3600", "3600 demonstrations, 6000 steps"),
+              ("pixel_protocol_strength", "7200 demonstrations, 9000 steps")]  # fmt: skip
     for where, data in states:
         if where.endswith(".json"):
             rec = _record(where)["state_planner"]
