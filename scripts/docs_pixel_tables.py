@@ -193,19 +193,17 @@ def baselines_table(base: str) -> str:
     """Every baseline's nominal success on the data of a camera planner run, beside that run where they pair."""
     lines = ["| baseline | data and budget | nominal success [95 % Wilson] |", "|---|---|---|"]
     lines.append(_act_row("image_act.json", "1200 demonstrations"))
-    if (RESULTS / "pixel_baselines" / "image_act_7200.json").is_file():
-        lines.append(_act_row("image_act_7200.json", "7200 demonstrations (the recipe's)"))
+    lines.append(_act_row("image_act_7200.json", "7200 demonstrations (the recipe's)"))
     small = _record("pixel_baselines/compare/compare.json")["success"]["baxter_pnp"]
     pair = _pair("pixel_baselines", "pixels_memoryless", "pixels_recurrent", "baxter_pnp")
     lines.append(f"| memoryless control | 300 demonstrations, 800 steps | {_rate(small['pixels_memoryless'])}; the "
                  f"camera planner {_rate(small['pixels_recurrent'])} on the same data and steps ({pair}) |")  # fmt: skip
-    if (RESULTS / "pixel_protocol_memoryless" / "compare" / "compare.json").is_file():
-        big = _record("pixel_protocol_memoryless/compare/compare.json")["success"]["nominal"]
-        ml, cam = big["memoryless"], big["camera_planner"]
-        pair = _pair("pixel_protocol_memoryless", "memoryless", "camera_planner", "nominal")
-        lines.append(f"| memoryless control | 7200 demonstrations, the recipe's 9000 steps, {len(ml['per_seed'])} seeds | "
-                     f"{_rate(ml)} (per seed {', '.join(_pct(r) for r in ml['per_seed'])} %); the camera planner "
-                     f"{_rate(cam)} ({pair}) |")  # fmt: skip
+    big = _record("pixel_protocol_memoryless/compare/compare.json")["success"]["nominal"]
+    ml, cam = big["memoryless"], big["camera_planner"]
+    pair = _pair("pixel_protocol_memoryless", "memoryless", "camera_planner", "nominal")
+    lines.append(f"| memoryless control | 7200 demonstrations, the recipe's 9000 steps, {len(ml['per_seed'])} seeds | "
+                 f"{_rate(ml)} (per seed {', '.join(_pct(r) for r in ml['per_seed'])} %); the camera planner "
+                 f"{_rate(cam)} ({pair}) |")  # fmt: skip
     states = [("pixel_baselines/baselines.json", "300 demonstrations, 800 steps"),
               ("pixel_protocol", "1200 demonstrations, 2000 steps"),
               ("pixel_protocol_3600", "3600 demonstrations, 6000 steps"),
