@@ -17,6 +17,8 @@ RESULTS = ROOT / "docs" / "results"
 sys.path.insert(0, str(ROOT / "benchmarks"))
 from pixel_planner_plot import RUNS, checkpoints  # noqa: E402
 
+from lerobot_pnp.evaluation.compare import difference_text  # noqa: E402
+
 TRAIN_SUITES = ("nominal", "train_grasp_miss", "train_drop", "train_displace", "train_nudge", "train_latency",
                 "train_mixture")  # fmt: skip
 CAUSES = ("not_grasped", "dropped", "not_transported", "not_placed", "not_released")
@@ -48,6 +50,22 @@ def _rate(cell: dict) -> str:
     return f"{_pct(cell['rate'])} % [{100 * lo:.1f}, {100 * hi:.1f}]"
 
 
+def _checkpoint_rate(row: dict) -> str:
+    """One checkpoint's nominal success with its 95 % Wilson interval (a ``pixel_planner.nominal_row``)."""
+    lo, hi = row["wilson95_pct"]
+    return f"{row['success_pct']:g} % [{lo}, {hi}]"
+
+
+def _curve(rows: list[dict], steps: bool = False) -> str:
+    """Each checkpoint's training time (and step) and nominal success, the last with its interval."""
+    cells = []
+    for i, row in enumerate(rows):
+        step = f" (step {row['step']})" if steps else ""
+        rate = _checkpoint_rate(row) if i == len(rows) - 1 else f"{row['success_pct']:g} %"
+        cells.append(f"{_minutes(row['train_time_s'])} min{step}: {rate}")
+    return ", ".join(cells)
+
+
 def runs_table(base: str) -> str:
     """One row per run: its data, encoder input and steps, each checkpoint's time and nominal success."""
     lines = [
@@ -57,12 +75,9 @@ def runs_table(base: str) -> str:
     for run in RUNS:
         rec = _record(run.record)
         rows = checkpoints(rec)
-        cells = [f"{_minutes(r['train_time_s'])} min: {r['success_pct']:g} %" for r in rows]
-        lo, hi = rows[-1]["wilson95_pct"]
-        cells[-1] += f" [{lo}, {hi}]"
         mse = (rec.get("train_summary") or {}).get("final_test_mse", rows[-1].get("test_mse"))
         name = run.record.rsplit("/", 1)[-1]
-        lines.append(f"| {run.demos} | {run.encoder} | {run.steps}{run.note} | {', '.join(cells)} | {mse:.3f} | "
+        lines.append(f"| {run.demos} | {run.encoder} | {run.steps}{run.note} | {_curve(rows)} | {mse:.3f} | "
                      f"[{name}]({base}{run.record}) |")  # fmt: skip
     return "\n".join(lines)
 
@@ -171,22 +186,19 @@ def headline(base: str) -> str:
 def _act_row(name: str, data: str) -> str:
     """Image ACT at each evaluated checkpoint of one ``benchmarks/image_act_budget.py`` record."""
     rec = _record(f"pixel_baselines/{name}")
-    rows = rec["nominal"]
     threads = rec.get("threads", 1)
-    cells = [f"{_minutes(r['train_time_s'])} min (step {r['step']}): {r['success_pct']:g} %" for r in rows]
-    lo, hi = rows[-1]["wilson95_pct"]
     budget = f"{threads} torch thread{'s' * (threads > 1)} for {_minutes(rec['budget_s'])} minutes of training"
-    return f"| image ACT | {data}; {budget}, batch 16 | {', '.join(cells)} [{lo}, {hi}] |"
+    return f"| image ACT | {data}; {budget}, batch 16 | {_curve(rec['nominal'], steps=True)} |"
 
 
-def _pair(folder: str, run: str, reference: str, suite: str) -> str:
-    """``run`` minus ``reference`` on ``suite`` (same eval seeds), with its interval and the largest per-seed p."""
-    pair = next(
-        p for p in _record(f"{folder}/compare/compare.json")["pairs"]
-        if (p["run"], p["reference"], p["suite"]) == (run, reference, suite)
-    )  # fmt: skip
-    lo, hi = pair["interval"]
-    return f"{100 * pair['difference']:+.1f} pts [{100 * lo:+.1f}, {100 * hi:+.1f}], p <= {pair['study']['max_p']:.1g}"
+def _pair(compared: dict, run: str, reference: str, suite: str) -> dict:
+    """``run`` minus ``reference`` on ``suite`` (same eval seeds) in one ``lerobot-pnp compare`` record."""
+    return next(p for p in compared["pairs"] if (p["run"], p["reference"], p["suite"]) == (run, reference, suite))
+
+
+def _paired(pair: dict) -> str:
+    """A pair's difference with its interval and the largest per-seed p."""
+    return f"{difference_text(pair)}, p <= {pair['study']['max_p']:.1g}"
 
 
 def baselines_table(base: str) -> str:
@@ -194,32 +206,26 @@ def baselines_table(base: str) -> str:
     lines = ["| baseline | data and budget | nominal success [95 % Wilson] |", "|---|---|---|"]
     lines.append(_act_row("image_act.json", "1200 demonstrations"))
     lines.append(_act_row("image_act_7200.json", "7200 demonstrations (the recipe's)"))
-    small = _record("pixel_baselines/compare/compare.json")["success"]["baxter_pnp"]
-    pair = _pair("pixel_baselines", "pixels_memoryless", "pixels_recurrent", "baxter_pnp")
-    lines.append(f"| memoryless control | 300 demonstrations, 800 steps | {_rate(small['pixels_memoryless'])}; the "
-                 f"camera planner {_rate(small['pixels_recurrent'])} on the same data and steps ({pair}) |")  # fmt: skip
-    big = _record("pixel_protocol_memoryless/compare/compare.json")["success"]["nominal"]
-    ml, cam = big["memoryless"], big["camera_planner"]
-    pair = _pair("pixel_protocol_memoryless", "memoryless", "camera_planner", "nominal")
+    small = _record("pixel_baselines/compare/compare.json")
+    rates = small["success"]["baxter_pnp"]
+    pair = _paired(_pair(small, "pixels_memoryless", "pixels_recurrent", "baxter_pnp"))
+    lines.append(f"| memoryless control | 300 demonstrations, 800 steps | {_rate(rates['pixels_memoryless'])}; the "
+                 f"camera planner {_rate(rates['pixels_recurrent'])} on the same data and steps ({pair}) |")  # fmt: skip
+    big = _record("pixel_protocol_memoryless/compare/compare.json")
+    ml, cam = big["success"]["nominal"]["memoryless"], big["success"]["nominal"]["camera_planner"]
+    pair = _paired(_pair(big, "memoryless", "camera_planner", "nominal"))
     lines.append(f"| memoryless control | 7200 demonstrations, the recipe's 9000 steps, {len(ml['per_seed'])} seeds | "
                  f"{_rate(ml)} (per seed {', '.join(_pct(r) for r in ml['per_seed'])} %); the camera planner "
                  f"{_rate(cam)} ({pair}) |")  # fmt: skip
-    states = [("pixel_baselines/baselines.json", "300 demonstrations, 800 steps"),
-              ("pixel_protocol", "1200 demonstrations, 2000 steps"),
-              ("pixel_protocol_3600", "3600 demonstrations, 6000 steps"),
-              ("pixel_protocol_strength", "7200 demonstrations, 9000 steps")]  # fmt: skip
-    for where, data in states:
-        if where.endswith(".json"):
-            rec = _record(where)["state_planner"]
-            last = rec["nominal"][-1]
-            rate, seconds = (
-                f"{last['success_pct']:g} % [{last['wilson95_pct'][0]}, {last['wilson95_pct'][1]}]",
-                last["train_time_s"],
-            )
-        else:
-            rate = _rate(_record(f"{where}/compare/compare.json")["success"]["nominal"]["state_planner"])
-            seconds = _record(f"{where}/protocol.json")["train"]["state_planner"]["train_time_s"]
-        lines.append(f"| state planner (reads the environment state) | {data} ({seconds:.0f} s of training) | {rate} |")
+    state = "| state planner (reads the environment state) | {} ({:.0f} s of training) | {} |"
+    last = _record("pixel_baselines/baselines.json")["state_planner"]["nominal"][-1]
+    lines.append(state.format("300 demonstrations, 800 steps", last["train_time_s"], _checkpoint_rate(last)))
+    for folder, data in (("pixel_protocol", "1200 demonstrations, 2000 steps"),
+                         ("pixel_protocol_3600", "3600 demonstrations, 6000 steps"),
+                         ("pixel_protocol_strength", "7200 demonstrations, 9000 steps")):  # fmt: skip
+        rate = _rate(_record(f"{folder}/compare/compare.json")["success"]["nominal"]["state_planner"])
+        seconds = _record(f"{folder}/protocol.json")["train"]["state_planner"]["train_time_s"]
+        lines.append(state.format(data, seconds, rate))
     return "\n".join(lines)
 
 
@@ -230,12 +236,11 @@ def memoryless_table(base: str) -> str:
     head = [f"camera planner (n = {nominal['camera_planner']['n']})", f"memoryless control (n = {nominal['memoryless']['n']})",
             "per seed", "memoryless minus camera planner, paired", "verdict"]  # fmt: skip
     lines = ["| suite | " + " | ".join(head) + " |", "|---" * (len(head) + 1) + "|"]
-    verdicts = {(p["run"], p["suite"]): p["verdict"] for p in compared["pairs"]}
     for suite, cell in compared["success"].items():
         ml = cell["memoryless"]
-        pair = _pair("pixel_protocol_memoryless", "memoryless", "camera_planner", suite)
+        pair = _pair(compared, "memoryless", "camera_planner", suite)
         lines.append(f"| `{suite}` | {_rate(cell['camera_planner'])} | {_rate(ml)} | "
-                     f"{', '.join(_pct(r) for r in ml['per_seed'])} % | {pair} | {verdicts[('memoryless', suite)]} |")  # fmt: skip
+                     f"{', '.join(_pct(r) for r in ml['per_seed'])} % | {_paired(pair)} | {pair['verdict']} |")  # fmt: skip
     return "\n".join(lines)
 
 

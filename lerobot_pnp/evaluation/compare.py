@@ -237,7 +237,8 @@ def _pts(x: float) -> str:
     return f"{100 * x:+.1f}"
 
 
-def _diff(cmp: dict) -> str:
+def difference_text(cmp: dict) -> str:
+    """A paired difference with its 95 % interval, in points: "+5.2 pts [+1.0, +9.3]"."""
     lo, hi = cmp["interval"]
     return f"{_pts(cmp['difference'])} pts [{_pts(lo)}, {_pts(hi)}]"
 
@@ -276,13 +277,15 @@ def markdown(result: dict, cfg: CompareConfig) -> str:
         lines += ["| suite | " + " | ".join(names) + " |", "|---|" + "---|" * len(names)]
         for s in (s for s in result["suites"] if any(s in control[n] for n in names)):
             lines.append(
-                f"| {s} | " + " | ".join(_diff(control[n][s]) if s in control[n] else "-" for n in names) + " |"
+                f"| {s} | "
+                + " | ".join(difference_text(control[n][s]) if s in control[n] else "-" for n in names)
+                + " |"
             )
     if result["pairs"]:
         lines += ["", "## Pairs of runs (run minus reference, same seeds)", ""]
         lines += ["| run | reference | suite | n pairs | difference [95 %] | max p | verdict |", "|---" * 7 + "|"]
         for p in result["pairs"]:
-            lines.append(f"| {p['run']} | {p['reference']} | {p['suite']} | {p['n']} | {_diff(p)} | "
+            lines.append(f"| {p['run']} | {p['reference']} | {p['suite']} | {p['n']} | {difference_text(p)} | "
                          f"{p['study'].max_p:.2g} | {p['verdict']} |")  # fmt: skip
     if result["axes"]:
         lines += ["", "## Held-out axes (the study's verdict)", ""]
