@@ -244,6 +244,20 @@ def memoryless_table(base: str) -> str:
     return "\n".join(lines)
 
 
+def memoryless_training(base: str) -> str:
+    """Per training seed: each method's wall clock and held-out next-keyframe error (its ``protocol.json``)."""
+    recipe = _record("pixel_protocol_strength/protocol.json")["train"]
+    memoryless = _record("pixel_protocol_memoryless/protocol.json")["train"]
+    lines = ["| training seed | camera planner: training wall clock | its next-keyframe error | memoryless control: "
+             "training wall clock | its next-keyframe error |", "|---|---|---|---|---|"]  # fmt: skip
+    for name, ml in memoryless.items():
+        seed = name.removeprefix("memoryless_seed")
+        cam = recipe[f"camera_seed{seed}"]
+        lines.append(f"| {seed} | {_minutes(cam['wall_s'])} min | {cam['keyframe_mae_deg']:.2f}° | "
+                     f"{_minutes(ml['wall_s'])} min | {ml['keyframe_mae_deg']:.2f}° |")  # fmt: skip
+    return "\n".join(lines)
+
+
 BLOCKS = {
     "pixel-headline": headline,
     "pixel-joints": joints_table,
@@ -254,4 +268,5 @@ BLOCKS = {
     "pixel-heldout": heldout_table,
     "pixel-baselines": baselines_table,
     "pixel-memoryless": memoryless_table,
+    "pixel-memoryless-training": memoryless_training,
 }
