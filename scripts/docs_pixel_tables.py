@@ -258,6 +258,37 @@ def memoryless_training(base: str) -> str:
     return "\n".join(lines)
 
 
+def shift_table(base: str) -> str:
+    """Each random shift beside the recipe's (``shift_4``) on the same training and eval seeds, per suite."""
+    compared = _record("pixel_shift/compare/compare.json")
+    study = _record("pixel_shift/study.json")["train"]
+    others = [run for run in compared["runs"] if run != "shift_4"]
+    head = [
+        "shift 4 px, the recipe, pooled (n = {}; seeds 1000, 1002)".format(
+            compared["success"]["nominal"]["shift_4"]["n"]
+        )
+    ]
+    for run in others:
+        k = run.removeprefix("shift_")
+        head += [f"shift {k} px", f"shift {k} minus shift 4, paired", "verdict"]
+    lines = ["| suite | " + " | ".join(head) + " |", "|---" * (len(head) + 1) + "|"]
+    for suite, cell in compared["success"].items():
+        row = [_rate(cell["shift_4"]) + f" ({', '.join(_pct(r) for r in cell['shift_4']['per_seed'])})"]
+        for run in others:
+            pair = _pair(compared, run, "shift_4", suite)
+            row += [_rate(cell[run]) + f" ({', '.join(_pct(r) for r in cell[run]['per_seed'])})", _paired(pair),
+                    pair["verdict"]]  # fmt: skip
+        lines.append(f"| `{suite}` | " + " | ".join(row) + " |")
+    recipe = _record("pixel_protocol_strength/protocol.json")["train"]
+    runs = {f"shift4_seed{seed}": recipe[f"camera_seed{seed}"] for seed in (1000, 1002)} | study
+    mse = "; ".join(f"{name.split('_')[0].removeprefix('shift')} px, seed {name.split('seed')[1]}: "
+                    f"{r['final_train_mse']:.3f} / {r['final_test_mse']:.3f}" for name, r in runs.items())  # fmt: skip
+    return (
+        "\n".join(lines)
+        + f"\n\nThe last epoch's training loss (on augmented batches) / the held-out action MSE: {mse}."
+    )
+
+
 BLOCKS = {
     "pixel-headline": headline,
     "pixel-joints": joints_table,
@@ -269,4 +300,5 @@ BLOCKS = {
     "pixel-baselines": baselines_table,
     "pixel-memoryless": memoryless_table,
     "pixel-memoryless-training": memoryless_training,
+    "pixel-shift": shift_table,
 }
