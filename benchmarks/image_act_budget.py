@@ -7,11 +7,12 @@
 1. Training: stock ``lerobot-train`` of ACT (ResNet-18 from scratch, the ``configs/train_act_images.json``
    architecture) on the dataset's joints and every camera it records (no object or goal coordinates), on
    ``--threads`` torch threads (the camera planner's recipe trains on two), a checkpoint every ``--save_freq``
-   steps. ACT's optimiser has no schedule, so stopping it at the budget is the same run as one planned for that many steps: the process is stopped at the first checkpoint past
-   ``--budget_s`` of training (timed from LeRobot's "Start offline training" line, so dataset loading is not in
-   it, as it is not in the camera planner's loss-curve times).
-2. The last checkpoint within each quarter of the budget: stock ``lerobot-eval`` on the nominal task, ``--eval_episodes`` seeded episodes from 100000,
-   success with its 95 % Wilson interval, and the training time at which it was written.
+   steps. ACT's optimiser has no schedule, so stopping it at the budget is the same run as one planned for that
+   many steps: the process is stopped at the first checkpoint past ``--budget_s`` of training (timed from
+   LeRobot's "Start offline training" line, so dataset loading is not in it, as it is not in the camera planner's
+   loss-curve times).
+2. The last checkpoint within each quarter of the budget: stock ``lerobot-eval`` on the nominal task,
+   ``--eval_episodes`` seeded episodes from 100000, success with its 95 % Wilson interval, and the training time at which it was written.
 """
 
 from __future__ import annotations

@@ -50,6 +50,11 @@ def _rate(cell: dict) -> str:
     return f"{_pct(cell['rate'])} % [{100 * lo:.1f}, {100 * hi:.1f}]"
 
 
+def _per_seed(cell: dict) -> str:
+    """A pooled cell's per-training-seed rates, in the order of its runs: "93, 95, 69"."""
+    return ", ".join(_pct(r) for r in cell["per_seed"])
+
+
 def _checkpoint_rate(row: dict) -> str:
     """One checkpoint's nominal success with its 95 % Wilson interval (a ``pixel_planner.nominal_row``)."""
     lo, hi = row["wilson95_pct"]
@@ -137,7 +142,7 @@ def protocol_table(base: str) -> str:
         c = new[suite]["camera_planner"]
         cells = [
             _rate(c),
-            ", ".join(_pct(r) for r in c["per_seed"]) + " %",
+            _per_seed(c) + " %",
             _rate(new[suite]["state_planner"]),
             *(_rate(s[suite]["camera_planner"]) for _, s in old),
         ]
@@ -215,7 +220,7 @@ def baselines_table(base: str) -> str:
     ml, cam = big["success"]["nominal"]["memoryless"], big["success"]["nominal"]["camera_planner"]
     pair = _paired(_pair(big, "memoryless", "camera_planner", "nominal"))
     lines.append(f"| memoryless control | 7200 demonstrations, the recipe's 9000 steps, {len(ml['per_seed'])} seeds | "
-                 f"{_rate(ml)} (per seed {', '.join(_pct(r) for r in ml['per_seed'])} %); the camera planner "
+                 f"{_rate(ml)} (per seed {_per_seed(ml)} %); the camera planner "
                  f"{_rate(cam)} ({pair}) |")  # fmt: skip
     state = "| state planner (reads the environment state) | {} ({:.0f} s of training) | {} |"
     last = _record("pixel_baselines/baselines.json")["state_planner"]["nominal"][-1]
@@ -240,7 +245,7 @@ def memoryless_table(base: str) -> str:
         ml = cell["memoryless"]
         pair = _pair(compared, "memoryless", "camera_planner", suite)
         lines.append(f"| `{suite}` | {_rate(cell['camera_planner'])} | {_rate(ml)} | "
-                     f"{', '.join(_pct(r) for r in ml['per_seed'])} % | {_paired(pair)} | {pair['verdict']} |")  # fmt: skip
+                     f"{_per_seed(ml)} % | {_paired(pair)} | {pair['verdict']} |")  # fmt: skip
     return "\n".join(lines)
 
 
@@ -272,10 +277,10 @@ def shift_table(base: str) -> str:
         head += [f"shift {k} px", f"shift {k} minus shift 4, paired", "verdict"]
     lines = ["| suite | " + " | ".join(head) + " |", "|---" * (len(head) + 1) + "|"]
     for suite, cell in compared["success"].items():
-        row = [_rate(cell["shift_4"]) + f" ({', '.join(_pct(r) for r in cell['shift_4']['per_seed'])})"]
+        row = [_rate(cell["shift_4"]) + f" ({_per_seed(cell['shift_4'])})"]
         for run in others:
             pair = _pair(compared, run, "shift_4", suite)
-            row += [_rate(cell[run]) + f" ({', '.join(_pct(r) for r in cell[run]['per_seed'])})", _paired(pair),
+            row += [_rate(cell[run]) + f" ({_per_seed(cell[run])})", _paired(pair),
                     pair["verdict"]]  # fmt: skip
         lines.append(f"| `{suite}` | " + " | ".join(row) + " |")
     recipe = _record("pixel_protocol_strength/protocol.json")["train"]
