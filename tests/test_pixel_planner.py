@@ -249,6 +249,38 @@ def test_a_planner_with_keypoint_strength_trains_and_round_trips(tmp_path):
     assert _policy().config.keypoint_strength is False  # checkpoints saved without the field read back as before
 
 
+def test_normalised_keypoint_strengths_train_and_round_trip_with_their_statistics(tmp_path):
+    """``keypoint_strength_norm``: training standardises each keypoint's strength over the batch's real frames,
+    the running statistics travel with the checkpoint, and inference reads them; without strengths it is refused."""
+    import torch
+
+    from lerobot_pnp.errors import ConfigError
+    from lerobot_pnp.policy import PnpPixelsPolicy
+
+    policy = _policy(keypoint_strength=True, keypoint_strength_norm=True, image_shift=0)
+    policy.train()
+    batch = _episodes()
+    feats, real = policy.keypoints(batch)
+    encoder = policy.encoders[0]
+    raw = encoder.softmax.attend(encoder.feature_maps(batch["observation.images.front"][real]))[1]
+    expected = (raw - raw.mean(0)) / (raw.var(0, unbiased=False) + encoder.strength_norm.eps).sqrt()
+    torch.testing.assert_close(feats[real][:, 2 * 4 :], expected)
+    assert float(raw.std(0).min()) > 0 and not torch.allclose(raw, expected)
+    loss, _ = policy.forward(batch)
+    loss.backward()
+    norm = policy.encoders[0].strength_norm
+    assert int(norm.num_batches_tracked) == 2 and bool((norm.running_var != 1).all())
+    policy.eval()
+    policy.save_pretrained(tmp_path)
+    loaded = PnpPixelsPolicy.from_pretrained(tmp_path)
+    loaded.eval()
+    torch.testing.assert_close(loaded.encoders[0].strength_norm.running_mean, norm.running_mean)
+    frames = _frames("absent")
+    assert all(torch.equal(a, b) for a, b in zip(_act(policy, frames), _act(loaded, frames), strict=True))
+    with pytest.raises(ConfigError, match="keypoint_strength_norm .* needs keypoint_strength true"):
+        _config(keypoint_strength_norm=True)
+
+
 # ---------------------------------------------------------------------------------------------- the fast path
 def _image_of(obj, size: int = SIZE) -> np.ndarray:
     """A grey table with the object as a bright square where it lies (x, y in the synthetic data's ranges)."""

@@ -52,6 +52,10 @@ class PnpPixelsConfig(PnpLstmConfig):
     keypoint_strength: bool = False
     """Each camera also gives each keypoint's feature value where its softmax looks (``num_keypoints`` more
     numbers): how strongly a feature fires, which carries what the positions do not, such as the cube's yaw."""
+    keypoint_strength_norm: bool = False
+    """With ``keypoint_strength``: normalise the strengths by batch statistics (``BatchNorm1d`` without affine
+    terms, its running statistics at inference). The positions are in [-1, 1]; a map value has no scale of its
+    own and may grow in training, as the net sharpens its softmax by scaling its maps."""
     image_downsample: int = 1
     """The encoder reads each image average-pooled by this factor (1: at the recorded resolution; it must divide
     the image's height and width). It sets the resolution the policy works at apart from the one the benchmark
@@ -70,6 +74,10 @@ class PnpPixelsConfig(PnpLstmConfig):
                 f"conv_channels must be one or more positive integers, got {list(self.conv_channels)}",
             ),
             (self.num_keypoints >= 1, f"num_keypoints must be >= 1, got {self.num_keypoints}"),
+            (
+                self.keypoint_strength or not self.keypoint_strength_norm,
+                "keypoint_strength_norm normalises the keypoint strengths: it needs keypoint_strength true",
+            ),
             (self.image_shift >= 0, f"image_shift must be >= 0, got {self.image_shift}"),
             (self.image_downsample >= 1, f"image_downsample must be >= 1, got {self.image_downsample}"),
             (self.pose_loss_weight >= 0, f"pose_loss_weight must be >= 0, got {self.pose_loss_weight}"),

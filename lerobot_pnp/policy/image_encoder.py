@@ -52,7 +52,11 @@ class KeypointEncoder(nn.Module):
 
     Why ``strength``: a keypoint is where a feature fires, not how strongly. The cube looks the same every 90
     degrees, so an orientation-tuned feature fires around its centre at every yaw and its expected position
-    carries little of the yaw; how strongly it fires there carries it."""
+    carries little of the yaw; how strongly it fires there carries it.
+
+    ``strength_norm``: the strengths pass through a batch normalisation without affine terms (running statistics
+    at inference). A map value has no scale of its own: the net can sharpen a softmax by scaling its maps up
+    instead of lowering the temperature, and the strengths grow with it, where the positions stay in [-1, 1]."""
 
     def __init__(
         self,
@@ -62,6 +66,7 @@ class KeypointEncoder(nn.Module):
         shift: int = 0,
         pool: int = 1,
         strength: bool = False,
+        strength_norm: bool = False,
     ):
         super().__init__()
         c, h, w = image_shape
@@ -77,6 +82,7 @@ class KeypointEncoder(nn.Module):
         self.shift = shift
         self.num_keypoints = num_keypoints
         self.strength = strength
+        self.strength_norm = nn.BatchNorm1d(num_keypoints, affine=False) if strength and strength_norm else None
         self.out_dim = (3 if strength else 2) * num_keypoints
         self.pool = pool
         self.stride = pool * 2 ** len(channels)  # image pixels per keypoint-map cell
@@ -84,7 +90,11 @@ class KeypointEncoder(nn.Module):
 
     def forward(self, images: Tensor) -> Tensor:
         xy, strength = self.softmax.attend(self.feature_maps(images))
-        return torch.cat([xy, strength], dim=-1) if self.strength else xy
+        if not self.strength:
+            return xy
+        if self.strength_norm is not None:
+            strength = self.strength_norm(strength)
+        return torch.cat([xy, strength], dim=-1)
 
     def feature_maps(self, images: Tensor) -> Tensor:
         """The keypoint maps ``(N, num_keypoints, *map_shape)`` before the softmax: scaled, shifted (training),

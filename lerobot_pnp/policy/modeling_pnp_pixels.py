@@ -44,6 +44,7 @@ class PnpPixelsPolicy(PnpLstmPolicy):
                 config.image_shift,
                 config.image_downsample,
                 config.keypoint_strength,
+                config.keypoint_strength_norm,
             )
             for _ in self.camera_keys
         )
