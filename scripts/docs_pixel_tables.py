@@ -263,33 +263,49 @@ def memoryless_training(base: str) -> str:
     return "\n".join(lines)
 
 
-def shift_table(base: str) -> str:
-    """Each random shift beside the recipe's (``shift_4``) on the same training and eval seeds, per suite."""
-    compared = _record("pixel_shift/compare/compare.json")
-    study = _record("pixel_shift/study.json")["train"]
-    others = [run for run in compared["runs"] if run != "shift_4"]
+def _lever_table(folder: str, reference: str, label, runs_of, name) -> str:
+    """A lever's runs beside the recipe (``reference``) on the same training and eval seeds, per suite, from
+    ``<folder>/compare/compare.json`` and ``<folder>/study.json``. ``label(run)`` names a compared run in the
+    header, ``runs_of(seeds, recipe)`` gives the recipe's training records by training name, and ``name(training)``
+    names a training in the losses line."""
+    compared = _record(f"{folder}/compare/compare.json")
+    study = _record(f"{folder}/study.json")["train"]
+    others = [run for run in compared["runs"] if run != reference]
     seeds = sorted({name.split("seed")[1] for name in study})
-    head = [
-        f"shift 4 px, the recipe, pooled (n = {compared['success']['nominal']['shift_4']['n']}; seeds {', '.join(seeds)})"
-    ]
+    n = compared["success"]["nominal"][reference]["n"]
+    head = [f"{label(reference)}, the recipe, pooled (n = {n}; seeds {', '.join(seeds)})"]
     for run in others:
-        k = run.removeprefix("shift_")
-        head += [f"shift {k} px", f"shift {k} minus shift 4, paired", "verdict"]
+        head += [label(run), f"{label(run)} minus {label(reference)}, paired", "verdict"]
     lines = ["| suite | " + " | ".join(head) + " |", "|---" * (len(head) + 1) + "|"]
     for suite, cell in compared["success"].items():
-        row = [_rate(cell["shift_4"]) + f" ({_per_seed(cell['shift_4'])})"]
+        row = [_rate(cell[reference]) + f" ({_per_seed(cell[reference])})"]
         for run in others:
-            pair = _pair(compared, run, "shift_4", suite)
+            pair = _pair(compared, run, reference, suite)
             row += [_rate(cell[run]) + f" ({_per_seed(cell[run])})", _paired(pair),
                     pair["verdict"]]  # fmt: skip
         lines.append(f"| `{suite}` | " + " | ".join(row) + " |")
     recipe = _record("pixel_protocol_strength/protocol.json")["train"]
-    runs = {f"shift4_seed{seed}": recipe[f"camera_seed{seed}"] for seed in seeds} | study
-    mse = "; ".join(f"{name.split('_')[0].removeprefix('shift')} px, seed {name.split('seed')[1]}: "
-                    f"{r['final_train_mse']:.3f} / {r['final_test_mse']:.3f}" for name, r in runs.items())  # fmt: skip
+    runs = runs_of(seeds, recipe) | study
+    mse = "; ".join(f"{name(k)}: {r['final_train_mse']:.3f} / {r['final_test_mse']:.3f}" for k, r in runs.items())
     return (
         "\n".join(lines)
         + f"\n\nThe last epoch's training loss (on augmented batches) / the held-out action MSE: {mse}."
+    )
+
+
+def _shift_name(name: str) -> str:
+    """``shift0_seed1000`` -> "0 px, seed 1000"."""
+    return f"{name.split('_')[0].removeprefix('shift')} px, seed {name.split('seed')[1]}"
+
+
+def shift_table(base: str) -> str:
+    """Each random shift beside the recipe's (``shift_4``) on the same training and eval seeds, per suite."""
+    return _lever_table(
+        "pixel_shift",
+        "shift_4",
+        lambda run: f"shift {run.removeprefix('shift_')} px",
+        lambda seeds, recipe: {f"shift4_seed{s}": recipe[f"camera_seed{s}"] for s in seeds},
+        _shift_name,
     )
 
 
