@@ -286,10 +286,13 @@ def _lever_table(folder: str, reference: str, label, runs_of, name) -> str:
         lines.append(f"| `{suite}` | " + " | ".join(row) + " |")
     recipe = _record("pixel_protocol_strength/protocol.json")["train"]
     runs = runs_of(seeds, recipe) | study
-    mse = "; ".join(f"{name(k)}: {r['final_train_mse']:.3f} / {r['final_test_mse']:.3f}" for k, r in runs.items())
+    mse = "; ".join(
+        f"{name(k)}: {r['final_train_mse']:.3f} / {r['final_test_mse']:.3f} / {r['keyframe_mae_deg']:.2f}°"
+        for k, r in runs.items()
+    )
     return (
-        "\n".join(lines)
-        + f"\n\nThe last epoch's training loss (on augmented batches) / the held-out action MSE: {mse}."
+        "\n".join(lines) + "\n\nThe last epoch's training loss (on augmented batches) / the held-out action MSE / "
+        f"the held-out mean next-keyframe error per arm joint: {mse}."
     )
 
 
@@ -309,6 +312,25 @@ def shift_table(base: str) -> str:
     )
 
 
+def strength_norm_table(base: str) -> str:
+    """Batch-normalised keypoint strengths beside the recipe's raw ones, and the raw strengths' scale per camera."""
+    table = _lever_table(
+        "pixel_strength_norm",
+        "recipe",
+        lambda run: "raw strengths" if run == "recipe" else "normalised strengths",
+        lambda seeds, recipe: {f"raw_seed{s}": recipe[f"camera_seed{s}"] for s in seeds},
+        lambda name: f"{'raw' if name.startswith('raw') else 'normalised'}, seed {name.split('seed')[1]}",
+    )
+    study = _record("pixel_strength_norm/study.json")["train"]
+    scale = "; ".join(
+        f"seed {name.split('seed')[1]}, {cam}: means {r['mean_range'][0]} to {r['mean_range'][1]}, "
+        f"standard deviations {r['std_range'][0]} to {r['std_range'][1]}"
+        for name, run in study.items()
+        for cam, r in run["raw_strength"].items()
+    )
+    return table + f"\n\nThe strengths before the normalisation, over each camera's 16 keypoints: {scale}."
+
+
 BLOCKS = {
     "pixel-headline": headline,
     "pixel-joints": joints_table,
@@ -321,4 +343,5 @@ BLOCKS = {
     "pixel-memoryless": memoryless_table,
     "pixel-memoryless-training": memoryless_training,
     "pixel-shift": shift_table,
+    "pixel-strength-norm": strength_norm_table,
 }
