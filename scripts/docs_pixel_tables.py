@@ -331,6 +331,20 @@ def strength_norm_table(base: str) -> str:
     return table + f"\n\nThe strengths before the normalisation, over each camera's 16 keypoints: {scale}."
 
 
+def pose_weight_table(base: str) -> str:
+    """Ten times the auxiliary pose loss's weight beside the recipe's, on the same training and eval seeds."""
+    table = _lever_table(
+        "pixel_pose_weight",
+        "recipe",
+        lambda run: "pose weight 0.1" if run == "recipe" else "pose weight 1.0",
+        lambda seeds, recipe: {f"recipe_seed{s}": recipe[f"camera_seed{s}"] for s in seeds},
+        lambda name: f"{'0.1' if name.startswith('recipe') else '1.0'}, seed {name.split('seed')[1]}",
+    )
+    return (
+        table + " The losses hold the auxiliary pose term at each run's weight: only the next-keyframe error compares."
+    )
+
+
 BLOCKS = {
     "pixel-headline": headline,
     "pixel-joints": joints_table,
@@ -344,4 +358,5 @@ BLOCKS = {
     "pixel-memoryless-training": memoryless_training,
     "pixel-shift": shift_table,
     "pixel-strength-norm": strength_norm_table,
+    "pixel-pose-weight": pose_weight_table,
 }
