@@ -312,15 +312,21 @@ def shift_table(base: str) -> str:
     )
 
 
+def _versus_recipe(folder: str, labels: tuple[str, str], short: tuple[str, str]) -> str:
+    """``_lever_table`` of one lever (compared run ``lever``) against the recipe (compared run ``recipe``):
+    ``labels`` name the two in the header, ``short`` in the losses line."""
+    return _lever_table(
+        folder,
+        "recipe",
+        lambda run: labels[0] if run == "recipe" else labels[1],
+        lambda seeds, recipe: {f"recipe_seed{s}": recipe[f"camera_seed{s}"] for s in seeds},
+        lambda name: f"{short[0] if name.startswith('recipe') else short[1]}, seed {name.split('seed')[1]}",
+    )
+
+
 def strength_norm_table(base: str) -> str:
     """Batch-normalised keypoint strengths beside the recipe's raw ones, and the raw strengths' scale per camera."""
-    table = _lever_table(
-        "pixel_strength_norm",
-        "recipe",
-        lambda run: "raw strengths" if run == "recipe" else "normalised strengths",
-        lambda seeds, recipe: {f"raw_seed{s}": recipe[f"camera_seed{s}"] for s in seeds},
-        lambda name: f"{'raw' if name.startswith('raw') else 'normalised'}, seed {name.split('seed')[1]}",
-    )
+    table = _versus_recipe("pixel_strength_norm", ("raw strengths", "normalised strengths"), ("raw", "normalised"))
     study = _record("pixel_strength_norm/study.json")["train"]
     scale = "; ".join(
         f"seed {name.split('seed')[1]}, {cam}: means {r['mean_range'][0]} to {r['mean_range'][1]}, "
@@ -333,13 +339,7 @@ def strength_norm_table(base: str) -> str:
 
 def pose_weight_table(base: str) -> str:
     """Ten times the auxiliary pose loss's weight beside the recipe's, on the same training and eval seeds."""
-    table = _lever_table(
-        "pixel_pose_weight",
-        "recipe",
-        lambda run: "pose weight 0.1" if run == "recipe" else "pose weight 1.0",
-        lambda seeds, recipe: {f"recipe_seed{s}": recipe[f"camera_seed{s}"] for s in seeds},
-        lambda name: f"{'0.1' if name.startswith('recipe') else '1.0'}, seed {name.split('seed')[1]}",
-    )
+    table = _versus_recipe("pixel_pose_weight", ("pose weight 0.1", "pose weight 1.0"), ("0.1", "1.0"))
     return (
         table + " The losses hold the auxiliary pose term at each run's weight: only the next-keyframe error compares."
     )
