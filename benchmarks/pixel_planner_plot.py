@@ -41,6 +41,13 @@ RUNS = (
     Run("pixel_planner_3600_32px.json", 3600, "32x32 (pooled)", 6000),
     Run("pixel_planner_7200_32px.json", 7200, "32x32 (pooled)", 9000, " (2 threads)"),
     Run("pixel_planner_7200_strength.json", 7200, "32x32 (pooled) + strength", 9000, " (2 threads, seed 1002)"),
+    Run(
+        "pixel_planner_7200_pose.json",
+        7200,
+        "32x32 (pooled) + strength, pose loss 1.0",
+        9000,
+        " (2 threads, seed 1002)",
+    ),
 )
 
 

@@ -25,7 +25,8 @@ CAUSES = ("not_grasped", "dropped", "not_transported", "not_placed", "not_releas
 # the protocols on the page, newest first: (folder under docs/results/, its demonstrations, what sets it apart,
 # its state planner's data)
 PROTOCOLS = (
-    ("pixel_protocol_strength", 7200, "7200 demonstrations", "same data"),
+    ("pixel_protocol_pose", 7200, "7200 demonstrations", "same data"),
+    ("pixel_protocol_strength", 7200, "7200 demonstrations, pose loss weight 0.1", "same data"),
     ("pixel_protocol_7200", 7200, "7200 demonstrations, keypoint positions only", "3600 of these demonstrations"),
     ("pixel_protocol_3600", 3600, "3600 demonstrations, positions only", "same data"),
     ("pixel_protocol", 1200, "1200 demonstrations, positions only", "same data"),
@@ -74,7 +75,7 @@ def _curve(rows: list[dict], steps: bool = False) -> str:
 def runs_table(base: str) -> str:
     """One row per run: its data, encoder input and steps, each checkpoint's time and nominal success."""
     lines = [
-        "| demonstrations | encoder input | steps | checkpoints: training time -> nominal success | held-out action MSE at the end | record |",
+        "| demonstrations | encoder input | steps | checkpoints: training time -> nominal success | held-out loss at the end | record |",
         "|---|---|---|---|---|---|",
     ]  # fmt: skip
     for run in RUNS:
@@ -125,6 +126,11 @@ def failures_table(base: str) -> str:
     return "\n".join(lines)
 
 
+def _agreement(test: dict) -> str:
+    """A ``lerobot-pnp compare`` seed-homogeneity test as a cell: "no (0.67)", "yes (2e-15)"."""
+    return f"{'yes' if test['differ'] else 'no'} ({test['p']:.1g})"
+
+
 def protocol_table(base: str) -> str:
     """The newest protocol's camera planner pooled over its seeds and per seed, the state planner on the same data,
     and the camera planner of each earlier protocol."""
@@ -135,7 +141,7 @@ def protocol_table(base: str) -> str:
     old = [(label, _record(f"{f}/compare/compare.json")["success"]) for f, _, label, _ in earlier]
     cam, state = new["nominal"]["camera_planner"], new["nominal"]["state_planner"]
     head = [f"camera planner, {len(cam['per_seed'])} seeds pooled (n = {cam['n']})", f"per seed ({seeds})",
-            f"state planner, {state_data} (n = {state['n']})"]  # fmt: skip
+            "seeds differ? (p)", f"state planner, {state_data} (n = {state['n']})"]  # fmt: skip
     head += [f"camera planner, {label} (n = {s['nominal']['camera_planner']['n']})" for label, s in old]
     lines = ["| suite | " + " | ".join(head) + " |", "|---" * (len(head) + 1) + "|"]
     for suite in TRAIN_SUITES:
@@ -143,6 +149,7 @@ def protocol_table(base: str) -> str:
         cells = [
             _rate(c),
             _per_seed(c) + " %",
+            _agreement(compared["seeds"]["camera_planner"][suite]),
             _rate(new[suite]["state_planner"]),
             *(_rate(s[suite]["camera_planner"]) for _, s in old),
         ]
@@ -235,10 +242,11 @@ def baselines_table(base: str) -> str:
 
 
 def memoryless_table(base: str) -> str:
-    """The memoryless control beside the recipe, per suite, pooled over the same training and eval seeds."""
+    """The memoryless control beside the camera planner it ablates (``pixel_protocol_strength``'s, pose weight
+    0.1), per suite, pooled over the same training and eval seeds."""
     compared = _record("pixel_protocol_memoryless/compare/compare.json")
     nominal = compared["success"]["nominal"]
-    head = [f"camera planner (n = {nominal['camera_planner']['n']})", f"memoryless control (n = {nominal['memoryless']['n']})",
+    head = [f"camera planner, pose weight 0.1 (n = {nominal['camera_planner']['n']})", f"memoryless control (n = {nominal['memoryless']['n']})",
             "per seed", "memoryless minus camera planner, paired", "verdict"]  # fmt: skip
     lines = ["| suite | " + " | ".join(head) + " |", "|---" * (len(head) + 1) + "|"]
     for suite, cell in compared["success"].items():
@@ -253,7 +261,7 @@ def memoryless_training(base: str) -> str:
     """Per training seed: each method's wall clock and held-out next-keyframe error (its ``protocol.json``)."""
     recipe = _record("pixel_protocol_strength/protocol.json")["train"]
     memoryless = _record("pixel_protocol_memoryless/protocol.json")["train"]
-    lines = ["| training seed | camera planner: training wall clock | its next-keyframe error | memoryless control: "
+    lines = ["| training seed | camera planner, pose weight 0.1: training wall clock | its next-keyframe error | memoryless control: "
              "training wall clock | its next-keyframe error |", "|---|---|---|---|---|"]  # fmt: skip
     for name, ml in memoryless.items():
         seed = name.removeprefix("memoryless_seed")
@@ -263,17 +271,16 @@ def memoryless_training(base: str) -> str:
     return "\n".join(lines)
 
 
-def _lever_table(folder: str, reference: str, label, runs_of, name) -> str:
-    """A lever's runs beside the recipe (``reference``) on the same training and eval seeds, per suite, from
-    ``<folder>/compare/compare.json`` and ``<folder>/study.json``. ``label(run)`` names a compared run in the
-    header, ``runs_of(seeds, recipe)`` gives the recipe's training records by training name, and ``name(training)``
-    names a training in the losses line."""
-    compared = _record(f"{folder}/compare/compare.json")
-    study = _record(f"{folder}/study.json")["train"]
+def _lever_table(compared: dict, study: dict, reference: str, label, runs_of, name, note: str) -> str:
+    """A lever's runs beside a reference run (``reference``) on the same training and eval seeds, per suite, from
+    a ``lerobot-pnp compare`` record and the lever's training records by training name (``study``).
+    ``label(run)`` names a compared run in the header, ``note`` says what the reference is, ``runs_of(seeds,
+    recipe)`` gives the reference's training records by training name from ``pixel_protocol_strength``'s, and
+    ``name(training)`` names a training in the losses line."""
     others = [run for run in compared["runs"] if run != reference]
     seeds = sorted({name.split("seed")[1] for name in study})
     n = compared["success"]["nominal"][reference]["n"]
-    head = [f"{label(reference)}, the recipe, pooled (n = {n}; seeds {', '.join(seeds)})"]
+    head = [f"{label(reference)}, {note}, pooled (n = {n}; seeds {', '.join(seeds)})"]
     for run in others:
         head += [label(run), f"{label(run)} minus {label(reference)}, paired", "verdict"]
     lines = ["| suite | " + " | ".join(head) + " |", "|---" * (len(head) + 1) + "|"]
@@ -296,6 +303,11 @@ def _lever_table(folder: str, reference: str, label, runs_of, name) -> str:
     )
 
 
+def _screen(folder: str) -> tuple[dict, dict]:
+    """A two-seed lever screen's ``lerobot-pnp compare`` record and training records."""
+    return _record(f"{folder}/compare/compare.json"), _record(f"{folder}/study.json")["train"]
+
+
 def _shift_name(name: str) -> str:
     """``shift0_seed1000`` -> "0 px, seed 1000"."""
     return f"{name.split('_')[0].removeprefix('shift')} px, seed {name.split('seed')[1]}"
@@ -304,29 +316,38 @@ def _shift_name(name: str) -> str:
 def shift_table(base: str) -> str:
     """Each random shift beside the recipe's (``shift_4``) on the same training and eval seeds, per suite."""
     return _lever_table(
-        "pixel_shift",
+        *_screen("pixel_shift"),
         "shift_4",
         lambda run: f"shift {run.removeprefix('shift_')} px",
         lambda seeds, recipe: {f"shift4_seed{s}": recipe[f"camera_seed{s}"] for s in seeds},
         _shift_name,
+        "the recipe at pose weight 0.1",
     )
 
 
-def _versus_recipe(folder: str, labels: tuple[str, str], short: tuple[str, str]) -> str:
-    """``_lever_table`` of one lever (compared run ``lever``) against the recipe (compared run ``recipe``):
-    ``labels`` name the two in the header, ``short`` in the losses line."""
+def _versus_recipe(
+    records: tuple[dict, dict], labels: tuple[str, str], short: tuple[str, str], note: str, reference: str = "recipe"
+) -> str:
+    """``_lever_table`` of one lever against ``pixel_protocol_strength``'s camera planner, the recipe at pose
+    weight 0.1 (compared run ``reference``): ``labels`` name the two in the header, ``short`` in the losses line."""
     return _lever_table(
-        folder,
-        "recipe",
-        lambda run: labels[0] if run == "recipe" else labels[1],
+        *records,
+        reference,
+        lambda run: labels[0] if run == reference else labels[1],
         lambda seeds, recipe: {f"recipe_seed{s}": recipe[f"camera_seed{s}"] for s in seeds},
         lambda name: f"{short[0] if name.startswith('recipe') else short[1]}, seed {name.split('seed')[1]}",
+        note,
     )
 
 
 def strength_norm_table(base: str) -> str:
     """Batch-normalised keypoint strengths beside the recipe's raw ones, and the raw strengths' scale per camera."""
-    table = _versus_recipe("pixel_strength_norm", ("raw strengths", "normalised strengths"), ("raw", "normalised"))
+    table = _versus_recipe(
+        _screen("pixel_strength_norm"),
+        ("raw strengths", "normalised strengths"),
+        ("raw", "normalised"),
+        "the recipe at pose weight 0.1",
+    )
     study = _record("pixel_strength_norm/study.json")["train"]
     scale = "; ".join(
         f"seed {name.split('seed')[1]}, {cam}: means {r['mean_range'][0]} to {r['mean_range'][1]}, "
@@ -338,10 +359,27 @@ def strength_norm_table(base: str) -> str:
 
 
 def pose_weight_table(base: str) -> str:
-    """Ten times the auxiliary pose loss's weight beside the recipe's, on the same training and eval seeds."""
-    table = _versus_recipe("pixel_pose_weight", ("pose weight 0.1", "pose weight 1.0"), ("0.1", "1.0"))
+    """The recipe's pose loss weight (1.0, ``pixel_protocol_pose``) beside 0.1 (``pixel_protocol_strength``), on
+    the same three training seeds and the same eval seeds."""
+    compared = _record("pixel_protocol_pose/compare_pose_weight/compare.json")
+    train = _record("pixel_protocol_pose/protocol.json")["train"]
+    lever = {name.replace("camera_", "lever_"): run for name, run in train.items() if name.startswith("camera_")}
+    table = _versus_recipe(
+        (compared, lever),
+        ("pose weight 0.1", "pose weight 1.0"),
+        ("0.1", "1.0"),
+        "pixel_protocol_strength",
+        reference="pose_weight_0.1",
+    )
+    seeds = "; ".join(
+        f"pose weight {run.removeprefix('pose_weight_')}: "
+        + ", ".join(f"`{suite}` {a['p']:.1g}" for suite, a in per.items())
+        for run, per in compared["seeds"].items()
+    )
     return (
-        table + " The losses hold the auxiliary pose term at each run's weight: only the next-keyframe error compares."
+        table + " The losses hold the auxiliary pose term at each run's weight: only the next-keyframe error "
+        "compares.\n\nDo the three training seeds share one rate? The chi-square test of homogeneity of their "
+        f"success counts, p per suite (below 0.05: they differ beyond evaluation noise): {seeds}."
     )
 
 

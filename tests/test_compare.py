@@ -14,7 +14,7 @@ from lerobot_pnp import cli
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.evaluation.compare import CompareConfig, read_eval_info, run_compare
 from lerobot_pnp.evaluation.records import EpisodeRecord
-from lerobot_pnp.evaluation.stats import paired_difference_interval, wilson_interval
+from lerobot_pnp.evaluation.stats import Rate, chi2_sf, paired_difference_interval, seed_agreement, wilson_interval
 from lerobot_pnp.evaluation.suites import HELD_OUT_AXES
 from lerobot_pnp.report import results as study
 
@@ -157,3 +157,36 @@ def test_suites_pools_seeds_evaluated_on_different_sets_of_suites(tmp_path, caps
     assert "| nominal | 4 | 75.0%" in out and "| drop | 4 | 25.0%" in out and "| far |" not in out
     with pytest.raises(ConfigError, match=r"holds no suite 'far'; it holds \['drop', 'nominal'\]"):
         run_compare(CompareConfig(runs=[f"x={whole},{part}"], suites="nominal,far"))
+
+
+@pytest.mark.parametrize(("x", "dof"), [(3.841459, 1), (5.991465, 2), (7.814728, 3), (9.487729, 4), (11.0705, 5)])
+def test_chi2_sf_gives_the_tables_five_percent_points(x, dof):
+    assert chi2_sf(x, dof) == pytest.approx(0.05, abs=2e-6)
+    assert chi2_sf(0.0, dof) == 1.0 and chi2_sf(200.0, dof) < 1e-30
+
+
+def test_seed_agreement_tells_seeds_that_differ_from_seeds_within_evaluation_noise(tmp_path):
+    """Three seeds at 93, 95 and 69 % of 200 episodes differ far beyond binomial noise; 85, 86 and 88 % do not.
+    compare reports it per run of several seeds and suite, and a run of one path gets no test."""
+    differ = seed_agreement([Rate(186, 200), Rate(190, 200), Rate(138, 200)])
+    assert differ.dof == 2 and differ.chi2 == pytest.approx(68.19, abs=0.01) and differ.p_value < 1e-14
+    assert differ.differ()
+    same = seed_agreement([Rate(170, 200), Rate(172, 200), Rate(176, 200)])
+    assert same.p_value > 0.5 and not same.differ()
+    assert seed_agreement([Rate(10, 10), Rate(5, 5)]).p_value == 1.0
+    with pytest.raises(ValueError, match="two or more training seeds"):
+        seed_agreement([Rate(1, 2)])
+
+    def seeds(name: str, wins: list[int]) -> str:
+        paths = [_bad(tmp_path, f"{name}{k}", eval_info({"nominal": [i < w for i in range(200)]})) for k, w in
+                 enumerate(wins)]  # fmt: skip
+        return f"{name}={','.join(paths)}"
+
+    single = _bad(tmp_path, "single", eval_info({"nominal": [True] * 200}))
+    run_compare(CompareConfig(runs=[seeds("a", [186, 190, 138]), seeds("b", [170, 172, 176]), f"c={single}"],
+                              output_dir=str(tmp_path / "out")))  # fmt: skip
+    data = json.loads((tmp_path / "out" / "compare.json").read_text())
+    assert set(data["seeds"]) == {"a", "b"}
+    assert data["seeds"]["a"]["nominal"]["differ"] and not data["seeds"]["b"]["nominal"]["differ"]
+    text = (tmp_path / "out" / "compare.md").read_text()
+    assert "| a | nominal | 93.0%, 95.0%, 69.0% | 68.2 (2) |" in text and "| b | nominal |" in text

@@ -22,7 +22,7 @@ from pathlib import Path
 
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.evaluation.records import EpisodeRecord
-from lerobot_pnp.evaluation.stats import paired_comparison, paired_difference_interval
+from lerobot_pnp.evaluation.stats import paired_comparison, paired_difference_interval, seed_agreement
 from lerobot_pnp.evaluation.suites import HELD_OUT_AXES
 
 TASK_STRIDE = 1_000_000  # an episode's key: task_id * TASK_STRIDE + its index (its seed is --seed + index)
@@ -229,8 +229,11 @@ def analyse(runs: list[Run], cfg: CompareConfig) -> dict:
                 cmp = paired(results, other.name, ref.name, s, s, how)
                 pairs.append({"run": other.name, "reference": ref.name, "suite": s, **cmp,
                               "verdict": verdict(cmp, cfg.alpha, cfg.margin)})  # fmt: skip
+    seeds = {r.name: {s: seed_agreement(cells[r.name].per_seed) for s, cells in table.items() if r.name in cells}
+             for r in runs if len(r.paths) > 1}  # fmt: skip
     axes = [res for axis in HELD_OUT_AXES for r in runs if (res := axis_result(axis, r.name, table))]
-    return {"runs": runs, "suites": suites, "table": table, "control": control, "pairs": pairs, "axes": axes}
+    return {"runs": runs, "suites": suites, "table": table, "control": control, "pairs": pairs, "seeds": seeds,
+            "axes": axes}  # fmt: skip
 
 
 def _pts(x: float) -> str:
@@ -287,12 +290,29 @@ def markdown(result: dict, cfg: CompareConfig) -> str:
         for p in result["pairs"]:
             lines.append(f"| {p['run']} | {p['reference']} | {p['suite']} | {p['n']} | {difference_text(p)} | "
                          f"{p['study'].max_p:.2g} | {p['verdict']} |")  # fmt: skip
+    lines += _seeds_markdown(result["seeds"], cfg.alpha)
     if result["axes"]:
         lines += ["", "## Held-out axes (the study's verdict)", ""]
         lines += ["| axis | run | in distribution | held out | verdict |", "|---|---|---|---|---|"]
         for a in result["axes"]:
             lines.append(f"| {a.axis.name} | {a.method} | {a.inside} | {a.outside} | {a.verdict}: {_axis_verdict(a)} |")
     return "\n".join(lines) + "\n"
+
+
+def _seeds_markdown(seeds: dict, alpha: float) -> list[str]:
+    """Per run of several training seeds and suite: do its seeds share one rate (``stats.seed_agreement``)?"""
+    if not seeds:
+        return []
+    lines = ["", "## Do the training seeds agree? (chi-square test of homogeneity)", "",
+             f"differ: the seeds' success counts differ beyond evaluation noise (p < {alpha}); the pooled interval "
+             "then describes these seeds, not the rate a new training seed gets.", "",
+             "| run | suite | per seed | chi2 (dof) | p | seeds |", "|---" * 6 + "|"]  # fmt: skip
+    for name, per in seeds.items():
+        for suite, a in per.items():
+            rates = ", ".join(f"{100 * r.rate:.1f}%" for r in a.per_seed)
+            lines.append(f"| {name} | {suite} | {rates} | {a.chi2:.1f} ({a.dof}) | {a.p_value:.2g} | "
+                         f"{'differ' if a.differ(alpha) else 'consistent'} |")  # fmt: skip
+    return lines
 
 
 def _diff_json(c: dict) -> dict:
@@ -311,6 +331,19 @@ def to_json(result: dict, cfg: CompareConfig) -> dict:
         "success": {s: {n: p.to_json() for n, p in cells.items()} for s, cells in result["table"].items()},
         "control": {n: {s: _diff_json(c) for s, c in per.items()} for n, per in result["control"].items()},
         "pairs": pairs,
+        "seeds": {
+            n: {
+                s: {
+                    "per_seed": [r.rate for r in a.per_seed],
+                    "chi2": a.chi2,
+                    "dof": a.dof,
+                    "p": a.p_value,
+                    "differ": a.differ(cfg.alpha),
+                }
+                for s, a in per.items()
+            }
+            for n, per in result["seeds"].items()
+        },
         "held_out_axes": [a.to_json() for a in result["axes"]],
     }
 

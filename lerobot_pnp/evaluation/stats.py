@@ -122,3 +122,52 @@ def paired_difference_interval(both: int, a_only: int, b_only: int, neither: int
     below = math.sqrt(max(0.0, (p1 - l1) ** 2 - 2 * phi * (p1 - l1) * (u2 - p2) + (u2 - p2) ** 2))
     above = math.sqrt(max(0.0, (u1 - p1) ** 2 - 2 * phi * (u1 - p1) * (p2 - l2) + (p2 - l2) ** 2))
     return max(-1.0, d - below), min(1.0, d + above)
+
+
+def chi2_sf(x: float, dof: int) -> float:
+    """The chi-square distribution's survival function P(X >= x) for a whole number of degrees of freedom, in
+    closed form (the series of the regularised upper incomplete gamma at half-integer shape)."""
+    if dof < 1:
+        raise ValueError(f"chi2_sf needs dof >= 1, got {dof}")
+    if x <= 0:
+        return 1.0
+    half = x / 2
+    if dof % 2 == 0:
+        term, total = 1.0, 1.0
+        for i in range(1, dof // 2):
+            term *= half / i
+            total += term
+        return min(1.0, math.exp(-half) * total)
+    term, total = 1.0, 0.0
+    for i in range(1, (dof - 1) // 2 + 1):
+        total += term
+        term *= x / (2 * i + 1)
+    return min(1.0, math.erfc(math.sqrt(half)) + math.sqrt(2 * x / math.pi) * math.exp(-half) * total)
+
+
+@dataclass(frozen=True)
+class SeedAgreement:
+    """Whether a method's training seeds share one success rate: Pearson's chi-square test of homogeneity of
+    their counts (k seeds x success / failure). Pooling seeds into one Wilson interval treats every episode as a
+    draw from one rate; where the seeds differ beyond evaluation noise, the pooled interval describes these
+    seeds, not the rate a new training seed gets."""
+
+    per_seed: tuple[Rate, ...]
+    chi2: float
+    dof: int
+    p_value: float
+
+    def differ(self, alpha: float = 0.05) -> bool:
+        return self.p_value < alpha
+
+
+def seed_agreement(per_seed: Sequence[Rate]) -> SeedAgreement:
+    """The chi-square test of homogeneity over two or more training seeds' rates (``SeedAgreement``)."""
+    if len(per_seed) < 2:
+        raise ValueError(f"seed_agreement needs two or more training seeds, got {len(per_seed)}")
+    wins, n = sum(r.successes for r in per_seed), sum(r.n for r in per_seed)
+    p = wins / n
+    if p in (0.0, 1.0):  # every seed at 0 % or every seed at 100 %: nothing varies
+        return SeedAgreement(tuple(per_seed), 0.0, len(per_seed) - 1, 1.0)
+    chi2 = sum((r.successes - r.n * p) ** 2 / (r.n * p * (1 - p)) for r in per_seed)
+    return SeedAgreement(tuple(per_seed), chi2, len(per_seed) - 1, chi2_sf(chi2, len(per_seed) - 1))
