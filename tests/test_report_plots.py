@@ -32,6 +32,23 @@ def test_rate_bars_with_eleven_methods_draw_eleven_colours(tmp_path, monkeypatch
     assert out.is_file() and len(drawn) == 11 and len(set(drawn)) == 11
 
 
+def test_rate_bars_draw_each_training_seed_on_its_bar(tmp_path, monkeypatch):
+    """A pooled bar carries one dot per training seed at that seed's rate; a method of one seed gets none."""
+    dots = []
+    real_plot = plots.plt.Axes.plot
+
+    def plot(self, xs, ys, *args, **kwargs):
+        dots.extend(zip(xs, ys))
+        return real_plot(self, xs, ys, *args, **kwargs)
+
+    monkeypatch.setattr(plots.plt.Axes, "plot", plot)
+    rates = {"pooled": {"nominal": Rate(30, 40)}, "single": {"nominal": Rate(10, 20)}}
+    seeds = {"pooled": {"nominal": (Rate(18, 20), Rate(12, 20))}}
+    out = plots.rate_bars(rates, tmp_path / "bars.png", "test", "title", per_seed=seeds)
+    assert out.is_file() and sorted(y for _, y in dots) == [60.0, 90.0]
+    assert len({x for x, _ in dots}) == 1 and dots[0][0] < 0  # on the first (left) bar of the group
+
+
 # ------------------------------------------------------------------------------ the held-out protocol's figures
 class _Method:
     def __init__(self, name: str, learned: bool):

@@ -365,5 +365,6 @@ def run_compare(cfg: CompareConfig) -> dict:
     (out / "compare.md").write_text(text)
     (out / "compare.json").write_text(json.dumps(data, indent=2))
     rates = {n: {s: cells[n].rate for s, cells in result["table"].items() if n in cells} for n in data["runs"]}
-    rate_bars(rates, out / "compare.png", "lerobot-pnp compare " + " ".join(cfg.runs), "success per suite")
+    seeds = {n: {s: a.per_seed for s, a in per.items()} for n, per in result["seeds"].items()}
+    rate_bars(rates, out / "compare.png", "lerobot-pnp compare " + " ".join(cfg.runs), "success per suite", seeds)
     return {"written": [str(out / f) for f in ("compare.md", "compare.json", "compare.png")]}

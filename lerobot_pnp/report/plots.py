@@ -154,10 +154,18 @@ def _legend(ax, entries: int) -> None:
         ax.legend(fontsize=8)
 
 
-def rate_bars(rates: dict[str, dict[str, Rate]], path: Path, provenance: str, title: str) -> Path:
+def rate_bars(
+    rates: dict[str, dict[str, Rate]],
+    path: Path,
+    provenance: str,
+    title: str,
+    per_seed: dict[str, dict[str, tuple[Rate, ...]]] | None = None,
+) -> Path:
     """Grouped bars: success per suite (group) and method (bar), with 95 % Wilson intervals.
 
-    ``rates``: method -> {suite: Rate}; a method without a suite has no bar there.
+    ``rates``: method -> {suite: Rate}; a method without a suite has no bar there. ``per_seed``: method ->
+    {suite: each training seed's rate}, drawn as dots on its bar, so that a pooled bar shows how far its seeds
+    spread (a method of one seed is left out).
     """
     suites = list(dict.fromkeys(s for per in rates.values() for s in per))
     k = max(len(rates), 1)
@@ -171,11 +179,16 @@ def rate_bars(rates: dict[str, dict[str, Rate]], path: Path, provenance: str, ti
         hi = np.array([100 * per[s].interval[1] for s in suites if s in per])
         ax.bar(xs, r, width, color=colors[i], label=name)
         ax.errorbar(xs, r, yerr=np.vstack([r - lo, hi - r]), fmt="none", capsize=2, ecolor="0.25", lw=0.8)
+        for x, s in zip(xs, [s for s in suites if s in per]):
+            seeds = (per_seed or {}).get(name, {}).get(s, ())
+            ys = [100 * q.rate for q in seeds]
+            ax.plot([x] * len(ys), ys, "o", ms=3.5, mfc="white", mec="0.1", mew=0.8, zorder=3)
     slanted = len(suites) > 4  # long suite names overlap side by side
     ax.set_xticks(range(len(suites)), suites, rotation=35 if slanted else 0, ha="right" if slanted else "center")
     ax.set_ylim(0, 103)
+    dots = " (dots: each training seed)" if per_seed and any(per_seed.get(n) for n in rates) else ""
     ax.set_ylabel("success (%) with 95 % Wilson interval")
-    ax.set_title(title)
+    ax.set_title(title + dots)
     ax.grid(True, axis="y", alpha=0.3)
     _legend(ax, len(rates))
     return _finish(fig, path, provenance)
