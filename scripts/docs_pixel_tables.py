@@ -127,7 +127,7 @@ def failures_table(base: str) -> str:
 
 
 def _agreement(test: dict) -> str:
-    """A ``lerobot-pnp compare`` seed-homogeneity test as a cell: "no (0.67)", "yes (2e-15)"."""
+    """A ``lerobot-pnp compare`` seed-homogeneity test as a cell: "no (0.7)", "yes (2e-15)"."""
     return f"{'yes' if test['differ'] else 'no'} ({test['p']:.1g})"
 
 

@@ -331,19 +331,7 @@ def to_json(result: dict, cfg: CompareConfig) -> dict:
         "success": {s: {n: p.to_json() for n, p in cells.items()} for s, cells in result["table"].items()},
         "control": {n: {s: _diff_json(c) for s, c in per.items()} for n, per in result["control"].items()},
         "pairs": pairs,
-        "seeds": {
-            n: {
-                s: {
-                    "per_seed": [r.rate for r in a.per_seed],
-                    "chi2": a.chi2,
-                    "dof": a.dof,
-                    "p": a.p_value,
-                    "differ": a.differ(cfg.alpha),
-                }
-                for s, a in per.items()
-            }
-            for n, per in result["seeds"].items()
-        },
+        "seeds": {n: {s: a.to_json(cfg.alpha) for s, a in per.items()} for n, per in result["seeds"].items()},
         "held_out_axes": [a.to_json() for a in result["axes"]],
     }
 

@@ -160,6 +160,11 @@ class SeedAgreement:
     def differ(self, alpha: float = 0.05) -> bool:
         return self.p_value < alpha
 
+    def to_json(self, alpha: float = 0.05) -> dict:
+        """``compare.json``'s cell: each seed's rate, the statistic, its degrees of freedom, p and the verdict."""
+        return {"per_seed": [r.rate for r in self.per_seed], "chi2": self.chi2, "dof": self.dof, "p": self.p_value,
+                "differ": self.differ(alpha)}  # fmt: skip
+
 
 def seed_agreement(per_seed: Sequence[Rate]) -> SeedAgreement:
     """The chi-square test of homogeneity over two or more training seeds' rates (``SeedAgreement``)."""

@@ -179,10 +179,11 @@ def rate_bars(
         hi = np.array([100 * per[s].interval[1] for s in suites if s in per])
         ax.bar(xs, r, width, color=colors[i], label=name)
         ax.errorbar(xs, r, yerr=np.vstack([r - lo, hi - r]), fmt="none", capsize=2, ecolor="0.25", lw=0.8)
+        seeds = (per_seed or {}).get(name, {})
         for x, s in zip(xs, [s for s in suites if s in per]):
-            seeds = (per_seed or {}).get(name, {}).get(s, ())
-            ys = [100 * q.rate for q in seeds]
-            ax.plot([x] * len(ys), ys, "o", ms=3.5, mfc="white", mec="0.1", mew=0.8, zorder=3)
+            if s in seeds:
+                ys = [100 * q.rate for q in seeds[s]]
+                ax.plot([x] * len(ys), ys, "o", ms=3.5, mfc="white", mec="0.1", mew=0.8, zorder=3)
     slanted = len(suites) > 4  # long suite names overlap side by side
     ax.set_xticks(range(len(suites)), suites, rotation=35 if slanted else 0, ha="right" if slanted else "center")
     ax.set_ylim(0, 103)
