@@ -4,6 +4,8 @@ training seeds, paired tests against the lookup table, the held-out verdict), an
 from __future__ import annotations
 
 import json
+import os
+import re
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -12,7 +14,8 @@ import pytest
 
 from lerobot_pnp import cli
 from lerobot_pnp.errors import ConfigError
-from lerobot_pnp.evaluation.compare import CompareConfig, read_eval_info, run_compare
+from lerobot_pnp.evaluation.compare import CompareConfig, run_compare
+from lerobot_pnp.evaluation.eval_info import read_eval_info
 from lerobot_pnp.evaluation.records import EpisodeRecord
 from lerobot_pnp.evaluation.stats import Rate, chi2_sf, paired_difference_interval, seed_agreement, wilson_interval
 from lerobot_pnp.evaluation.suites import HELD_OUT_AXES
@@ -142,7 +145,7 @@ def test_reads_another_benchmarks_eval_info(tmp_path):
     data["per_task"].append({"task_group": "libero_spatial", "task_id": 1, "metrics": {"successes": [True, True]}})
     data["per_group"]["libero_spatial"]["n_episodes"] = 4
     path = _bad(tmp_path, "libero", data)
-    assert read_eval_info(path) == {"libero_spatial": {0: [True, False], 1: [True, True]}}
+    assert read_eval_info(path).suites == {"libero_spatial": {0: [True, False], 1: [True, True]}}
     assert run_compare(CompareConfig(runs=[path])) == {"written": []}
 
 
@@ -190,3 +193,198 @@ def test_seed_agreement_tells_seeds_that_differ_from_seeds_within_evaluation_noi
     assert data["seeds"]["a"]["nominal"]["differ"] and not data["seeds"]["b"]["nominal"]["differ"]
     text = (tmp_path / "out" / "compare.md").read_text()
     assert "| a | nominal | 93.0%, 95.0%, 69.0% | 68.2 (2) |" in text and "| b | nominal |" in text
+
+
+def _expert_info(per_suite: dict[str, list[bool]], seed: int) -> dict:
+    """``lerobot-pnp expert``'s eval_info.json: the stock layout plus each episode's seed."""
+    data = eval_info(per_suite)
+    for task in data["per_task"]:
+        task["metrics"]["seeds"] = list(range(seed, seed + len(task["metrics"]["successes"])))
+    return data
+
+
+def _written(out: Path) -> dict[str, bytes]:
+    return {
+        name: (out / name).read_bytes()
+        for name in ("compare.md", "compare.json", "compare.png")
+        if (out / name).exists()
+    }
+
+
+OUTCOMES = {"nominal": [True, False, True, True], "drop": [False, False, True, True]}
+
+
+@pytest.mark.parametrize(
+    "make, message",
+    [
+        (lambda t: [_bad(t, "a", _expert_info(OUTCOMES, 0)), _bad(t, "b", _expert_info(OUTCOMES, 5000))],
+         "were evaluated on other seeds (suite 'nominal' task 0, episode 0: seed 0 vs 5000)"),
+        (lambda t: [f"x={_bad(t, 'a', _expert_info(OUTCOMES, 0))},{_bad(t, 'b', _expert_info(OUTCOMES, 7))}"],
+         "were evaluated on other seeds"),
+        (lambda t: [_bad(t, "a", {**eval_info(OUTCOMES), "per_group": [1, 2]})], "per_group is a list"),
+        (lambda t: [_bad(t, "a", {**eval_info(OUTCOMES), "per_group": "nominal"})], "per_group is a str"),
+        (lambda t: [_bad(t, "a", {"per_task": [*eval_info(OUTCOMES)["per_task"],
+                                               {"task_group": "far", "task_id": 3, "metrics": {"successes": [True]}}]})],
+         "suite 'far' of run 'a' shares no task id with the control 'nominal'"),
+        (lambda t: [_bad(t, "a", {"per_task": [{"task_group": "x", "task_id": 0, "metrics": {"successes": [[1], 2]}}]})],
+         "non-boolean"),
+        (lambda t: [_bad(t, "a", {**_expert_info(OUTCOMES, 0), "per_group": None} | {"per_task": [
+            {"task_group": "x", "task_id": 0, "metrics": {"successes": [True], "seeds": ["0"]}}]})],
+         "seeds is not one integer per episode"),
+    ],
+)  # fmt: skip
+def test_malformed_or_unpaired_runs_are_one_line_and_write_nothing(tmp_path, capsys, make, message):
+    runs = make(tmp_path)
+    with pytest.raises(ConfigError) as err:
+        run_compare(CompareConfig(runs=runs, output_dir=str(tmp_path / "out")))
+    assert message in str(err.value) and "\n" not in str(err.value), str(err.value)
+    assert cli.main(["compare", *runs, f"--output_dir={tmp_path / 'out'}"]) == 2
+    assert message in capsys.readouterr().err and not (tmp_path / "out").exists()
+
+
+def test_recorded_seeds_are_checked_and_the_page_says_how_episodes_paired(tmp_path, capsys):
+    a, b = _bad(tmp_path, "a", _expert_info(OUTCOMES, 9)), _bad(tmp_path, "b", _expert_info(OUTCOMES, 9))
+    stock = _bad(tmp_path, "stock", eval_info(OUTCOMES))
+    run_compare(CompareConfig(runs=[a, b]))
+    assert "Every run records its episodes' seeds: they are the same in every run" in capsys.readouterr().out
+    run_compare(CompareConfig(runs=[a, b, stock]))
+    out = capsys.readouterr().out
+    assert "`a`, `b` record(s) the episodes' seeds, `stock` not" in out and "pair by index" in out
+    run_compare(CompareConfig(runs=[stock]))
+    assert "(eval_info.json does not record it)" in capsys.readouterr().out
+
+
+def test_a_control_that_is_not_a_suite_is_refused_naming_the_suites(tmp_path, capsys):
+    run = _bad(tmp_path, "a", eval_info(OUTCOMES))
+    assert cli.main(["compare", run, "--control", "nominl", "--output_dir", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "--control 'nominl' is not a suite of the runs compared; valid: ['drop', 'nominal']" in err
+    assert "\n" not in err and not (tmp_path / "out").exists()
+    assert cli.main(["compare", run, "--control", "drop", "--output_dir", str(tmp_path / "out")]) == 0
+    assert "## Each suite beside the control `drop`" in (tmp_path / "out" / "compare.md").read_text()
+    libero = _bad(tmp_path, "libero", eval_info({"libero_spatial": [True, False]}))  # no nominal: no control arm
+    assert run_compare(CompareConfig(runs=[libero])) == {"written": []}
+
+
+def test_an_input_over_the_size_limit_is_refused_before_it_is_read(tmp_path):
+    from lerobot_pnp.evaluation.eval_info import MAX_INPUT_BYTES
+
+    path = Path(_bad(tmp_path, "big", eval_info(OUTCOMES))) / "eval_info.json"
+    os.truncate(path, MAX_INPUT_BYTES + 1)  # a sparse file: nothing of it is stored, or read
+    with pytest.raises(ConfigError, match=rf"holds {MAX_INPUT_BYTES + 1:,} bytes, over the {MAX_INPUT_BYTES:,}"):
+        run_compare(CompareConfig(runs=[str(path.parent)]))
+
+
+def test_the_three_outputs_are_one_set(tmp_path, monkeypatch, capsys):
+    """A figure that cannot be drawn changes nothing; a crash while the set is written leaves the previous set."""
+    from lerobot_pnp import outputs
+    from lerobot_pnp.report import plots
+
+    out = tmp_path / "out"
+    first = [_bad(tmp_path, "a", eval_info(OUTCOMES))]
+    assert cli.main(["compare", *first, "--output_dir", str(out)]) == 0
+    before = _written(out)
+    assert set(before) == {"compare.md", "compare.json", "compare.png"}
+    second = [_bad(tmp_path, "b", eval_info({"nominal": [True] * 4}))]
+
+    def broken_figure(*args, **kwargs):
+        raise ValueError("Unknown symbol: \\frac")
+
+    monkeypatch.setattr(plots, "rate_bars", broken_figure)
+    assert cli.main(["compare", *second, "--output_dir", str(out)]) == 2
+    assert "compare.png cannot be drawn" in capsys.readouterr().err and _written(out) == before
+    monkeypatch.undo()
+    real = outputs.write_bytes_atomic
+
+    def crash_on_png(path, data):
+        if path.name.startswith("compare.png"):
+            raise OSError(28, "No space left on device")
+        real(path, data)
+
+    monkeypatch.setattr(outputs, "write_bytes_atomic", crash_on_png)
+    assert cli.main(["compare", *second, "--output_dir", str(out)]) == 2
+    assert _written(out) == before
+    monkeypatch.undo()
+    assert cli.main(["compare", *second, "--output_dir", str(out)]) == 0  # its own files: replaced
+    assert _written(out)["compare.md"] != before["compare.md"] and not list(out.glob("*.pnp-new"))
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "compare.md").write_text("my notes")
+    assert cli.main(["compare", *second, "--output_dir", str(tmp_path / "mine")]) == 2  # the user's: refused
+    assert (tmp_path / "mine" / "compare.md").read_text() == "my notes"
+
+
+@pytest.mark.parametrize("name", ["a$b", "$\\frac", "$x^{$"])
+def test_names_are_drawn_as_written(tmp_path, name):
+    run = _bad(tmp_path, "a", eval_info(OUTCOMES))
+    assert cli.main(["compare", f"{name}={run}", "--output_dir", str(tmp_path / "out")]) == 0
+    assert (tmp_path / "out" / "compare.png").stat().st_size > 0
+    assert f"| suite | n | {name.replace(chr(92), chr(92) * 2)} |" in (tmp_path / "out" / "compare.md").read_text()
+
+
+def test_paths_with_equals_and_commas(tmp_path, capsys):
+    """A path holding '=' or ',' is one PATH when it exists; NAME=PATHS splits at the first '=' and keeps pieces
+    joined by commas together where they name an existing path; errors name the whole argument."""
+    lr = _bad(tmp_path, "sweep/lr=0.1", eval_info(OUTCOMES))
+    ab = _bad(tmp_path, "sweep/a,b", eval_info(OUTCOMES))
+    plain = _bad(tmp_path, "sweep/c", eval_info(OUTCOMES))
+    assert cli.main(["compare", lr, f"pooled={ab},{plain},{lr}", "--output_dir", str(tmp_path / "out")]) == 0
+    runs = json.loads((tmp_path / "out" / "compare.json").read_text())["runs"]
+    assert runs == {"lr=0.1": [lr], "pooled": [ab, plain, lr]}
+    missing = f"{tmp_path}/sweep/lr=0.2"
+    assert cli.main(["compare", missing]) == 2
+    assert f"run argument {missing!r}" in capsys.readouterr().err
+    beside = f"{tmp_path}/sweep/c=9"  # sweep/c exists: the argument is one PATH, not NAME=PATH
+    assert cli.main(["compare", beside]) == 2
+    assert f"no eval_info.json at {beside!r} (its text before '=' is an existing path" in capsys.readouterr().err
+
+
+def _cells(line: str) -> int:
+    """The cells of a markdown table row: the pipes that are not backslash-escaped, less one."""
+    return len(re.findall(r"(?<!\\)\|", line)) - 1
+
+
+def test_user_text_is_escaped_wherever_it_reaches_markdown(tmp_path, capsys):
+    hostile = "<script>alert(1)</script> a|b\nc"
+    suite = "evil|suite\n| injected |"
+    run = _bad(tmp_path, "a", eval_info({"nominal": [True, False], suite: [True, True]}))
+    other = _bad(tmp_path, "b", eval_info({"nominal": [True, True], suite: [False, True]}))
+    specs = [f"{hostile}={run},{other}", f"b`tick={other}"]
+    assert cli.main(["compare", *specs, "--output_dir", str(tmp_path / "o")]) == 0
+    page = (tmp_path / "o" / "compare.md").read_text()
+    outside_code = re.sub(r"(`+).*?\1", "", page)  # a code span shows its text literally, tags included
+    assert "<script>" not in outside_code and "&lt;script&gt;alert(1)&lt;/script&gt; a\\|b c" in page
+    assert "- `<script>alert(1)</script> a|b c`: 2 run(s)" in page
+    assert "evil\\|suite \\| injected \\|" in page and "``b`tick``" in page
+    for table in re.findall(r"(?:^\|.*\n)+", page, re.M):
+        rows = table.splitlines()
+        assert all(_cells(r) == _cells(rows[0]) for r in rows), table
+    assert "\n| injected |" not in page and "\nc=" not in page
+
+
+def test_markdown_text_leaves_plain_names_alone_and_escapes_the_rest():
+    from lerobot_pnp.markdown_text import code, text
+
+    assert text("camera_planner-2.0 /x") == "camera_planner-2.0 /x" and code("a_b") == "`a_b`"
+    assert text("a<b>&c|d\\e\r\nf\u2028g") == "a&lt;b&gt;&amp;c\\|d\\\\e f g"
+    assert code("x`y") == "``x`y``" and code("`x") == "`` `x ``" and code("a|b", table=True) == "`a\\|b`"
+    assert code("<b>\nc") == "`<b> c`"
+
+
+def test_large_tails_agree_with_the_exact_sums(monkeypatch):
+    """Beyond EXACT_TRIALS the tails are summed in floating point (linear cost): the same p as the exact sums."""
+    from lerobot_pnp.evaluation import stats
+
+    signs = [(4_800, 5_400), (5_100, 5_000), (10_000, 10_000), (3, 20_000)]
+    fishers = [
+        (Rate(4_000, 6_000), Rate(3_850, 6_000)),
+        (Rate(9_000, 9_000), Rate(8_990, 9_000)),
+        (Rate(5, 9_000), Rate(0, 9_000)),
+    ]
+
+    def tails() -> list[float]:
+        return [stats.sign_test_p(*s) for s in signs] + [stats.below_p(*f) for f in fishers]
+
+    fast = tails()
+    monkeypatch.setattr(stats, "EXACT_TRIALS", 10**9)
+    assert fast == pytest.approx(tails(), rel=1e-9, abs=1e-300)
+    assert 0 < fast[0] < 1e-4 and fast[2] == 1.0 and fast[3] == 0.0 and 0 < fast[4] < 0.05

@@ -55,13 +55,34 @@ class Rate:
         return cls(int(sum(bool(o) for o in outcomes)), len(outcomes))
 
 
+# Up to this many trials (episodes of both samples, or discordant pairs) a tail is summed in exact integers; beyond,
+# in floating point from its largest term outwards (relative error about 1e-10), so that its cost grows linearly
+# with the episodes instead of with their square.
+EXACT_TRIALS = 10_000
+
+
 def below_p(a: Rate, b: Rate) -> float:
     """One-sided exact (Fisher) p-value that ``b`` is below ``a`` by chance: for two independent samples (two
     suites, or two conditions), the probability under "same rate" that ``b`` gets ``b.successes`` or fewer of
     all the successes (the hypergeometric lower tail)."""
     total, k = a.n + b.n, a.successes + b.successes
     low, high = max(0, k - a.n), min(k, b.n)
-    tail = sum(math.comb(k, i) * math.comb(total - k, b.n - i) for i in range(low, min(b.successes, high) + 1))
+    top = min(b.successes, high)
+    if total > EXACT_TRIALS:
+        mode = (b.n + 1) * (k + 1) // (total + 2)
+        peak = min(max(mode, low), top)
+        log_peak = _log_comb(k, peak) + _log_comb(total - k, b.n - peak) - _log_comb(total, b.n)
+
+        def ratio(i: int) -> float:
+            return (k - i) * (b.n - i) / ((i + 1) * (total - k - b.n + i + 1))
+
+        return min(1.0, math.exp(log_peak) * _sum_from_peak(peak, low, top, ratio))
+    left, right = math.comb(k, low), math.comb(total - k, b.n - low)  # C(k, i), C(total - k, b.n - i) at i = low
+    tail = 0
+    for i in range(low, top + 1):
+        tail += left * right
+        left = left * (k - i) // (i + 1)
+        right = right * (b.n - i) // (total - k - b.n + i + 1) if i < top else right
     return min(1.0, tail / math.comb(total, b.n))
 
 
@@ -71,8 +92,41 @@ def sign_test_p(wins: int, losses: int) -> float:
     if n == 0:
         return 1.0
     k = min(wins, losses)
-    tail = sum(math.comb(n, i) for i in range(k + 1)) / 2**n
-    return min(1.0, 2 * tail)
+    if n > EXACT_TRIALS:
+
+        def ratio(i: int) -> float:
+            return (n - i) / (i + 1)
+
+        return min(1.0, 2 * math.exp(_log_comb(n, k) - n * math.log(2)) * _sum_from_peak(k, 0, k, ratio))
+    term, tail = 1, 0  # C(n, i) for i = 0 .. k, in exact integers
+    for i in range(k + 1):
+        tail += term
+        term = term * (n - i) // (i + 1)
+    return min(1.0, 2 * tail / 2**n)
+
+
+def _log_comb(n: int, k: int) -> float:
+    return math.lgamma(n + 1) - math.lgamma(k + 1) - math.lgamma(n - k + 1)
+
+
+def _sum_from_peak(peak: int, lo: int, hi: int, ratio) -> float:
+    """The terms ``t_i`` for ``i`` in [lo, hi] summed relative to ``t_peak`` (the largest of them), given
+    ``ratio(i) = t_(i+1) / t_i``: outwards from the peak on both sides, each side stopped once its terms no
+    longer change the sum (the binomial's and the hypergeometric's terms fall faster than geometrically away
+    from their mode)."""
+    total, term = 1.0, 1.0
+    for i in range(peak - 1, lo - 1, -1):
+        term /= ratio(i)
+        total += term
+        if term < total * 1e-20:
+            break
+    term = 1.0
+    for i in range(peak, hi):
+        term *= ratio(i)
+        total += term
+        if term < total * 1e-20:
+            break
+    return total
 
 
 @dataclass(frozen=True)
