@@ -75,7 +75,7 @@ def test_1_a_second_dagger_on_the_same_folder_is_refused_and_a_stage_without_rec
         before = _mtimes(out)
         assert _dagger(out) == 2
     err = capsys.readouterr().err.strip()
-    assert "another `lerobot-pnp dagger` is using" in err and len(err.splitlines()) == 1, err
+    assert "`lerobot-pnp dagger` does not wait" in err and len(err.splitlines()) == 1, err
     assert _mtimes(out) == before  # nothing read or written
     # a demos folder that was never recorded as finished (a truncated parquet, as a concurrent writer left it)
     parquet = next((out / "demos" / "data").rglob("*.parquet"))

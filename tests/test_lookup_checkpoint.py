@@ -132,3 +132,24 @@ def test_a_damaged_table_is_refused_when_loaded(checkpoint, tmp_path):
     save_file({k: v for k, v in tensors.items() if k != "actions"}, bad / "model.safetensors")
     with pytest.raises(RuntimeError, match="actions"):
         PnpLookupTablePolicy.from_pretrained(bad)
+
+
+def test_overwrite_replaces_only_the_tables_files(demos, tmp_path, capsys):
+    """``--overwrite`` replaces the files this command wrote (recorded in the folder's manifest, or a table from
+    before the manifest); a file of the user's in the folder stays."""
+    from lerobot_pnp.outputs import MANIFEST_FILE
+
+    out = tmp_path / "table"
+    args = ["lookup-table", "--dataset_root", str(demos), "--output_dir", str(out)]
+    assert cli.main(args) == 0
+    written = sorted(p.name for p in out.iterdir() if p.name != MANIFEST_FILE)
+    (out / "NOTES.txt").write_text("my notes")
+    assert cli.main([*args, "--overwrite", "true", "--n_episodes", "2"]) == 0
+    assert (out / "NOTES.txt").read_text() == "my notes"
+    assert json.loads((out / "config.json").read_text())["table_episodes"] == 2
+    (out / MANIFEST_FILE).unlink()  # a table written before the manifest: its files are still the command's
+    assert cli.main([*args, "--overwrite", "true"]) == 0
+    assert (out / "NOTES.txt").read_text() == "my notes"
+    assert sorted(p.name for p in out.iterdir() if p.name not in (MANIFEST_FILE, "NOTES.txt")) == written
+    assert json.loads((out / "config.json").read_text())["table_episodes"] == 4
+    capsys.readouterr()

@@ -15,8 +15,8 @@ torch.set_num_threads(1)
 
 from keyframe_synth import REPO_ID, make_keyframe_dataset  # noqa: E402
 
-from lerobot_pnp.cache import lock_output  # noqa: E402
 from lerobot_pnp.errors import ConfigError, PnPError, one_line  # noqa: E402
+from lerobot_pnp.outputs import OutputFolder  # noqa: E402
 from lerobot_pnp.policy import PnpLstmConfig  # noqa: E402
 from lerobot_pnp.train_fast import TrainFastConfig, train_fast  # noqa: E402
 
@@ -57,8 +57,11 @@ def test_a_second_run_into_a_folder_in_use_fails_at_once_and_writes_nothing(data
     out = tmp_path / "run"
     _previous_run(out)
     before = sorted(p.relative_to(out) for p in out.rglob("*"))
-    first_run = lock_output(out, "lerobot-pnp train")  # the first run, still training
-    with first_run, pytest.raises(PnPError, match="another `lerobot-pnp train` is using") as err:
+    first_run = OutputFolder(out, "lerobot-pnp train")  # the first run, still training
+    with (
+        first_run,
+        pytest.raises(PnPError, match="another command is writing .*`lerobot-pnp train` does not wait") as err,
+    ):
         train_fast(_cfg(dataset_root, out, overwrite=True))
     assert "\n" not in one_line(err.value)
     assert sorted(p.relative_to(out) for p in out.rglob("*")) == before  # the first run's files untouched

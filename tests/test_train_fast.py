@@ -392,3 +392,25 @@ def test_train_cli_bad_datasets(tmp_path, kwargs, match, capsys):
     )
     _assert_one_line_error(result, match)
     assert len(result[1]) < 1000  # names the place, no dumped batch
+
+
+def test_overwrite_replaces_only_what_a_training_run_recorded(dataset_root, tmp_path):
+    """The run records its entries in the folder's manifest; ``--overwrite`` deletes those and refuses a file of
+    the user's even where it has a run file's name (``loss_curve.csv``)."""
+    from lerobot_pnp.outputs import MANIFEST_FILE
+
+    out = tmp_path / "run"
+    cfg = dict(policy=PnpLstmConfig(device="cpu", hidden_size=8), epochs=1, batch_size=8)
+    train_fast(_cfg(dataset_root, out, **cfg))
+    recorded = set(json.loads((out / MANIFEST_FILE).read_text())["owners"]["lerobot-pnp train"])
+    assert recorded == {"checkpoints", "train_fast_config.json", "loss_curve.csv", "loss_curve.png",
+                        "test_keyframe_error.json"}  # fmt: skip
+    train_fast(_cfg(dataset_root, out, overwrite=True, seed=5, **cfg))
+    assert json.loads((out / "train_fast_config.json").read_text())["seed"] == 5
+
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "loss_curve.csv").write_text("my own curve")
+    with pytest.raises(ConfigError, match="loss_curve.csv.*did not write"):
+        train_fast(_cfg(dataset_root, mine, overwrite=True, **cfg))
+    assert (mine / "loss_curve.csv").read_text() == "my own curve"
