@@ -17,13 +17,13 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import os
-import shutil
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from lerobot_pnp.errors import ConfigError
+from lerobot_pnp.outputs import LOCK_FILE, FolderLock, check_writable, plain_name, write_json_atomic
+from lerobot_pnp.outputs import remove_path as remove
 
 STAGE_FILE = "stage.json"  # the record of a stage kept in a folder
 # Record fields naming an output of the stage, relative to the record's folder (a study training's artefact, a
@@ -98,14 +98,6 @@ def digest_files(root: Path, patterns: tuple[str, ...]) -> str:
 
 DATASET_FILES = ("meta/*.json", "meta/**/*.parquet", "data/**/*.parquet")
 CHECKPOINT_FILES = ("*.json", "*.safetensors")
-
-
-def write_json_atomic(path: Path, data: Any) -> None:
-    """Write ``data`` as JSON into ``path`` through a temporary file and a rename (whole or absent)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(data, indent=1, default=str))
-    tmp.replace(path)
 
 
 def _same(old: Any, new: Any) -> bool:
@@ -209,23 +201,6 @@ class Stage:
         self.record.unlink(missing_ok=True)
 
 
-def remove(path: Path) -> None:
-    """Delete a stage's output (a folder or a file), if present; a symbolic link is unlinked, never followed."""
-    if path.is_dir() and not path.is_symlink():
-        shutil.rmtree(path)
-    elif path.exists() or path.is_symlink():
-        path.unlink()
-
-
-def plain_name(name: Any) -> str | None:
-    """Why ``name`` is not a plain entry name directly inside a folder (None when it is one)."""
-    if not isinstance(name, str):
-        return f"{name!r} is not a name"
-    if name in ("", ".", "..") or "/" in name or "\\" in name or "\0" in name:
-        return f"{name!r} is not a plain name inside the folder"
-    return None
-
-
 def inside(folder: Path, relative: Any) -> Path | None:
     """``folder / relative`` when ``relative`` is a relative path that stays inside ``folder`` (links resolved);
     else None. How a record's path to one of its own outputs is read: never as a path elsewhere on disk."""
@@ -235,27 +210,11 @@ def inside(folder: Path, relative: Any) -> Path | None:
     return path if path.resolve().is_relative_to(Path(folder).resolve()) else None
 
 
-def lock_output(out: Path, command: str):
-    """The output folder's lock (the generation's ``RootLock``), taken before anything is read or written;
-    a second command on the same folder fails at once with one line. A folder that cannot be made or written
-    (a file of that name, a read-only place) is refused first, in one line that names it."""
-    from lerobot_pnp.dataset.workdir import RootLock
-    from lerobot_pnp.errors import DatasetError
-
-    out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise ConfigError(f"output_dir {out} is a file, not a folder; choose another --output_dir")
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        raise DatasetError(
-            f"cannot create the output folder {out}: {err.strerror}; choose another --output_dir"
-        ) from None
-    if not os.access(out, os.W_OK | os.X_OK):
-        raise DatasetError(
-            f"cannot write in the output folder {out} (read-only or no permission); choose another --output_dir"
-        )
-    return RootLock(out, busy=f"another `{command}` is using {out}; wait for it to finish (or stop it)")
+def lock_output(out: Path, command: str) -> FolderLock:
+    """The output folder's lock, taken before anything is read or written; a second command on the same folder
+    fails at once with one line. A folder that cannot be made or written is refused first, in one line."""
+    out = check_writable(out)
+    return FolderLock(out, busy=f"another `{command}` is using {out}; wait for it to finish (or stop it)")
 
 
 class Manifest:
@@ -306,8 +265,6 @@ class Manifest:
 
     def foreign(self) -> list[str]:
         """Entries of ``out`` this command did not write (besides its lock and manifest files)."""
-        from lerobot_pnp.dataset.workdir import LOCK_FILE
-
         own = self.entries | {MANIFEST_FILE, LOCK_FILE}
         return sorted(p.name for p in self.out.iterdir() if p.name.removesuffix(".tmp") not in own)
 

@@ -33,7 +33,7 @@ from lerobot_pnp.dataset.layout import recorded_task_path
 from lerobot_pnp.dataset.merge import GENERATION_FILE, MergeShards, merge_and_commit
 from lerobot_pnp.dataset.shards import GenerateShard, shard_dir, shard_is_valid
 from lerobot_pnp.dataset.splits import TRAIN_FRACTION
-from lerobot_pnp.dataset.validation import WORK_DIR, read_json, validate_dataset, write_json_atomic
+from lerobot_pnp.dataset.validation import WORK_DIR, read_json, validate_dataset
 from lerobot_pnp.dataset.workdir import (
     LOCK_FILE,
     RUN_FILE,
@@ -46,6 +46,7 @@ from lerobot_pnp.dataset.workdir import (
 )
 from lerobot_pnp.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.errors import ConfigError, DatasetError, OtherSettingsError
+from lerobot_pnp.outputs import write_json_atomic
 
 EXECUTORS = ("local", "slurm")
 MAX_EPISODES = 10_000_000  # above this, --allow_huge must say it is meant (memory and disk grow with N)
@@ -253,7 +254,7 @@ def _run_settings(cfg: GenerateConfig, work: Path, state: str, workers: int) -> 
     if work.exists():  # killed before the settings were written: nothing in it is usable
         shutil.rmtree(work)
     run = cfg.run_record(cfg.tasks or cfg.auto_tasks(workers))
-    write_json_atomic(run_path, run)
+    write_json_atomic(run_path, run, indent=2)
     return run
 
 
@@ -366,7 +367,7 @@ def _submit(cfg: GenerateConfig, root: Path, run: dict, logs: Path) -> dict:
     )  # fmt: skip
     with console_to_file(logs / "console.log"):
         job_ids = submit_slurm(shard_step, MergeShards(str(root)), tasks, cfg.slurm, logs, cfg.workers)
-    write_json_atomic(work / "slurm.json", {"job_ids": job_ids, "logging_dir": str(logs)})
+    write_json_atomic(work / "slurm.json", {"job_ids": job_ids, "logging_dir": str(logs)}, indent=2)
     return {
         "root": str(root),
         "status": "submitted",

@@ -19,9 +19,10 @@ from lerobot_pnp import robot
 from lerobot_pnp.dataset.layout import is_dataset
 from lerobot_pnp.dataset.shards import SHARD_FILE, read_shard_record, shard_dir
 from lerobot_pnp.dataset.splits import split_of
-from lerobot_pnp.dataset.validation import WORK_DIR, read_json, verify_dataset, write_json_atomic
+from lerobot_pnp.dataset.validation import WORK_DIR, read_json, verify_dataset
 from lerobot_pnp.dataset.workdir import TRASH_DIR, RootLock, remove_partial_commit
 from lerobot_pnp.errors import DatasetError
+from lerobot_pnp.outputs import write_json_atomic
 
 GENERATION_FILE = "meta/pnp_generate.json"  # how the data was made (the env config is in baxter_pnp_env.json)
 
@@ -82,6 +83,7 @@ def merge_and_commit(root: Path) -> dict:
             "failures": failures,
             "lerobot_pnp_version": __version__,
         },
+        indent=2,
     )
     # Commit: move the merged dataset into root, then drop the work folder (atomically renamed first).
     for entry in merged.iterdir():

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 from pathlib import Path
 
 import numpy as np
@@ -25,14 +24,6 @@ _INDEX_COLUMNS = ("index", "episode_index", "task_index")
 
 
 # ---------------------------------------------------------------------------------------------- io helpers
-def write_json_atomic(path: Path, data: dict) -> None:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(data, indent=2, default=str))
-    os.replace(tmp, path)
-
-
 def _read_parquet(path: Path, what: str, columns=None):
     import pyarrow.parquet as pq
 
