@@ -165,8 +165,10 @@ def test_resume_never_follows_a_work_folder_link_out_of_the_root(tmp_path, capsy
     (inner / ".pnp_work" / "run.json").write_bytes((work / "run.json").read_bytes())
     (inner / ".pnp_work" / "shards").symlink_to(work / "shards", target_is_directory=True)
     rc = cli.main(_args(inner, 2, "--tasks=2", "--resume=true"))
-    _one_line(capsys, rc, str(inner / ".pnp_work" / "shards"), "symbolic link")
+    _one_line(capsys, rc, str(inner / ".pnp_work" / "shards"), "symbolic link", "--overwrite")
     assert _checksums(tmp_path / "other") == before
+    assert cli.main(_args(inner, 2, "--tasks=2", "--overwrite=true")) == 0  # the advice: the link unlinked
+    assert validate_dataset(inner)["total_episodes"] == 2 and _checksums(tmp_path / "other") == before
 
 
 def test_a_work_folder_link_is_one_line_that_says_to_remove_it_not_to_resume(tmp_path, capsys):
