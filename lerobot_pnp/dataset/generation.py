@@ -201,11 +201,11 @@ def _root_state_for(cfg: GenerateConfig, out: DatasetRoot) -> str:
         )
     if cfg.overwrite and state == "foreign":
         raise DatasetError(
-            f"refusing to --overwrite {root}: it does not look like a LeRobot dataset (no meta/info.json); "
-            "delete it yourself or pick another --root"
+            f"refusing to --overwrite {root}: it holds no dataset (no meta/info.json), only files `generate` did "
+            "not write; drop --overwrite to write the dataset beside them, or pick another --root"
         )
     if state == "foreign":
-        raise DatasetError(f"{root} holds files that are not a dataset; pick another --root")
+        state = "empty"  # the user's files stay, beside the dataset
     if state != "empty" and not (cfg.resume or cfg.overwrite):
         what = {"interrupted": "an interrupted generation", "complete": "a dataset"}[state]
         raise DatasetError(

@@ -165,7 +165,7 @@ class DatasetRoot(OutputFolder):
             self.adopt(*proven)
 
     def state(self) -> str:
-        """empty | interrupted (a work folder) | complete (a dataset) | foreign (only files it did not write)."""
+        """empty | interrupted (a work folder) | complete (a dataset) | foreign (only entries it did not write)."""
         names = {p.name for p in self.path.iterdir()}
         names = {n for n in names if n.removesuffix(TMP_SUFFIX) not in HOUSEKEEPING} - {TRASH_DIR}
         if WORK_DIR in names:
