@@ -151,8 +151,10 @@ def test_an_older_study_folder_claims_what_the_study_wrote_and_never_a_users_dat
 
 # --------------------------------------------------------------------------------- a mistyped flag and a dataset
 def _finished_dataset(root: Path) -> dict[str, str]:
-    """A stand-in for a finished dataset without its stage record (as every folder older than stage keys)."""
-    for name in ("meta/info.json", "meta/pnp_generate.json", "data/chunk-000/file-000.parquet"):
+    """A stand-in for a finished dataset without its stage record (as every folder older than stage keys), with
+    the two records every generation writes (what proves it is the generator's, where it has no manifest)."""
+    names = ("meta/info.json", "meta/pnp_generate.json", "meta/baxter_pnp_env.json", "data/chunk-000/file-000.parquet")
+    for name in names:
         (root / name).parent.mkdir(parents=True, exist_ok=True)
         (root / name).write_text(name)
     return _tree(root)
@@ -204,6 +206,24 @@ def test_a_dataset_made_with_other_settings_is_replaced_and_any_other_error_touc
     with pytest.raises(ConfigError, match="some other"):
         dataset_stage(out, "dataset", cfg)
     assert _tree(out / "dataset") == before
+
+
+def test_a_regeneration_deletes_only_a_dataset_the_generator_provably_wrote(tmp_path):
+    """A LeRobot dataset without the generator's records (and no manifest) is not the generator's to delete."""
+    from lerobot_pnp.dataset.workdir import remove_generation
+
+    root = tmp_path / "dataset"
+    _finished_dataset(root)
+    (root / "meta" / "baxter_pnp_env.json").unlink()
+    (root / "notes.txt").write_text("mine")
+    before = _tree(root)
+    with pytest.raises(ConfigError, match="meta") as err:
+        remove_generation(root)
+    assert "--root" in _one_line(err.value)
+    assert {k: v for k, v in _tree(root).items() if k != MANIFEST_FILE} == before
+    (root / "meta" / "baxter_pnp_env.json").write_text("{}")  # the generator's: its entries go, the user's stay
+    remove_generation(root)
+    assert _tree(root) == {"notes.txt": "mine"}
 
 
 # --------------------------------------------------------------------------------------- paths in stage records
