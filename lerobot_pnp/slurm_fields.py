@@ -13,8 +13,7 @@ from __future__ import annotations
 import re
 from typing import Any
 
-from lerobot_pnp.errors import ConfigError
-from lerobot_pnp.outputs import shown
+from lerobot_pnp.errors import ConfigError, shown
 
 _NAME = r"[A-Za-z0-9_.-]+"
 # field -> (the whole value it must match, what the one-line message lists as allowed)
