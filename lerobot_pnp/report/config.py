@@ -16,7 +16,7 @@ from dataclasses import dataclass, field, fields
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.evaluation.suites import HELD_OUT_AXES, get_suites
 from lerobot_pnp.presets import PRESETS as TASK_PRESETS
-from lerobot_pnp.report.episode_rule import EpisodeRule, EpisodeRuleFlags, resolve_rule
+from lerobot_pnp.report.episode_rule import EpisodeRule, RuleChanges, resolve_rule
 from lerobot_pnp.report.methods import DATA_EFFICIENCY_METHODS, METHODS, RECOVERING, get_methods
 from lerobot_pnp.report.slurm import StudySlurmOptions, checked
 
@@ -185,10 +185,10 @@ class StudyConfig:
     cli_check_episodes: int | None = None
     eval_seed: int = 100_000  # first evaluation seed (disjoint from the dataset's seeds 0..)
     eval_batch_size: int = 50  # sub-envs of the SyncVectorEnv
-    # episode counts chosen from the interval widths (EpisodeRule), e.g. '{"half_width": 0.1, "block": 50,
-    # "fixed_methods": ["expert", "recovering"]}'; None = the preset's (heldout: on; others: off, every suite's n).
-    # The fields given change the preset's rule, the others keep its values (--episodes_rule.half_width 0.2)
-    episodes_rule: EpisodeRuleFlags | None = None
+    # episode counts chosen from the interval widths (EpisodeRule), e.g. '{"half_width": 0.2}' or --episodes_rule.block
+    # 100: the fields given change the preset's rule, the others keep its values; None = the preset's (heldout: on;
+    # others: off, every suite's n)
+    episodes_rule: RuleChanges | None = None
     # each training seed of a learned method runs n / seeds of a suite's episodes (whole eval batches), so its
     # pooled cell holds about n; None = the preset's (heldout: on; others: off, n per seed)
     split_over_seeds: bool | None = None

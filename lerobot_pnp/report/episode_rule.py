@@ -1,5 +1,5 @@
 """The episode rule of a study's evaluations (``StudyConfig.episodes_rule``): ``EpisodeRule``, a claim method's
-``ExtendedRule``, and ``EpisodeRuleFlags``, the fields a command line or config file changes in a preset's rule.
+``ExtendedRule``, and ``RuleChanges``, the fields a command line or config file changes in a preset's rule.
 """
 
 from __future__ import annotations
@@ -105,7 +105,7 @@ class ExtendedRule(EpisodeRule):
 
 
 @dataclass
-class EpisodeRuleFlags:
+class RuleChanges:
     """``--episodes_rule.*`` (or an ``episodes_rule`` mapping in a config file): each field given changes the
     preset's rule (``EpisodeRule``'s own defaults where the preset has none) and each field left out keeps its
     value there, so one flag changes one field. What each field means: ``EpisodeRule``."""
@@ -120,7 +120,7 @@ class EpisodeRuleFlags:
 
 def resolve_rule(given, preset_rule: EpisodeRule | None) -> EpisodeRule | None:
     """The rule a study runs under: ``given`` (None: the preset's ``preset_rule``; a whole ``EpisodeRule``: that
-    one; ``EpisodeRuleFlags`` or a mapping: the fields it sets, on top of the preset's rule or, where the preset
+    one; ``RuleChanges`` or a mapping: the fields it sets, on top of the preset's rule or, where the preset
     has none, of ``EpisodeRule()``), its method lists as tuples (the stage key's form)."""
     if given is None or isinstance(given, EpisodeRule):
         rule = given if given is not None else preset_rule
