@@ -35,7 +35,7 @@ from lerobot_pnp.outputs import FolderLock
 ROOT = Path(__file__).resolve().parents[1]
 REPORT_FLAGS = [
     "--preset", "quick", "--methods", '["lookup_table"]', "--num_episodes", "10", "--workers", "1",
-    "--suites", '[{{"name": "nominal", "n_episodes": 2}}]', "--train_seeds", "[1000]", "--cli_check_episodes", "0",
+    "--suites", '[{"name": "nominal", "n_episodes": 2}]', "--train_seeds", "[1000]", "--cli_check_episodes", "0",
 ]  # fmt: skip
 
 
