@@ -92,19 +92,20 @@ def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys, demos, checkpoint):
 
     make_keyframe_dataset(tmp_path / "other", n_episodes=2)  # a LeRobot dataset that records no baxter_pnp task
     (tmp_path / "busy").mkdir()
-    (tmp_path / "busy/notes.txt").write_text("keep")
+    (tmp_path / "busy/config.json").write_text('{"mine": true}')  # a user's file under a checkpoint file's name
     cases = {
         "is not a dataset folder": ["--dataset_root", str(tmp_path / "none")],
         "records no baxter_pnp task": ["--dataset_root", str(tmp_path / "other")],
-        "not a lookup-table checkpoint": ["--dataset_root", str(demos), "--output_dir", str(tmp_path / "busy")],
+        "config.json exists and `lerobot-pnp lookup-table` did not write it": [
+            "--dataset_root", str(demos), "--output_dir", str(tmp_path / "busy"), "--overwrite", "true"],
         "pass --overwrite true": ["--dataset_root", str(demos), "--output_dir", str(checkpoint)],
-    }
+    }  # fmt: skip
     for message, args in cases.items():
         capsys.readouterr()
         assert cli.main(["lookup-table", "--output_dir", str(tmp_path / "out"), *args]) == 2, message
         err = capsys.readouterr().err.strip()
         assert message in err and "\n" not in err, err
-    assert not (tmp_path / "out").exists() and (tmp_path / "busy/notes.txt").is_file()
+    assert not (tmp_path / "out").exists() and (tmp_path / "busy/config.json").read_text() == '{"mine": true}'
     assert json.loads((checkpoint / "config.json").read_text())["type"] == "pnp_lookup_table"
 
 

@@ -354,17 +354,18 @@ def test_train_cli_rejects_bad_flags_before_any_work(dataset_root, tmp_path, cap
 
 
 def test_train_cli_bad_input(dataset_root, tmp_path, capsys):
-    """A folder the user already has is refused and kept; a test range reaches the trainer as written; a range
-    outside the dataset, found only while running, is one line."""
+    """A run beside a user's file keeps it, and a second run there without --overwrite is refused in one line; a
+    test range reaches the trainer as written; a range outside the dataset, found only while running, is one line."""
     from lerobot_pnp.cli import main
 
     ds = ["--dataset_repo_id", REPO_ID, "--dataset_root", str(dataset_root), "--progress", "false"]
     out = tmp_path / "out"
     out.mkdir()
     (out / "keep.txt").write_text("mine")
-    assert main(["train", *ds, "--output_dir", str(out)]) == 2
-    err = capsys.readouterr().err.strip()
-    assert "already exists and is not empty" in err and "\n" not in err, err
+    assert main(["train", *ds, "--output_dir", str(out), "--epochs", "1"]) == 0
+    assert main(["train", *ds, "--output_dir", str(out), "--epochs", "1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert "already holds a training run" in err and "--overwrite" in err, err
     assert (out / "keep.txt").read_text() == "mine"
 
     # '10:20' reaches the trainer as the range it is (not the base-60 number 620).

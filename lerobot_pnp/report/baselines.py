@@ -65,8 +65,8 @@ LOOKUP_TABLE_COMMAND = "lerobot-pnp lookup-table"
 def write_lookup_table(cfg: LookupTableCheckpointConfig) -> dict:
     """Build the table from ``cfg.dataset_root`` and write it to ``cfg.output_dir``; returns a summary.
 
-    The folder goes through ``lerobot_pnp.outputs``: the checkpoint's files are written all-or-nothing, and
-    ``--overwrite`` replaces only the files this command recorded there (a user's file beside them stays)."""
+    The folder goes through ``lerobot_pnp.outputs``: the checkpoint's files are written all-or-nothing beside
+    whatever else the folder holds, and ``--overwrite`` replaces only the files this command recorded there."""
     from lerobot_pnp.dataset.layout import is_dataset
     from lerobot_pnp.recorded_task import RECORDED_FILE, dataset_task
     from lerobot_pnp.report.adapters import load_train_episodes
@@ -124,27 +124,27 @@ def _is_table_file(name: str) -> bool:
 def _legacy_table(folder: OutputFolder) -> list[str]:
     """The files of a lookup table written before the manifest (its ``config.json`` says ``pnp_lookup_table``,
     nothing is recorded yet); a user's file beside them is not among them."""
-    if folder.owners:
+    config = folder.path / "config.json"
+    if folder.owners or config.is_symlink() or not config.is_file():
         return []
     try:
-        ours = json.loads((folder.path / "config.json").read_text()).get("type") == "pnp_lookup_table"
+        ours = json.loads(config.read_text()).get("type") == "pnp_lookup_table"
     except (OSError, ValueError, AttributeError):
         ours = False
-    if not ours or (folder.path / "config.json").is_symlink():
-        return []
-    return [n for n in folder.foreign() if _is_table_file(n) and (folder.path / n).is_file()]
+    return [n for n in folder.foreign() if _is_table_file(n) and (folder.path / n).is_file()] if ours else []
 
 
 def _check_output(folder: OutputFolder, overwrite: bool) -> None:
-    """A folder without a table of this command's gets one if nothing else is there; a table of its own is
-    replaced only with ``overwrite`` (a table from before the manifest is recorded as its own then)."""
+    """Refuse a user's entry under a name a table's checkpoint has, and a table of this command's without
+    ``overwrite`` (a table from before the manifest is recorded as this command's then); other files stay."""
     legacy = _legacy_table(folder)
-    present = legacy + [n for n in folder.entries if (folder.path / n).exists() or (folder.path / n).is_symlink()]
-    if not present and folder.foreign():
+    ours = folder.entries | set(legacy)
+    if blocking := [n for n in folder.foreign() if _is_table_file(n) and n not in ours]:
         raise ConfigError(
-            f"lookup-table: {folder.path} exists and is not a lookup-table checkpoint; choose another --output_dir"
+            f"lookup-table: {folder.path / blocking[0]} exists and `{LOOKUP_TABLE_COMMAND}` did not write it (a "
+            "lookup-table checkpoint has a file of that name); move it or choose another --output_dir"
         )
-    if present and not overwrite:
+    if not overwrite and any((folder.path / n).exists() or (folder.path / n).is_symlink() for n in ours):
         raise ConfigError(
             f"lookup-table: {folder.path} already holds a lookup table; pass --overwrite true to replace it"
         )

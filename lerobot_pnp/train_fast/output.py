@@ -3,13 +3,14 @@
 A run holds the folder (``OutputFolder``: its lock) from start to end, so two runs into one folder cannot leave
 their checkpoints side by side under a config that names one of them. Every entry it writes is recorded in the
 folder's manifest before it is written, and ``--overwrite`` deletes exactly the entries a training run recorded
-there, never anything else: a folder holding an entry a training run did not write is refused in one line before
-any work starts. A run folder written before manifests existed (nothing but a training run's files, its
-``train_fast_config.json`` among them) counts as a training run's.
+there: a user's file beside them stays, and a user's entry under a name a run writes is refused in one line
+before any work starts. In a run folder written before manifests existed (its ``train_fast_config.json`` there,
+nothing recorded) the entries with a training run's names count as the run's.
 """
 
 from __future__ import annotations
 
+import json
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -32,35 +33,41 @@ def _present(folder: Path) -> list[str]:
 
 
 def legacy_run(folder: OutputFolder) -> list[str]:
-    """The entries of a run folder that predates the manifest: every entry a training run's file, its config among
-    them, and nothing recorded yet; else none."""
-    names = _present(folder.path)
-    if folder.owners or CONFIG_FILE not in names or any(n not in RUN_FILES for n in names):
+    """The training run's entries in a folder that predates the manifest: nothing is recorded there and the run's
+    config file is (``_is_run_config``); then every entry with a training run's name (a user's file beside them
+    is not among them)."""
+    if folder.owners or not _is_run_config(folder.path / CONFIG_FILE):
         return []
-    return names
+    return [name for name in _present(folder.path) if name in RUN_FILES]
+
+
+def _is_run_config(path: Path) -> bool:
+    """Whether ``path`` is a config file a training run wrote: a plain file holding a mapping with the keys
+    every ``TrainFastConfig`` has."""
+    if path.is_symlink() or not path.is_file():
+        return False
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return False
+    return isinstance(data, dict) and {"dataset_repo_id", "policy", "output_dir"} <= set(data)
 
 
 def _check(folder: OutputFolder, overwrite: bool) -> None:
-    """Refuse (``OutputError``, one line) a folder holding a run without ``overwrite``, and one holding an entry
-    a training run did not write."""
+    """Refuse (``OutputError``, one line) an entry a training run did not write under a name a run writes, and a
+    previous run without ``overwrite``. A user's other files stay beside the run."""
     present = _present(folder.path)
-    if not present:
-        return
     ours = folder.entries | set(legacy_run(folder))
-    foreign = sorted((name for name in present if name not in ours), key=lambda name: name in RUN_FILES)
     out = folder.path
-    if not overwrite:
-        why = (
-            f" ({out / foreign[0]} is not a training run's file)"
-            if foreign
-            else " or pass --overwrite (the run is replaced)"
-        )
-        raise OutputError(f"output_dir {out} already exists and is not empty; choose another folder{why}")
-    if foreign:
+    if blocking := [name for name in present if name in RUN_FILES and name not in ours]:
         raise OutputError(
-            f"--overwrite: output_dir {out} holds {out / foreign[0]}, which `{COMMAND}` did not write "
-            f"({len(foreign)} such entr{'y' if len(foreign) == 1 else 'ies'}); --overwrite replaces only what a "
-            "training run wrote: move it or choose another folder"
+            f"output_dir {out} holds {out / blocking[0]}, which `{COMMAND}` did not write and a training run "
+            f"writes ({', '.join(RUN_FILES)}); move it or choose another folder"
+        )
+    if not overwrite and any(name in ours for name in present):
+        raise OutputError(
+            f"output_dir {out} already holds a training run; choose another folder or pass --overwrite (the run "
+            "is replaced; other files stay)"
         )
 
 
