@@ -46,6 +46,7 @@ from lerobot_pnp.dataset.workdir import (
 from lerobot_pnp.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.errors import ConfigError, DatasetError, OtherSettingsError
 from lerobot_pnp.outputs import LOCK_FILE, remove_path, write_json_atomic
+from lerobot_pnp.slurm_fields import check_slurm_fields
 
 EXECUTORS = ("local", "slurm")
 MAX_EPISODES = 10_000_000  # above this, --allow_huge must say it is meant (memory and disk grow with N)
@@ -72,6 +73,7 @@ class SlurmOptions:
     def __post_init__(self):
         if self.cpus_per_task < 1 or self.mem_per_cpu_gb <= 0:
             raise ConfigError("slurm.cpus_per_task must be >= 1 and slurm.mem_per_cpu_gb > 0")
+        check_slurm_fields(self)
 
 
 @dataclass
