@@ -7,8 +7,7 @@ stage itself is complete, so a stage folder without a matching record is never t
 and a mismatch names the parts that changed. Paths never enter a key (a moved folder keeps its keys) and the
 records hold only paths relative to their output folder.
 
-The lock (``lock_output``) is an ``flock`` on the folder, released when the process dies. What a command may
-write, replace and delete in its output folder: ``lerobot_pnp.outputs``.
+What a command may write, replace and delete in its output folder, and its lock: ``lerobot_pnp.outputs``.
 """
 
 from __future__ import annotations
@@ -21,8 +20,8 @@ from pathlib import Path
 from typing import Any
 
 from lerobot_pnp.errors import ConfigError
-from lerobot_pnp.outputs import FolderLock, check_writable, write_json_atomic
 from lerobot_pnp.outputs import remove_path as remove  # noqa: F401  (the name its callers import)
+from lerobot_pnp.outputs import write_json_atomic
 
 STAGE_FILE = "stage.json"  # the record of a stage kept in a folder
 # Record fields naming an output of the stage, relative to the record's folder (a study training's artefact, a
@@ -206,10 +205,3 @@ def inside(folder: Path, relative: Any) -> Path | None:
         return None
     path = Path(folder) / relative
     return path if path.resolve().is_relative_to(Path(folder).resolve()) else None
-
-
-def lock_output(out: Path, command: str) -> FolderLock:
-    """The output folder's lock, taken before anything is read or written; a second command on the same folder
-    fails at once with one line. A folder that cannot be made or written is refused first, in one line."""
-    out = check_writable(out)
-    return FolderLock(out, busy=f"another `{command}` is using {out}; wait for it to finish (or stop it)")

@@ -17,8 +17,9 @@ import numpy as np
 import pytest
 
 from lerobot_pnp import cli
-from lerobot_pnp.cache import Stage, lock_output
+from lerobot_pnp.cache import Stage
 from lerobot_pnp.errors import ConfigError, DatasetError, ResetOptionError
+from lerobot_pnp.outputs import OutputFolder
 
 DAGGER = {
     "num_demos": 6,
@@ -71,7 +72,7 @@ def test_1_a_second_dagger_on_the_same_folder_is_refused_and_a_stage_without_rec
     dagger_run, tmp_path, capsys
 ):
     out = _copy(dagger_run, tmp_path / "dg")
-    with lock_output(out, "lerobot-pnp dagger"):  # as a running `lerobot-pnp dagger` holds it
+    with OutputFolder(out, "lerobot-pnp dagger"):  # as a running `lerobot-pnp dagger` holds it
         before = _mtimes(out)
         assert _dagger(out) == 2
     err = capsys.readouterr().err.strip()
