@@ -34,7 +34,7 @@ from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_IMAGES, OBS_STATE
 
 from lerobot_pnp import robot
 from lerobot_pnp.env_validation import validate
-from lerobot_pnp.errors import ConfigError
+from lerobot_pnp.errors import ConfigError, shown
 from lerobot_pnp.presets import (
     ENV_TYPE,
     GYM_ID,
@@ -177,7 +177,7 @@ class BaxterPnPEnvConfig(EnvConfig):
     # ------------------------------------------------------------------ resolution and validation
     def _resolve_task(self) -> None:
         if self.preset is not None and self.preset not in PRESETS:
-            raise ConfigError(f"env.preset must be one of {sorted(PRESETS)}, got {self.preset!r}")
+            raise ConfigError(f"env.preset must be one of {sorted(PRESETS)}, got {shown(self.preset)}")
         recorded: dict = {}
         if self.preset is None:
             source = self.task_source or self.command_line_source

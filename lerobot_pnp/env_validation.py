@@ -11,7 +11,7 @@ import math
 from typing import Any
 
 from lerobot_pnp import disturbances, robot
-from lerobot_pnp.errors import ConfigError
+from lerobot_pnp.errors import ConfigError, shown
 from lerobot_pnp.presets import CAMERAS, CONTROL_MODES
 
 KEYFRAME_FPS = robot.KEYFRAME_FPS
@@ -22,6 +22,7 @@ BOX_PAIRS = (
     ("start_low", "start_high"),
 )
 RANGES = ("yaw_range", "size_range", "mass_range", "friction_range")
+MIN_IMAGE_HEIGHT, MIN_IMAGE_WIDTH, MAX_IMAGE_SIDE = 8, 32, 4096  # pixels (validate_image_size)
 
 
 def validate(cfg: Any) -> None:
@@ -34,27 +35,46 @@ def validate(cfg: Any) -> None:
 
 
 def validate_control(cfg: Any) -> None:
-    """Control mode, rate, episode length, cameras, image size and render effects, speed."""
+    """Control mode, rate, episode length, cameras, image size and render effects, speed, ``lerobot-eval``'s
+    task threads."""
     if cfg.control_mode not in CONTROL_MODES:
-        raise ConfigError(f"env.control_mode must be one of {CONTROL_MODES}, got {cfg.control_mode!r}")
+        raise ConfigError(f"env.control_mode must be one of {CONTROL_MODES}, got {shown(cfg.control_mode)}")
     cfg.cameras = list(cfg.cameras or [])
     unknown = [c for c in cfg.cameras if c not in CAMERAS]
     if unknown or len(set(cfg.cameras)) != len(cfg.cameras):
-        raise ConfigError(f"env.cameras must be distinct names from {CAMERAS}, got {cfg.cameras}")
+        raise ConfigError(f"env.cameras must be distinct names from {CAMERAS}, got {shown(cfg.cameras)}")
     if cfg.fps is not None and not (isinstance(cfg.fps, int) and 1 <= cfg.fps <= 500):
         raise ConfigError(f"env.fps must be an integer in [1, 500], got {cfg.fps!r}")
     if cfg.control_mode == "keyframe" and cfg.fps not in (None, KEYFRAME_FPS):
         raise ConfigError(f"env.fps: keyframe control has one step per FSM state (fps {KEYFRAME_FPS}), got {cfg.fps}")
     if cfg.episode_length is not None and not (isinstance(cfg.episode_length, int) and cfg.episode_length >= 1):
         raise ConfigError(f"env.episode_length must be an integer >= 1, got {cfg.episode_length!r}")
-    if not all(
-        isinstance(v, int) and not isinstance(v, bool) and 8 <= v <= 4096 for v in (cfg.image_height, cfg.image_width)
-    ):
-        raise ConfigError(f"env.image_height/width must be in [8, 4096], got {cfg.image_height}x{cfg.image_width}")
+    validate_image_size(cfg.image_height, cfg.image_width)
+    if getattr(cfg, "max_parallel_tasks", 1) > 1:
+        raise ConfigError(
+            f"env.max_parallel_tasks={cfg.max_parallel_tasks}: lerobot-eval would run the tasks in threads, but "
+            "MuJoCo's rendering context belongs to the thread that made it, and the threads would share one policy "
+            "(a recurrent policy's memory would mix their episodes); leave it at 1"
+        )
     if not isinstance(cfg.render_effects, bool):
         raise ConfigError(f"env.render_effects must be true or false, got {cfg.render_effects!r}")
     if not 0 < cfg.speed <= 1:
         raise ConfigError(f"env.speed (fraction of Baxter's joint velocity limits) must be in (0, 1], got {cfg.speed}")
+
+
+def validate_image_size(height: Any, width: Any) -> None:
+    """The rendered image's size: what a dataset's video encoder accepts (LeRobot's SVT-AV1 crashes the writing
+    process on a frame narrower than 25 pixels), up to ``MAX_IMAGE_SIDE`` (the renderer's framebuffer is the
+    image's size)."""
+    ok = all(
+        isinstance(v, int) and not isinstance(v, bool) and low <= v <= MAX_IMAGE_SIDE
+        for v, low in ((height, MIN_IMAGE_HEIGHT), (width, MIN_IMAGE_WIDTH))
+    )
+    if not ok:
+        raise ConfigError(
+            f"env.image_height must be an integer in [{MIN_IMAGE_HEIGHT}, {MAX_IMAGE_SIDE}] and env.image_width in "
+            f"[{MIN_IMAGE_WIDTH}, {MAX_IMAGE_SIDE}] (pixels), got {shown(height)}x{shown(width)}"
+        )
 
 
 def validate_boxes(cfg: Any) -> None:

@@ -75,6 +75,13 @@ def one_line(err: BaseException) -> str:
     return " ".join(str(err).split()) or type(err).__name__
 
 
+def shown(value: object, limit: int = 60) -> str:
+    """A user's value as an error message echoes it: its ``repr``, cut to its first ``limit`` characters (a
+    message stays one readable line whatever was typed)."""
+    text = repr(value)
+    return text if len(text) <= limit else f"{text[:limit]}… ({len(text)} characters)"
+
+
 def one_line_message(err: BaseException) -> str | None:
     """The one line a LeRobot CLI user should see for ``err``, or None when it is not ours to shorten.
 

@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import Any
 
 from lerobot_pnp.errors import ConfigError, PnPError
+from lerobot_pnp.errors import shown as _shown
 
 MANIFEST_FILE = ".pnp_manifest.json"  # which top-level entries each command wrote
 JOURNAL_FILE = ".pnp_journal.json"  # a set of files being put in place (its presence is the commit point)
@@ -37,7 +38,7 @@ LOCK_FILE = ".pnp_lock"  # only where a directory cannot be flock-ed (NFS); neve
 NEW_SUFFIX = ".pnp-new"  # a file of a set, written and waiting for its rename
 TMP_SUFFIX = ".tmp"  # a single file being written
 HOUSEKEEPING = frozenset({MANIFEST_FILE, JOURNAL_FILE, LOCK_FILE})
-SHOWN = 120  # at most this many characters of a user's value are echoed back in a message
+SHOWN = 160  # a path is echoed whole up to this many characters
 
 
 class OutputError(ConfigError):
@@ -45,9 +46,8 @@ class OutputError(ConfigError):
 
 
 def shown(value: Any) -> str:
-    """``value`` as echoed in a one-line message: repr, newlines escaped, cut to ``SHOWN`` characters."""
-    text = repr(value) if not isinstance(value, Path) else repr(str(value))
-    return text if len(text) <= SHOWN else text[: SHOWN - 1] + "…"
+    """A path or value as a message echoes it (``errors.shown``, a path as its text)."""
+    return _shown(str(value) if isinstance(value, Path) else value, SHOWN)
 
 
 def plain_name(name: Any) -> str | None:

@@ -295,13 +295,17 @@ class BaxterPhysics:
         """
         key = (height, width, effects)
         if key not in self._renderers:
-            default_samples = self.model.vis.quality.offsamples
-            if not effects:  # read once, when the renderer's GL context is made
-                self.model.vis.quality.offsamples = 0
+            # The offscreen framebuffer's size and multisampling are read once, when the renderer's GL context is
+            # made: its framebuffer is the image's size (the MJCF's offwidth x offheight would cap the image size)
+            visual = self.model.vis
+            defaults = (visual.quality.offsamples, visual.global_.offwidth, visual.global_.offheight)
+            if not effects:
+                visual.quality.offsamples = 0
+            visual.global_.offwidth, visual.global_.offheight = width, height
             try:
                 self._renderers[key] = mujoco.Renderer(self.model, height=height, width=width)
             finally:
-                self.model.vis.quality.offsamples = default_samples
+                visual.quality.offsamples, visual.global_.offwidth, visual.global_.offheight = defaults
         renderer = self._renderers[key]
         renderer.update_scene(self.data, camera=camera)
         renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = effects

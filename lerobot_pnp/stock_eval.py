@@ -6,7 +6,8 @@ or action sizes), or one whose files are damaged (a truncated normaliser ``.safe
 LeRobot or safetensors with a long traceback. ``lerobot-pnp viz`` and ``train`` load the same files through the
 strict loader (``evaluation.checkpoints``) and say in one line what is wrong. Here the two functions of the
 ``lerobot_eval`` module are wrapped the same way: for a run on our env, the policy's features are checked against
-the env first (``check_policy_features``), and a failure to load is a ``PolicyLoadError`` naming the checkpoint
+the env first (``check_policy_features``: its camera inputs rendered by the env at the size it was trained on,
+before a rollout starts), and a failure to load is a ``PolicyLoadError`` naming the checkpoint
 (printed as one line by ``errors.install_cli_excepthook``). Any other env's run calls LeRobot's functions as
 they are.
 """
@@ -46,10 +47,10 @@ def _checked_make_policy(original):
         env_cfg = kwargs.get("env_cfg")
         if not _is_our_env(env_cfg):
             return original(cfg, *args, **kwargs)
-        from lerobot_pnp.evaluation.checkpoints import check_policy_features
+        from lerobot_pnp.evaluation.checkpoints import check_policy_features, rendered_cameras
 
         if getattr(cfg, "pretrained_path", None):  # a checkpoint: its features are the ones it was trained with
-            check_policy_features(cfg, len(env_cfg.environment_state_names))
+            check_policy_features(cfg, len(env_cfg.environment_state_names), rendered_cameras(env_cfg))
         _ours.add(id(cfg))
         return _loading(cfg, original, cfg, *args, **kwargs)
 

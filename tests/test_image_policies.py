@@ -19,6 +19,7 @@ from clis import exe as _exe
 from clis import run
 
 from lerobot_pnp.env_config import BaxterPnPEnvConfig
+from lerobot_pnp.env_validation import MAX_IMAGE_SIDE, MIN_IMAGE_HEIGHT, MIN_IMAGE_WIDTH
 from lerobot_pnp.recorded_task import write_recorded
 from lerobot_pnp.registration import hand_over_command_line
 
@@ -71,13 +72,42 @@ def test_explicit_camera_flags_win_and_defaults_stay(tmp_path):
     assert not any(k.startswith("pixels/") for k in plain.features)
 
 
-def test_bad_image_size_is_one_clear_error():
+@pytest.mark.parametrize(
+    ("height", "width"), [(4, 64), (64, "64"), (24, 24), (64, MIN_IMAGE_WIDTH - 1), (MAX_IMAGE_SIDE + 1, 64)]
+)
+def test_bad_image_size_is_one_clear_error_naming_the_range(height, width):
+    """Below the video encoder's smallest frame (it crashes the process writing a dataset) or above the largest
+    side: one line naming the valid range and the size given."""
     from lerobot_pnp.errors import ConfigError
 
-    with pytest.raises(ConfigError, match="image_height/width must be in"):
-        BaxterPnPEnvConfig(image_height=4)
-    with pytest.raises(ConfigError, match="image_height/width must be in"):
-        BaxterPnPEnvConfig(image_width="64")
+    with pytest.raises(ConfigError) as err:
+        BaxterPnPEnvConfig(image_height=height, image_width=width)
+    ranges = f"[{MIN_IMAGE_HEIGHT}, {MAX_IMAGE_SIDE}] and env.image_width in [{MIN_IMAGE_WIDTH}, {MAX_IMAGE_SIDE}]"
+    assert ranges in str(err.value) and f"got {height!r}x{width!r}" in str(err.value)
+
+
+def test_the_extreme_image_sizes_render():
+    """A side above the MJCF's offscreen framebuffer (640x480) renders: the framebuffer is the image's size."""
+    from lerobot_pnp.env_config import make_env
+
+    for height, width in ((MAX_IMAGE_SIDE, MIN_IMAGE_WIDTH), (MIN_IMAGE_HEIGHT, 704)):
+        env = make_env(cameras=["front"], image_height=height, image_width=width, render_mode=None)
+        image = env.reset(seed=0)[0]["pixels"]["front"]
+        env.close()
+        assert image.shape == (height, width, 3) and image.std() > 0
+
+
+def test_a_camera_dataset_at_the_smallest_image_size(tmp_path):
+    """`lerobot-pnp generate` at the smallest accepted size: the video encoder writes it and LeRobot reads it."""
+    from lerobot_pnp.dataset.validation import open_local_dataset
+
+    root = tmp_path / "ds"
+    size = [f"--env.image_height={MIN_IMAGE_HEIGHT}", f"--env.image_width={MIN_IMAGE_WIDTH}"]
+    cmd = [_exe("lerobot-pnp"), "generate", f"--root={root}", "--num_episodes=2", "--env.cameras=[front]", *size]
+    proc = _run([*cmd, "--progress=false"], tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    frame = open_local_dataset("local/ds", root)[0]["observation.images.front"]
+    assert tuple(frame.shape) == (3, MIN_IMAGE_HEIGHT, MIN_IMAGE_WIDTH)
 
 
 @pytest.mark.parametrize("name", IMAGE_CONFIGS)

@@ -87,6 +87,11 @@ def image_inputs(config: Any) -> dict[str, tuple[int, int]]:
     return {k[len(prefix) :]: tuple(ft.shape)[-2:] for k, ft in feats if k.startswith(prefix) and len(ft.shape) == 3}
 
 
+def rendered_cameras(env_cfg: Any) -> dict[str, tuple[int, int]]:
+    """The cameras an env config renders: ``{camera: (height, width)}``."""
+    return {cam: (env_cfg.image_height, env_cfg.image_width) for cam in env_cfg.cameras}
+
+
 def check_policy_features(
     config: Any, env_state_dim: int | None = None, cameras: dict[str, tuple[int, int]] | None = None
 ) -> None:
@@ -106,7 +111,11 @@ def check_policy_features(
         if cam not in CAMERAS:
             problems.append(f"image input '{OBS_IMAGES}.{cam}': the env's cameras are {list(CAMERAS)}")
         elif cameras is not None and cameras.get(cam) != size:
-            got = f"renders it at {cameras[cam]}" if cam in cameras else "does not render it"
+            got = (
+                f"renders it at {cameras[cam][0]}x{cameras[cam][1]} (--env.image_height/--env.image_width)"
+                if cam in cameras
+                else f"does not render it (--env.cameras {sorted(cameras)})"
+            )
             problems.append(f"image input '{OBS_IMAGES}.{cam}' is {size[0]}x{size[1]}; the env {got}")
     inputs = {
         k: v for k, v in inputs.items() if not k.startswith(f"{OBS_IMAGES}.") or k[len(OBS_IMAGES) + 1 :] not in images
@@ -151,7 +160,10 @@ def load_policy(path: str | Path, device: str = "cpu", env_cfg: Any = None) -> L
         config = PreTrainedConfig.from_pretrained(ckpt)
     except Exception as err:  # draccus / json errors: unknown policy type, corrupt file
         raise PolicyLoadError(f"cannot read the policy config {ckpt / CONFIG_NAME}: {err}") from err
-    check_policy_features(config, None if env_cfg is None else len(env_cfg.environment_state_names))
+    if env_cfg is not None:
+        check_policy_features(config, len(env_cfg.environment_state_names), rendered_cameras(env_cfg))
+    else:
+        check_policy_features(config)
     # lerobot issue #4647: set pretrained_path by hand, or the processors are rebuilt without their stats.
     config.pretrained_path = ckpt
     config.device = device

@@ -33,7 +33,7 @@ import gymnasium as gym
 import numpy as np
 from lerobot.envs.utils import FreezeAfterEpisodeEnd, _LazyAsyncVectorEnv
 
-from lerobot_pnp.errors import ConfigError
+from lerobot_pnp.errors import ConfigError, shown
 from lerobot_pnp.presets import GYM_ID, GYM_TASK
 
 AXIS_PREFIX = "heldout_"
@@ -75,18 +75,21 @@ def suite_names(task: str | None) -> list[str] | None:
     if task is None or task == GYM_TASK:
         return None
     names = [n.strip() for n in str(task).split(",")]
-    if not any(names):
-        raise ConfigError(f"env.task is empty; give suite names, comma-separated, from {valid_names()}")
-    axes, out = _axes(), []
+    if not all(names):
+        what = "is empty" if not any(names) else f"has an empty name in {shown(task)}"
+        raise ConfigError(f"env.task {what}; give suite names, comma-separated, from {valid_names()}")
+    axes, groups, out = _axes(), {s.group for s in SUITES.values() if s.group}, []
     for name in names:
         if name in ALIASES:
             out += ALIASES[name][1]()
         elif name in axes:
             out += axes[name]
-        elif name in SUITES or any(s.group == name for s in SUITES.values()):
+        elif name in SUITES or name in groups:
             out += [s.name for s in get_suites([name])]
         else:
-            raise ConfigError(f"env.task: unknown suite {name!r}; valid: {GYM_TASK} (the one task) or {valid_names()}")
+            raise ConfigError(
+                f"env.task: unknown suite {shown(name)}; valid: {GYM_TASK} (the one task) or {valid_names()}"
+            )
     return list(dict.fromkeys(out))
 
 
@@ -127,13 +130,9 @@ def _check_control_mode(name: str, part: Any) -> None:
 
 def check_task(cfg: Any) -> None:
     """Refuse a bad ``--env.task`` when the config is built (one ConfigError): unknown or no names, a suite whose
-    changes do not apply to the resolved task, suites run in threads (``eval_policy_all`` shares one policy object
-    between its threads: a recurrent policy's state would mix episodes of different suites)."""
-    if suite_configs(cfg) is not None and getattr(cfg, "max_parallel_tasks", 1) > 1:
-        raise ConfigError(
-            f"env.max_parallel_tasks={cfg.max_parallel_tasks}: lerobot-eval would run the suites in threads sharing "
-            "one policy, whose memory would mix their episodes; leave it at 1"
-        )
+    changes do not apply to the resolved task. (Running tasks in threads, ``--env.max_parallel_tasks``, is refused
+    for every task by ``env_validation``.)"""
+    suite_configs(cfg)
 
 
 def create_suite_envs(cfg: Any, n_envs: int, use_async_envs: bool) -> dict[str, dict[int, Any]] | None:
