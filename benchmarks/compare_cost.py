@@ -8,7 +8,8 @@ this times one ``run_compare`` (read and check both files, every rate, control-a
 held-out verdict, render and write compare.md, compare.json and compare.png; the markdown it prints is
 discarded) in a fresh process, after its imports and a comparison of 10 episodes per suite, and reports the
 time per size, the growth exponent between the two largest sizes (1: linear) and the peak memory of that
-process. Target: 100,000 episodes per suite under 5 s.
+process (Linux's VmHWM; the package's imports are most of it at small sizes). Target: 100,000 episodes per
+suite under 5 s.
 
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/compare_cost.py [--sizes 12500 25000 50000 100000] \\
         [--workdir outputs/compare_cost] [--out outputs/compare_cost/compare_cost.json]
@@ -33,16 +34,17 @@ RATES = {"stock": 0.8, "expert": 0.7}
 SEED = 100_000
 
 # argv: the warm-up's two runs, then the measured two runs; prints the seconds of the measured comparison and the
-# process's peak memory (MB).
+# process's peak memory (MB; VmHWM, which, unlike ru_maxrss, does not carry the parent's peak across the exec).
 _CHILD = r"""
-import contextlib, io, json, resource, sys, time
+import contextlib, io, json, sys, time
 from lerobot_pnp.evaluation.compare import CompareConfig, run_compare
 for specs, out in ((sys.argv[1:3], sys.argv[5]), (sys.argv[3:5], sys.argv[6])):
     start = time.perf_counter()
     with contextlib.redirect_stdout(io.StringIO()):
         run_compare(CompareConfig(runs=specs, output_dir=out))
     seconds = time.perf_counter() - start
-print(json.dumps({"seconds": seconds, "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
+peak_kb = next(int(line.split()[1]) for line in open("/proc/self/status") if line.startswith("VmHWM:"))
+print(json.dumps({"seconds": seconds, "peak_mb": peak_kb / 1024}))
 """
 
 
