@@ -388,3 +388,16 @@ def test_large_tails_agree_with_the_exact_sums(monkeypatch):
     monkeypatch.setattr(stats, "EXACT_TRIALS", 10**9)
     assert fast == pytest.approx(tails(), rel=1e-9, abs=1e-300)
     assert 0 < fast[0] < 1e-4 and fast[2] == 1.0 and fast[3] == 0.0 and 0 < fast[4] < 0.05
+
+
+def test_two_expert_runs_from_other_seeds_do_not_pair(tmp_path, capsys):
+    """``lerobot-pnp expert`` records each episode's seed: runs from --seed 0 and --seed 5000 are refused."""
+    for name, seed in (("s0", "0"), ("s5000", "5000"), ("again", "0")):
+        args = ["expert", "--env.task", "nominal", "--n_episodes", "2", "--seed", seed, "--progress", "false"]
+        assert cli.main([*args, "--output_dir", str(tmp_path / name)]) == 0
+    capsys.readouterr()
+    assert cli.main(["compare", str(tmp_path / "s0"), str(tmp_path / "s5000")]) == 2
+    err = capsys.readouterr().err
+    assert "'s0' and run 's5000' were evaluated on other seeds" in err and "seed 0 vs 5000" in err
+    assert cli.main(["compare", str(tmp_path / "s0"), str(tmp_path / "again")]) == 0
+    assert "Every run records its episodes' seeds" in capsys.readouterr().out
