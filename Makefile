@@ -27,11 +27,12 @@ $(UV):
 	test -x $(VENV)/bin/python || $(PYTHON) -m venv $(VENV)
 	$(VENV)/bin/pip install -q uv==$(UV_VERSION)
 
-# --strict: after installing, every installed package's dependencies must be installed too (a stale lock fails here)
+# exactly the lock's versions (--no-deps); the check then fails on a dependency the lock lacks (a stale lock)
 $(STAMP): pyproject.toml $(LOCK) | $(UV)
 	@command -v ffmpeg >/dev/null || { command -v apt-get >/dev/null && [ "$$(id -u)" = 0 ] && \
 		(apt-get update -qq && apt-get install -y -qq ffmpeg >/dev/null) || echo "note: ffmpeg not installed (video datasets fall back to PyAV)"; }
-	$(UV) pip install -q --python $(VENV)/bin/python --strict --no-deps -r $(LOCK) -e .
+	$(UV) pip install -q --python $(VENV)/bin/python --no-deps -r $(LOCK) -e .
+	@$(UV) pip check -q --python $(VENV)/bin/python || { echo "$(LOCK) misses a dependency of pyproject.toml: make lock"; exit 1; }
 	touch $(STAMP)
 
 install: $(STAMP)
