@@ -1,4 +1,4 @@
-"""Cached stages that cannot lie: keys, stage records, the output folder's lock and the study's manifest.
+"""Cached stages that cannot lie: keys, stage records and the output folder's lock.
 
 A cached stage (a dataset, a training, an evaluation) is reused only when its **key** matches: the sha256 of
 the canonical JSON of everything that determines it (config fields, seeds, the keys or content digests of its
@@ -7,9 +7,7 @@ stage itself is complete, so a stage folder without a matching record is never t
 and a mismatch names the parts that changed. Paths never enter a key (a moved folder keeps its keys) and the
 records hold only paths relative to their output folder.
 
-The lock is the dataset generation's ``RootLock`` (an ``flock`` on the folder, released when the process
-dies); ``Manifest`` lists the top-level entries a command wrote into its output folder, so ``--fresh``
-deletes only those and refuses a folder that holds anything else.
+What a command may write, replace and delete in its output folder, and its lock: ``lerobot_pnp.outputs``.
 """
 
 from __future__ import annotations
@@ -22,14 +20,13 @@ from pathlib import Path
 from typing import Any
 
 from lerobot_pnp.errors import ConfigError
-from lerobot_pnp.outputs import LOCK_FILE, FolderLock, check_writable, plain_name, write_json_atomic
-from lerobot_pnp.outputs import remove_path as remove
+from lerobot_pnp.outputs import remove_path as remove  # noqa: F401  (the name its callers import)
+from lerobot_pnp.outputs import write_json_atomic
 
 STAGE_FILE = "stage.json"  # the record of a stage kept in a folder
 # Record fields naming an output of the stage, relative to the record's folder (a study training's artefact, a
 # DAgger round's checkpoint); a training's record names one. Anything else is not this stage's output.
 OUTPUT_FIELDS = ("artifact", "checkpoint")
-MANIFEST_FILE = ".pnp_manifest.json"
 
 
 def canonical(value: Any) -> Any:
@@ -208,83 +205,3 @@ def inside(folder: Path, relative: Any) -> Path | None:
         return None
     path = Path(folder) / relative
     return path if path.resolve().is_relative_to(Path(folder).resolve()) else None
-
-
-def lock_output(out: Path, command: str) -> FolderLock:
-    """The output folder's lock, taken before anything is read or written; a second command on the same folder
-    fails at once with one line. A folder that cannot be made or written is refused first, in one line."""
-    out = check_writable(out)
-    return FolderLock(out, busy=f"another `{command}` is using {out}; wait for it to finish (or stop it)")
-
-
-class Manifest:
-    """The top-level entries of ``out`` that a command wrote (``.pnp_manifest.json``), so that ``--fresh``
-    deletes exactly those and never a file of the user's.
-
-    The file is read as untrusted input (a copied, downloaded or edited folder): every entry must be a plain
-    name directly inside ``out``, and a file that is not a manifest of the expected shape is refused in one
-    line, never read as an empty one."""
-
-    def __init__(self, out: Path, command: str):
-        self.out, self.command = Path(out), command
-        self.path = self.out / MANIFEST_FILE
-        self.entries: set[str] = self._read() if self.path.exists() or self.path.is_symlink() else set()
-
-    def _read(self) -> set[str]:
-        if self.path.is_symlink():
-            raise self._refused("it is a link")
-        try:
-            data = json.loads(self.path.read_text())
-        except (OSError, ValueError) as err:
-            raise self._refused(f"it cannot be read ({type(err).__name__})") from None
-        if not isinstance(data, dict) or not isinstance(data.get("entries"), list):
-            raise self._refused('it is not {"command": ..., "entries": [names]}')
-        for name in data["entries"]:
-            if (why := plain_name(name)) is not None:
-                raise self._refused(f"its entry {why}")
-        return set(data["entries"])
-
-    def _refused(self, why: str) -> ConfigError:
-        return ConfigError(
-            f"{self.path} is not a manifest `{self.command}` wrote: {why}; nothing was deleted (remove the file "
-            "if the folder is yours, or choose another --output_dir)"
-        )
-
-    def claim(self, *names: str) -> None:
-        """Record top-level entries as this command's, before they are written."""
-        top = set()
-        for name in names:
-            first = Path(name).parts[0] if isinstance(name, str) and name else name
-            if (why := plain_name(first)) is not None or Path(name).is_absolute():
-                raise ConfigError(f"cannot claim {name!r} in {self.out}: {why or 'an absolute path'}")
-            top.add(first)
-        new = top - self.entries
-        if new:
-            self.entries |= new
-            write_json_atomic(self.path, {"command": self.command, "entries": sorted(self.entries)})
-
-    def foreign(self) -> list[str]:
-        """Entries of ``out`` this command did not write (besides its lock and manifest files)."""
-        own = self.entries | {MANIFEST_FILE, LOCK_FILE}
-        return sorted(p.name for p in self.out.iterdir() if p.name.removesuffix(".tmp") not in own)
-
-    def refuse_fresh(self, foreign: list[str]) -> None:
-        """The one line refusing ``--fresh`` on a folder that holds ``foreign`` entries."""
-        names = ", ".join(foreign[:5]) + (f" and {len(foreign) - 5} more" if len(foreign) > 5 else "")
-        raise ConfigError(
-            f"--fresh: {self.out} holds {names}, which `{self.command}` did not write; move "
-            f"{'it' if len(foreign) == 1 else 'them'} or choose another --output_dir"
-        )
-
-    def clear(self) -> None:
-        """``--fresh``: delete every entry this command wrote (a link is unlinked, not followed); refuse (one
-        line) if ``out`` holds another."""
-        foreign = self.foreign()
-        if foreign:
-            self.refuse_fresh(foreign)
-        for name in sorted(self.entries):
-            assert plain_name(name) is None  # every entry was checked when read or claimed
-            remove(self.out / name)
-            remove(self.out / f"{name}.tmp")
-        self.entries = set()
-        self.path.unlink(missing_ok=True)

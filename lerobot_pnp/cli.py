@@ -15,6 +15,8 @@ import tempfile
 import typing
 from pathlib import Path
 
+from lerobot_pnp.cli_config import expand_home, layered_config_file
+
 # name -> ("module:ConfigClass", "module:function", help)
 COMMANDS: dict[str, tuple[str, str, str]] = {
     "generate": (
@@ -141,28 +143,33 @@ def _split_config_path(args: list[str]) -> tuple[str | None, list[str]]:
     return None, args
 
 
-def _translated_config_file(config_cls, config_path: str | None, tmp_dir: str) -> str | None:
-    """The config file as the command's parser reads it: a class with ``translate_config_file`` (the train
-    command reads ``lerobot-train``'s files) gets a translated copy written to ``tmp_dir``; others, the file."""
-    translate = getattr(config_cls, "translate_config_file", None)
-    if config_path is None or translate is None:
-        return config_path
-    from draccus import cfgparsing
+def command_config(name: str, args: list[str]) -> tuple[type, str | None, list[str]]:
+    """Command ``name``'s config class (chosen by its input where it has ``command_class``), its ``--config_path``
+    and the remaining arguments, with ``~`` expanded in every value (``cli_config.expand_home``)."""
+    config_cls = _load(COMMANDS[name][0])
+    args = expand_home(args)
+    if name == "compare":  # its runs are positional: RUN_A RUN_B ...
+        args = _load("lerobot_pnp.evaluation.compare:positional_runs")(args)
+    config_path, args = _split_config_path(args)
+    if hasattr(config_cls, "command_class"):  # a config class chosen by the input (train: the policy type)
+        config_cls, args = config_cls.command_class(config_path, args)
+    return config_cls, config_path, args
 
-    from lerobot_pnp.errors import ConfigError, one_line
 
-    try:
-        with open(config_path, encoding="utf-8") as f:
-            data = cfgparsing.load_config(f, file=config_path)
-    except Exception as err:  # a malformed JSON/YAML file
-        raise ConfigError(f"--config_path {config_path!r}: not a readable JSON/YAML config ({one_line(err)})") from err
-    if not isinstance(data, dict):
-        raise ConfigError(
-            f"--config_path {config_path!r}: expected a mapping of config keys, got {type(data).__name__}"
-        )
-    out = Path(tmp_dir) / "config.json"
-    out.write_text(json.dumps(translate(data)))
-    return str(out)
+def parse_config(config_cls: type, config_path: str | None, args: list[str]):
+    """The config: ``config_cls``'s defaults (its nested default factories' values included), then the
+    ``--config_path`` file, then the flags (``cli_config``). Raises draccus's errors for a value it rejects."""
+    import draccus
+
+    args = normalize_args(config_cls, args)
+    with tempfile.TemporaryDirectory(prefix="lerobot_pnp_cfg_") as tmp:
+        layered = layered_config_file(config_cls, config_path, args, tmp)
+        return draccus.parse(config_class=config_cls, config_path=layered, args=args)
+
+
+def config_of(name: str, args: list[str]):
+    """Command ``name``'s config as ``lerobot-pnp name ARGS`` builds it (without running the command)."""
+    return parse_config(*command_config(name, args))
 
 
 def _os_error_line(err: OSError, name: str) -> str:
@@ -199,25 +206,18 @@ def main(argv: list[str] | None = None) -> int:
         print(f"lerobot-pnp: unknown command {name!r}\n\n{_usage()}", file=sys.stderr)
         return 2
     signal.signal(signal.SIGTERM, _sigterm_as_interrupt)
-    config_ref, func_ref, summary = COMMANDS[name]
+    _, func_ref, summary = COMMANDS[name]
     register_all()
     try:
-        config_cls, func = _load(config_ref), _load(func_ref)
-        if name == "compare":  # its runs are positional: RUN_A RUN_B ...
-            args = _load("lerobot_pnp.evaluation.compare:positional_runs")(args)
-        config_path, args = _split_config_path(args)
-        if hasattr(config_cls, "command_class"):  # a config class chosen by the input (train: the policy type)
-            config_cls, args = config_cls.command_class(config_path, args)
+        func = _load(func_ref)
+        config_cls, config_path, args = command_config(name, args)
         if "-h" in args or "--help" in args:  # the options of the class chosen (train: of its policy type)
             from lerobot_pnp.cli_help import command_help
 
             print(command_help(name, summary, config_cls))
             return 0
-        args = normalize_args(config_cls, args)
         try:
-            with tempfile.TemporaryDirectory(prefix="lerobot_pnp_cfg_") as tmp:
-                config_path = _translated_config_file(config_cls, config_path, tmp)
-                cfg = draccus.parse(config_class=config_cls, config_path=config_path, args=args)
+            cfg = parse_config(config_cls, config_path, args)
         except (draccus.utils.ParsingError, ValueError, TypeError, OverflowError) as err:
             # a config dataclass rejected a value (its message names the field), or a value has the wrong type
             cause = err.__cause__ if isinstance(err.__cause__, PnPError) else err

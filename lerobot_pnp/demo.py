@@ -8,7 +8,9 @@
    its figures and ``summary.json``.
 
 ``--quick`` is the CI-sized variant, ``--full`` the whole study (``lerobot_pnp.report.run``). Every stage is
-reused when its output exists, so an interrupted run resumes where it stopped (``--fresh`` starts over).
+reused when its record matches, so the same command run again after an interrupt resumes where it stopped
+(``--fresh`` deletes what the study wrote and starts over). The output folder is the study's to write only where
+it holds nothing else of the same name (``lerobot_pnp.report.folder``).
 """
 
 from __future__ import annotations

@@ -7,7 +7,8 @@ of every suite is seed ``seed + i``. Each suite runs through the study's own exp
 (``evaluation.episodes.eval_expert``), so a suite's outcomes are the study's. With ``output_dir`` it writes an
 ``eval_info.json`` in ``lerobot-eval``'s layout (``per_task`` with per-episode successes, plus their seeds and
 failure causes; ``per_group``; ``overall``), which ``lerobot-pnp compare`` and the leaderboard read like any
-``lerobot-eval`` output. The expert is privileged (it reads the simulator), so it is no policy of observations and
+``lerobot-eval`` output (written through ``lerobot_pnp.outputs``: atomically, and only over a file this command
+wrote). The expert is privileged (it reads the simulator), so it is no policy of observations and
 no checkpoint: this command is its evaluator.
 """
 
@@ -24,6 +25,10 @@ from tqdm import tqdm
 from lerobot_pnp.env_config import BaxterPnPEnvConfig, make_env
 from lerobot_pnp.errors import ConfigError, ExpertFailure, UnreachableError
 from lerobot_pnp.expert import failure_cause, run_expert_episode
+from lerobot_pnp.outputs import OutputFolder
+
+COMMAND = "lerobot-pnp expert"  # its name in an output folder's manifest
+EVAL_INFO = "eval_info.json"
 
 
 @dataclass
@@ -49,17 +54,36 @@ def evaluate_expert(cfg: ExpertEvalConfig) -> dict:
     from lerobot_pnp.evaluation.stock_suites import suite_configs
 
     suites = suite_configs(cfg.env)  # the names checked before any episode runs
+    if cfg.output_dir is not None:  # an eval_info.json of the user's there is refused before any episode runs
+        with OutputFolder(Path(cfg.output_dir), COMMAND) as folder:
+            if _written_before_the_manifest(folder):
+                folder.adopt(EVAL_INFO)
+            folder.claim(EVAL_INFO)
     if suites is None:
         result = _evaluate_task(cfg)
         groups = {cfg.env.type: result.pop("_records")}
     else:
         result, groups = _evaluate_suites(cfg, suites)
     if cfg.output_dir is not None:
-        path = Path(cfg.output_dir) / "eval_info.json"
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps(stock_eval_info(groups, result["wall_s"]), indent=2))
-        result["eval_info"] = str(path)
+        with OutputFolder(Path(cfg.output_dir), COMMAND) as folder:
+            text = json.dumps(stock_eval_info(groups, result["wall_s"]), indent=2)
+            result["eval_info"] = str(folder.write_text(EVAL_INFO, text))
     return result
+
+
+def _written_before_the_manifest(folder: OutputFolder) -> bool:
+    """Whether the folder's ``eval_info.json`` is one this command wrote before manifests existed: nothing is
+    recorded there, and every task of the file has the failure causes only this command writes."""
+    path = folder.path / EVAL_INFO
+    if folder.owners or path.is_symlink() or not path.is_file():
+        return False
+    try:
+        tasks = json.loads(path.read_text()).get("per_task")
+    except (OSError, ValueError, AttributeError):
+        return False
+    if not (isinstance(tasks, list) and tasks):
+        return False
+    return all(isinstance(t, dict) and "failure_causes" in (t.get("metrics") or {}) for t in tasks)
 
 
 def _evaluate_suites(cfg: ExpertEvalConfig, suites: dict[str, BaxterPnPEnvConfig]) -> tuple[dict, dict]:

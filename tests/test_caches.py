@@ -17,8 +17,9 @@ import numpy as np
 import pytest
 
 from lerobot_pnp import cli
-from lerobot_pnp.cache import Manifest, Stage, lock_output
+from lerobot_pnp.cache import Stage
 from lerobot_pnp.errors import ConfigError, DatasetError, ResetOptionError
+from lerobot_pnp.outputs import OutputFolder
 
 DAGGER = {
     "num_demos": 6,
@@ -71,11 +72,11 @@ def test_1_a_second_dagger_on_the_same_folder_is_refused_and_a_stage_without_rec
     dagger_run, tmp_path, capsys
 ):
     out = _copy(dagger_run, tmp_path / "dg")
-    with lock_output(out, "lerobot-pnp dagger"):  # as a running `lerobot-pnp dagger` holds it
+    with OutputFolder(out, "lerobot-pnp dagger"):  # as a running `lerobot-pnp dagger` holds it
         before = _mtimes(out)
         assert _dagger(out) == 2
     err = capsys.readouterr().err.strip()
-    assert "another `lerobot-pnp dagger` is using" in err and len(err.splitlines()) == 1, err
+    assert "`lerobot-pnp dagger` does not wait" in err and len(err.splitlines()) == 1, err
     assert _mtimes(out) == before  # nothing read or written
     # a demos folder that was never recorded as finished (a truncated parquet, as a concurrent writer left it)
     parquet = next((out / "demos" / "data").rglob("*.parquet"))
@@ -192,29 +193,42 @@ def test_3_the_study_reruns_what_a_changed_flag_determines_and_reports_that_conf
 
 
 # --------------------------------------------------------------------------------------------------- case 4
-def test_4_fresh_refuses_a_folder_with_foreign_files_and_deletes_only_the_manifest(tmp_path, capsys):
+def test_4_fresh_deletes_only_what_the_study_wrote_and_keeps_the_users_files(tmp_path, monkeypatch):
+    from lerobot_pnp.outputs import OutputFolder
+    from lerobot_pnp.report import run
+    from lerobot_pnp.report.folder import COMMAND
+
+    def stop(*args, **kwargs):
+        raise RuntimeError("stopped before any stage")
+
+    monkeypatch.setattr(run, "_prepare", stop)
     out = tmp_path / "s"
     (out / "thesis").mkdir(parents=True)
     (out / "thesis" / "chapter1.tex").write_text("mine")
-    assert _study(out, fresh=True) == 2
-    err = capsys.readouterr().err.strip()
-    assert "thesis" in err and "did not write" in err and len(err.splitlines()) == 1, err
+    with OutputFolder(out, COMMAND) as folder:  # what an earlier study wrote there
+        folder.claim("dataset")
+        (out / "dataset" / "meta").mkdir(parents=True)
+        folder.write_text("report.md", "old")
+    with pytest.raises(RuntimeError, match="stopped before any stage"):
+        _study_cfg(out, fresh=True)
     assert (out / "thesis" / "chapter1.tex").read_text() == "mine"
-    assert sorted(p.name for p in out.iterdir()) == ["thesis"]  # nothing of the study was started
+    assert sorted(p.name for p in out.iterdir()) == [".pnp_manifest.json", "thesis"]
+    # a study folder written before manifests: its own entries are known, a user's file stays
     study = tmp_path / "t"
-    manifest = Manifest(study, "lerobot-pnp report")
-    study.mkdir()
-    manifest.claim("dataset", "report.md")
-    (study / "dataset" / "meta").mkdir(parents=True)
-    (study / "report.md").write_text("old")
-    Manifest(study, "lerobot-pnp report").clear()
-    assert list(study.iterdir()) == []
-    # a study folder written before manifests: its own entries are known, a user's file is still refused
-    (study / "evals").mkdir()
+    (study / "evals" / "m" / "seed1").mkdir(parents=True)
+    (study / "evals" / "m" / "seed1" / "nominal.json").write_text(json.dumps({"key": "k", "parts": {}}))
     (study / "study_config.json").write_text("{}")
     (study / "notes.txt").write_text("mine")
-    assert _study(study, fresh=True) == 2 and "notes.txt" in capsys.readouterr().err
-    assert (study / "evals").is_dir() and (study / "notes.txt").read_text() == "mine"
+    with pytest.raises(RuntimeError, match="stopped before any stage"):
+        _study_cfg(study, fresh=True)
+    assert sorted(p.name for p in study.iterdir()) == [".pnp_manifest.json", "notes.txt"]
+    assert (study / "notes.txt").read_text() == "mine"
+
+
+def _study_cfg(out: Path, **changes):
+    from lerobot_pnp.report.run import StudyConfig, run_study
+
+    return run_study(StudyConfig(output_dir=str(out), **{**STUDY, **changes}))
 
 
 # --------------------------------------------------------------------------------------------------- case 6

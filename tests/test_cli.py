@@ -199,6 +199,28 @@ def test_expert_three_episodes(capsys):
     assert result["success_rate"] == 1.0
 
 
+def test_expert_output_dir_replaces_only_its_own_eval_info(tmp_path, capsys):
+    """``expert --output_dir`` writes eval_info.json through the output folder's owner: its own file (recorded, or
+    written before the manifest) is replaced, a user's file of that name is refused in one line and kept."""
+    from lerobot_pnp.outputs import MANIFEST_FILE
+
+    out = tmp_path / "expert"
+    args = ["expert", "--n_episodes", "1", "--progress", "false", "--output_dir", str(out)]
+    assert cli.main(args) == 0 and cli.main([*args, "--seed", "3"]) == 0
+    assert json.loads((out / "eval_info.json").read_text())["per_task"][0]["metrics"]["seeds"] == [3]
+    (out / MANIFEST_FILE).unlink()  # as the command wrote it before the manifest existed
+    assert cli.main(args) == 0
+    assert json.loads((out / "eval_info.json").read_text())["per_task"][0]["metrics"]["seeds"] == [0]
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "eval_info.json").write_text('{"per_task": []}')
+    capsys.readouterr()
+    assert cli.main([*args[:-1], str(mine)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "eval_info.json" in err, err
+    assert (mine / "eval_info.json").read_text() == '{"per_task": []}'
+
+
 # ---------------------------------------------------------------------------------------------- slow
 def test_in_process_eval_keeps_one_progress_bar_and_none_in_a_log(capsys):
     from lerobot.scripts import lerobot_eval

@@ -377,3 +377,78 @@ def test_dart_with_sigma_0_reproduces_the_expert_episode(full_cfg):
     np.testing.assert_allclose(executed, expert.actions[:-1], atol=1e-2)  # the teacher's labels (IK-seeded)
     np.testing.assert_allclose(ep.states, expert.states, atol=1e-3)
     np.testing.assert_array_equal(ep.phases[:-1], expert.phases[:-1])
+
+
+# ---- the output folder: only what DAgger recorded as its own is replaced or deleted ------------------------------
+def _tree(folder: Path) -> dict[str, bytes | None]:
+    return {str(p.relative_to(folder)): (p.read_bytes() if p.is_file() else None) for p in sorted(folder.rglob("*"))}
+
+
+def _dagger_cli(out: Path, *extra: str) -> list[str]:
+    return ["dagger", "--output_dir", str(out), "--num_demos", "4", "--rounds", "0", "--epochs", "1",
+            "--eval_episodes", "0", "--progress", "false", *extra]  # fmt: skip
+
+
+def test_a_users_dataset_named_demos_is_refused_and_kept(tmp_path, capsys):
+    from keyframe_synth import make_keyframe_dataset
+
+    from lerobot_pnp import cli
+
+    out = tmp_path / "dg"
+    make_keyframe_dataset(out / "demos", n_episodes=6)
+    before = _tree(out)
+    capsys.readouterr()
+    assert cli.main(_dagger_cli(out)) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "demos" in err and "move it or choose another --output_dir" in err, err
+    assert _tree(out) == before  # the dataset untouched, nothing recorded
+
+
+@pytest.fixture(scope="module")
+def dagger_cli_run(tmp_path_factory):
+    """``lerobot-pnp dagger --preset paper ... --policy.hidden_size 8`` into a folder that holds a user's
+    ``round_05`` folder."""
+    from lerobot_pnp import cli
+
+    out = tmp_path_factory.mktemp("dagger_cli") / "dg"
+    (out / "round_05").mkdir(parents=True)
+    (out / "round_05" / "f").write_text("mine")
+    assert cli.main(_dagger_cli(out, "--preset", "paper", "--policy.hidden_size", "8")) == 0
+    return out
+
+
+def test_a_round_folder_dagger_did_not_write_is_kept(dagger_cli_run):
+    assert (dagger_cli_run / "round_05" / "f").read_text() == "mine"
+
+
+def test_one_policy_flag_keeps_the_recovering_recipe_in_the_saved_config(dagger_cli_run):
+    from lerobot_pnp.dagger import RECOVERING_RECIPE
+
+    saved = json.loads((dagger_cli_run / "round_00" / "train" / "train_fast_config.json").read_text())["policy"]
+    assert {k: saved[k] for k in RECOVERING_RECIPE} == {**RECOVERING_RECIPE, "hidden_size": 8}
+
+
+def test_a_folder_from_before_the_manifest_is_resumed_and_only_daggers_rounds_go(dagger_cli_run, tmp_path, capsys):
+    """A DAgger folder without a manifest (written before it existed) is recognised by DAgger's stage records and
+    resumed; a later round DAgger recorded is deleted, a round folder of the user's stays."""
+    import shutil
+
+    from lerobot_pnp import cli
+    from lerobot_pnp.dagger.folder import COMMAND
+    from lerobot_pnp.outputs import MANIFEST_FILE, OutputFolder
+
+    out = shutil.copytree(dagger_cli_run, tmp_path / "dg", symlinks=True)
+    (out / MANIFEST_FILE).unlink()
+    weights = next((out / "round_00" / "train").rglob("model.safetensors"))
+    stamp = weights.stat().st_mtime_ns
+    assert cli.main(_dagger_cli(out, "--preset", "paper", "--policy.hidden_size", "8")) == 0
+    assert weights.stat().st_mtime_ns == stamp  # reused, not trained again
+    owners = json.loads((out / MANIFEST_FILE).read_text())["owners"]
+    assert set(owners[COMMAND]) == {"demos", "round_00", "summary.json"}
+    with OutputFolder(out, COMMAND) as folder:  # a round 3 of an earlier run with more rounds
+        folder.claim("round_03")
+    (out / "round_03").mkdir()
+    (out / "round_03" / "eval.json").write_text("{}")
+    assert cli.main(_dagger_cli(out, "--preset", "paper", "--policy.hidden_size", "8")) == 0
+    assert not (out / "round_03").exists() and (out / "round_05" / "f").read_text() == "mine"
+    capsys.readouterr()

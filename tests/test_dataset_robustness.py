@@ -129,13 +129,14 @@ def test_resume_waits_for_a_committed_run_to_let_go_of_the_lock(small, monkeypat
     import threading
 
     from lerobot_pnp.dataset import workdir
+    from lerobot_pnp.outputs import FolderLock
 
-    holder = workdir.RootLock(small)  # the finishing merge job: the dataset committed, the lock still held
+    holder = FolderLock(small, "busy")  # the finishing merge job: the dataset committed, the lock still held
     threading.Timer(0.5, holder.close).start()
     again = generate(GenerateConfig(repo_id=REPO, root=str(small), num_episodes=3, resume=True, progress=False))
     assert again["status"] == "already complete" and holder.fd is None
     monkeypatch.setattr(workdir, "COMMIT_WAIT_S", 0.3)
-    with workdir.RootLock(small), pytest.raises(DatasetError, match="another `lerobot-pnp generate` is writing"):
+    with FolderLock(small, "busy"), pytest.raises(DatasetError, match="another `lerobot-pnp generate` is writing"):
         generate(GenerateConfig(repo_id=REPO, root=str(small), num_episodes=3, resume=True, progress=False))
 
 

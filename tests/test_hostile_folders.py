@@ -45,8 +45,13 @@ class Row:
     names: tuple[str, ...]  # top-level names it writes into {out}
 
     def args(self, out: Path, inputs: dict[str, Path]) -> list[str]:
-        values = {"out": str(out), **{k: str(v) for k, v in inputs.items()}}
-        return [a.format(**values) for a in self.argv]
+        values = {"{out}": str(out), **{"{" + k + "}": str(v) for k, v in inputs.items()}}
+        args = []
+        for arg in self.argv:
+            for key, value in values.items():
+                arg = arg.replace(key, value)
+            args.append(arg)
+        return args
 
 
 ROWS: dict[str, Row] = {

@@ -92,19 +92,20 @@ def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys, demos, checkpoint):
 
     make_keyframe_dataset(tmp_path / "other", n_episodes=2)  # a LeRobot dataset that records no baxter_pnp task
     (tmp_path / "busy").mkdir()
-    (tmp_path / "busy/notes.txt").write_text("keep")
+    (tmp_path / "busy/config.json").write_text('{"mine": true}')  # a user's file under a checkpoint file's name
     cases = {
         "is not a dataset folder": ["--dataset_root", str(tmp_path / "none")],
         "records no baxter_pnp task": ["--dataset_root", str(tmp_path / "other")],
-        "not a lookup-table checkpoint": ["--dataset_root", str(demos), "--output_dir", str(tmp_path / "busy")],
+        "config.json exists and `lerobot-pnp lookup-table` did not write it": [
+            "--dataset_root", str(demos), "--output_dir", str(tmp_path / "busy"), "--overwrite", "true"],
         "pass --overwrite true": ["--dataset_root", str(demos), "--output_dir", str(checkpoint)],
-    }
+    }  # fmt: skip
     for message, args in cases.items():
         capsys.readouterr()
         assert cli.main(["lookup-table", "--output_dir", str(tmp_path / "out"), *args]) == 2, message
         err = capsys.readouterr().err.strip()
         assert message in err and "\n" not in err, err
-    assert not (tmp_path / "out").exists() and (tmp_path / "busy/notes.txt").is_file()
+    assert not (tmp_path / "out").exists() and (tmp_path / "busy/config.json").read_text() == '{"mine": true}'
     assert json.loads((checkpoint / "config.json").read_text())["type"] == "pnp_lookup_table"
 
 
@@ -132,3 +133,24 @@ def test_a_damaged_table_is_refused_when_loaded(checkpoint, tmp_path):
     save_file({k: v for k, v in tensors.items() if k != "actions"}, bad / "model.safetensors")
     with pytest.raises(RuntimeError, match="actions"):
         PnpLookupTablePolicy.from_pretrained(bad)
+
+
+def test_overwrite_replaces_only_the_tables_files(demos, tmp_path, capsys):
+    """``--overwrite`` replaces the files this command wrote (recorded in the folder's manifest, or a table from
+    before the manifest); a file of the user's in the folder stays."""
+    from lerobot_pnp.outputs import MANIFEST_FILE
+
+    out = tmp_path / "table"
+    args = ["lookup-table", "--dataset_root", str(demos), "--output_dir", str(out)]
+    assert cli.main(args) == 0
+    written = sorted(p.name for p in out.iterdir() if p.name != MANIFEST_FILE)
+    (out / "NOTES.txt").write_text("my notes")
+    assert cli.main([*args, "--overwrite", "true", "--n_episodes", "2"]) == 0
+    assert (out / "NOTES.txt").read_text() == "my notes"
+    assert json.loads((out / "config.json").read_text())["table_episodes"] == 2
+    (out / MANIFEST_FILE).unlink()  # a table written before the manifest: its files are still the command's
+    assert cli.main([*args, "--overwrite", "true"]) == 0
+    assert (out / "NOTES.txt").read_text() == "my notes"
+    assert sorted(p.name for p in out.iterdir() if p.name not in (MANIFEST_FILE, "NOTES.txt")) == written
+    assert json.loads((out / "config.json").read_text())["table_episodes"] == 4
+    capsys.readouterr()

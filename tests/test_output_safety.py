@@ -14,10 +14,10 @@ from pathlib import Path
 import pytest
 
 from lerobot_pnp import cli
-from lerobot_pnp.cache import MANIFEST_FILE, Manifest, Stage
+from lerobot_pnp.cache import Stage
 from lerobot_pnp.errors import ConfigError, DatasetError, OtherSettingsError
-
-COMMAND = "lerobot-pnp report/demo"
+from lerobot_pnp.outputs import MANIFEST_FILE, OutputFolder
+from lerobot_pnp.report.folder import COMMAND
 
 
 def _tree(root: Path) -> dict[str, str]:
@@ -37,59 +37,6 @@ def _one_line(err: BaseException) -> str:
 
 
 # ------------------------------------------------------------------------------------------- --fresh, manifest
-@pytest.mark.parametrize("entry", ["..", "../victim", "VICTIM_ABS", "a/b", ".", "", 5, None, ["x"]])
-def test_fresh_refuses_a_manifest_entry_that_is_not_a_plain_name_inside_the_folder(tmp_path, entry):
-    parent = tmp_path / "parent"
-    out, victim, victim_abs = parent / "s", parent / "victim", tmp_path / "victim_abs"
-    for folder in (victim, victim_abs, out / "a" / "b"):
-        folder.mkdir(parents=True)
-        (folder / "f").write_text("x")
-    _manifest(out, ["dataset", str(victim_abs) if entry == "VICTIM_ABS" else entry])
-    before = _tree(tmp_path)
-    with pytest.raises(ConfigError) as err:
-        Manifest(out, COMMAND).clear()
-    assert MANIFEST_FILE in _one_line(err.value)
-    assert _tree(tmp_path) == before  # nothing deleted, inside the folder or out of it
-
-
-@pytest.mark.parametrize("text", ["{", "[]", '{"entries": "dataset"}', '{"command": "x"}', "\xff"])
-def test_a_manifest_that_is_unreadable_or_not_a_manifest_is_refused_not_read_as_empty(tmp_path, text):
-    out = tmp_path / "s"
-    (out / "dataset").mkdir(parents=True)
-    (out / "dataset" / "f").write_text("x")
-    (out / MANIFEST_FILE).write_text(text)
-    with pytest.raises(ConfigError) as err:
-        Manifest(out, COMMAND)
-    assert "not a manifest" in _one_line(err.value)
-    assert (out / "dataset" / "f").read_text() == "x"
-
-
-def test_fresh_unlinks_a_linked_entry_and_never_follows_it(tmp_path):
-    out, victim = tmp_path / "s", tmp_path / "victim"
-    victim.mkdir()
-    (victim / "f").write_text("x")
-    _manifest(out, ["dataset", "report.md"])
-    (out / "dataset").symlink_to(victim, target_is_directory=True)
-    (out / "report.md").symlink_to(victim / "f")
-    Manifest(out, COMMAND).clear()
-    assert sorted(p.name for p in out.iterdir()) == []
-    assert _tree(victim) == {"f": "x"}
-    _manifest(tmp_path / "other", ["f"])  # a manifest that is a link: another folder's list, never read as ours
-    (out / MANIFEST_FILE).symlink_to(tmp_path / "other" / MANIFEST_FILE)
-    with pytest.raises(ConfigError, match="is a link"):
-        Manifest(out, COMMAND)
-
-
-def test_claim_refuses_a_path_outside_the_folder(tmp_path):
-    manifest = Manifest(tmp_path / "s", COMMAND)
-    (tmp_path / "s").mkdir()
-    for name in ("../x", "/etc", "..", ""):
-        with pytest.raises(ConfigError):
-            manifest.claim(name)
-    manifest.claim("train/m/seed1")
-    assert Manifest(tmp_path / "s", COMMAND).entries == {"train"}
-
-
 def _no_study(monkeypatch):
     """Stops a study right after its folders are cleared: what ``--fresh`` deleted is then on display."""
     from lerobot_pnp.report import run
@@ -100,18 +47,69 @@ def _no_study(monkeypatch):
     monkeypatch.setattr(run, "_prepare", stop)
 
 
-def test_a_bad_manifest_of_a_study_alongside_stops_fresh_before_any_folder_is_cleared(tmp_path, monkeypatch):
+def _fresh_study(out: Path, **changes):
     from lerobot_pnp.report.run import StudyConfig, run_study
 
+    return run_study(StudyConfig(output_dir=str(out), preset="quick", fresh=True, **changes))
+
+
+@pytest.mark.parametrize("entry", ["..", "../victim", "VICTIM_ABS", "a/b", ".", "", 5, None, ["x"]])
+def test_fresh_refuses_a_manifest_entry_that_is_not_a_plain_name_inside_the_folder(tmp_path, monkeypatch, entry):
+    _no_study(monkeypatch)
+    parent = tmp_path / "parent"
+    out, victim, victim_abs = parent / "s", parent / "victim", tmp_path / "victim_abs"
+    for folder in (victim, victim_abs, out / "a" / "b"):
+        folder.mkdir(parents=True)
+        (folder / "f").write_text("x")
+    _manifest(out, ["dataset", str(victim_abs) if entry == "VICTIM_ABS" else entry])
+    before = _tree(tmp_path)
+    with pytest.raises(ConfigError) as err:
+        _fresh_study(out)
+    assert MANIFEST_FILE in _one_line(err.value)
+    assert _tree(tmp_path) == before  # nothing deleted, inside the folder or out of it
+
+
+@pytest.mark.parametrize("text", ["{", "[]", '{"entries": "dataset"}', '{"command": "x"}', "\xff"])
+def test_a_manifest_that_is_unreadable_or_not_a_manifest_is_refused_not_read_as_empty(tmp_path, monkeypatch, text):
+    _no_study(monkeypatch)
+    out = tmp_path / "s"
+    (out / "dataset").mkdir(parents=True)
+    (out / "dataset" / "f").write_text("x")
+    (out / MANIFEST_FILE).write_text(text)
+    with pytest.raises(ConfigError) as err:
+        _fresh_study(out)
+    assert "not a manifest" in _one_line(err.value)
+    assert (out / "dataset" / "f").read_text() == "x"
+
+
+def test_fresh_unlinks_a_linked_entry_and_never_follows_it(tmp_path, monkeypatch):
+    _no_study(monkeypatch)
+    out, victim = tmp_path / "s", tmp_path / "victim"
+    victim.mkdir()
+    (victim / "f").write_text("x")
+    _manifest(out, ["dataset", "report.md"])
+    (out / "dataset").symlink_to(victim, target_is_directory=True)
+    (out / "report.md").symlink_to(victim / "f")
+    with pytest.raises(RuntimeError, match="stopped before any stage"):
+        _fresh_study(out)
+    assert sorted(p.name for p in out.iterdir()) == [MANIFEST_FILE]
+    assert _tree(victim) == {"f": "x"}
+    _manifest(tmp_path / "other", ["f"])  # a manifest that is a link: another folder's list, never read as ours
+    (out / MANIFEST_FILE).unlink()
+    (out / MANIFEST_FILE).symlink_to(tmp_path / "other" / MANIFEST_FILE)
+    with pytest.raises(ConfigError, match="is a link"):
+        _fresh_study(out)
+
+
+def test_a_bad_manifest_of_a_study_alongside_stops_fresh_before_any_folder_is_cleared(tmp_path, monkeypatch):
     _no_study(monkeypatch)
     first, second = tmp_path / "a", tmp_path / "b"
     _manifest(first, ["report.md"])
     (first / "report.md").write_text("first study's")
     _manifest(second, ["../a"])
     (tmp_path / "b.json").write_text(json.dumps({"output_dir": str(second), "preset": "quick"}))
-    cfg = StudyConfig(output_dir=str(first), preset="quick", fresh=True, alongside=[str(tmp_path / "b.json")])
     with pytest.raises(ConfigError, match="not a plain name"):
-        run_study(cfg)
+        _fresh_study(first, alongside=[str(tmp_path / "b.json")])
     assert (first / "report.md").read_text() == "first study's"
 
 
@@ -136,23 +134,21 @@ def test_an_older_study_folder_claims_what_the_study_wrote_and_never_a_users_dat
     _older_study(out)
     (out / "dataset_mine").mkdir()
     (out / "dataset_mine" / "thesis.tex").write_text("mine")
-    with pytest.raises(ConfigError, match="dataset_mine") as err:
-        run_study(StudyConfig(output_dir=str(out), preset="quick", fresh=True))
-    _one_line(err.value)
+    with pytest.raises(RuntimeError, match="stopped before any stage"):
+        run_study(StudyConfig(output_dir=str(out), preset="quick"))
+    assert OutputFolder(out, COMMAND, lock=False).entries == {"study_config.json", "dataset_dense", "evals"}
+    with pytest.raises(RuntimeError, match="stopped before any stage"):  # --fresh deletes those, and only those
+        _fresh_study(out)
+    assert sorted(p.name for p in out.iterdir()) == [MANIFEST_FILE, "dataset_mine"]
     assert (out / "dataset_mine" / "thesis.tex").read_text() == "mine"
-    assert (out / "dataset_dense").is_dir() and (out / "evals").is_dir()  # refused: nothing cleared
-    assert Manifest(out, COMMAND).entries == {"study_config.json", "dataset_dense", "evals"}
-    (out / "dataset_mine" / "thesis.tex").rename(tmp_path / "thesis.tex")
-    (out / "dataset_mine").rmdir()
-    with pytest.raises(RuntimeError, match="stopped before any stage"):  # --fresh went through
-        run_study(StudyConfig(output_dir=str(out), preset="quick", fresh=True))
-    assert sorted(p.name for p in out.iterdir()) == []
 
 
 # --------------------------------------------------------------------------------- a mistyped flag and a dataset
 def _finished_dataset(root: Path) -> dict[str, str]:
-    """A stand-in for a finished dataset without its stage record (as every folder older than stage keys)."""
-    for name in ("meta/info.json", "meta/pnp_generate.json", "data/chunk-000/file-000.parquet"):
+    """A stand-in for a finished dataset without its stage record (as every folder older than stage keys), with
+    the two records every generation writes (what proves it is the generator's, where it has no manifest)."""
+    names = ("meta/info.json", "meta/pnp_generate.json", "meta/baxter_pnp_env.json", "data/chunk-000/file-000.parquet")
+    for name in names:
         (root / name).parent.mkdir(parents=True, exist_ok=True)
         (root / name).write_text(name)
     return _tree(root)
@@ -204,6 +200,24 @@ def test_a_dataset_made_with_other_settings_is_replaced_and_any_other_error_touc
     with pytest.raises(ConfigError, match="some other"):
         dataset_stage(out, "dataset", cfg)
     assert _tree(out / "dataset") == before
+
+
+def test_a_regeneration_deletes_only_a_dataset_the_generator_provably_wrote(tmp_path):
+    """A LeRobot dataset without the generator's records (and no manifest) is not the generator's to delete."""
+    from lerobot_pnp.dataset.workdir import remove_generation
+
+    root = tmp_path / "dataset"
+    _finished_dataset(root)
+    (root / "meta" / "baxter_pnp_env.json").unlink()
+    (root / "notes.txt").write_text("mine")
+    before = _tree(root)
+    with pytest.raises(ConfigError, match="meta") as err:
+        remove_generation(root)
+    assert "--root" in _one_line(err.value)
+    assert {k: v for k, v in _tree(root).items() if k != MANIFEST_FILE} == before
+    (root / "meta" / "baxter_pnp_env.json").write_text("{}")  # the generator's: its entries go, the user's stay
+    remove_generation(root)
+    assert _tree(root) == {"notes.txt": "mine"}
 
 
 # --------------------------------------------------------------------------------------- paths in stage records

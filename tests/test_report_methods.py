@@ -237,8 +237,7 @@ def test_studies_alongside_share_one_pool_and_keep_their_own_reports(tmp_path):
 def test_a_held_alongside_folder_stops_the_run_before_any_folder_is_cleared(tmp_path):
     """Every study's folder is locked before `--fresh` clears any: a study alongside whose folder another command
     holds stops the run at once, and the first study's files stay as they were."""
-    from lerobot_pnp.cache import lock_output
-    from lerobot_pnp.errors import DatasetError
+    from lerobot_pnp.outputs import OutputError, OutputFolder
 
     first, other = tmp_path / "a", tmp_path / "b"
     first.mkdir()
@@ -247,6 +246,6 @@ def test_a_held_alongside_folder_stops_the_run_before_any_folder_is_cleared(tmp_
     config = tmp_path / "other.json"
     config.write_text(json.dumps({"preset": "quick", "output_dir": str(other)}))
     cfg = StudyConfig(preset="quick", output_dir=str(first), fresh=True, alongside=[str(config)])
-    with lock_output(other, "lerobot-pnp report/demo"), pytest.raises(DatasetError, match=f"is using {other}"):
+    with OutputFolder(other, "lerobot-pnp report/demo"), pytest.raises(OutputError, match="another command is writing"):
         run_study(cfg)
     assert (first / "study_config.json").read_text() == "{}" and (first / "evals").is_dir()

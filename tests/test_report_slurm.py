@@ -19,6 +19,7 @@ from pathlib import Path
 import pytest
 
 from lerobot_pnp import cli
+from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.report.cluster import cluster_tasks
 from lerobot_pnp.report.schedule import TRAINING, Job
 
@@ -57,8 +58,7 @@ def test_a_study_on_slurm_equals_the_local_run_and_resubmits_only_what_a_cancell
     def cancel_the_training():
         """Once the study's two cluster jobs are submitted (after the dataset's), cancel the clocked LSTM's (its
         training and evaluation) before its training can finish; the folder stays locked meanwhile."""
-        from lerobot_pnp.cache import lock_output
-        from lerobot_pnp.errors import DatasetError
+        from lerobot_pnp.outputs import OutputError, OutputFolder
 
         deadline = time.time() + 120
         while len(ids := _submitted(out)) < 2 and time.time() < deadline:
@@ -66,8 +66,8 @@ def test_a_study_on_slurm_equals_the_local_run_and_resubmits_only_what_a_cancell
         subprocess.run(["scancel", ids[-1]], check=True, timeout=30)
         seen["cancelled"] = ids[-1]
         try:
-            lock_output(out, "a second study")
-        except DatasetError as err:
+            OutputFolder(out, "a second study").close()
+        except OutputError as err:
             seen["refused"] = str(err)
 
     watcher = threading.Thread(target=cancel_the_training)
@@ -77,7 +77,7 @@ def test_a_study_on_slurm_equals_the_local_run_and_resubmits_only_what_a_cancell
     err = capsys.readouterr().err.strip().splitlines()[-1]  # the one line after the generation's log
     assert err.startswith("lerobot-pnp report: error: 1 of 2 cluster jobs failed or were cancelled"), err
     assert f"SLURM {seen['cancelled']}: clocked_lstm 1000" in err and "run the same command again" in err
-    assert "another `a second study` is using" in str(seen.get("refused")), seen
+    assert "another command is writing" in str(seen.get("refused")), seen
     done = _episodes(out)
     assert set(done) == {"evals/lookup_table/seed-/nominal.json"}  # the cancelled job left no record
     assert not (out / "train/clocked_lstm/seed1000/stage.json").exists()
@@ -137,6 +137,11 @@ def test_cluster_jobs_group_a_method_x_seed_and_wait_only_on_what_they_continue(
         (["--executor", "ray"], "executor must be one of ('local', 'slurm'), got 'ray'"),
         (["--slurm.suites_per_job", "-1"], "slurm.suites_per_job must be an integer >= 0, got -1"),
         (["--slurm.time", "4h"], "slurm.time must be a SLURM time limit"),
+        # a value that would be a line of its own in the job script, or split by sbatch
+        (["--slurm.partition", "cpu\n--gres=gpu:8"], "slurm.partition may hold only letters, digits"),
+        (["--slurm.job_name", "study\nrm -rf ~"], "slurm.job_name may hold only letters, digits, '_', '-' and '.'"),
+        (["--slurm.qos", "high prio"], "slurm.qos may hold only letters, digits, '_', '-' and '.', got 'high prio'"),
+        (["--slurm.partition", ""], "slurm.partition may hold only"),
     ],
 )
 def test_bad_executor_options_are_one_line(flags, message, tmp_path, capsys):
@@ -144,3 +149,24 @@ def test_bad_executor_options_are_one_line(flags, message, tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert message in err and len(err.splitlines()) == 1, err
     assert not (tmp_path / "never").exists()
+
+
+def test_a_newline_in_a_slurm_name_from_a_config_file_is_one_line(tmp_path, capsys):
+    config = tmp_path / "study.json"
+    config.write_text(json.dumps({"slurm": {"partition": "cpu\n#SBATCH --gres=gpu:8"}}))
+    assert _report(tmp_path / "never", "--config_path", str(config)) == 2
+    err = capsys.readouterr().err.strip()
+    assert "slurm.partition may hold only" in err and "'cpu\\n#SBATCH" in err and len(err.splitlines()) == 1, err
+    assert not (tmp_path / "never").exists()
+
+
+def test_slurm_names_sbatch_reads_as_one_name_are_accepted():
+    from lerobot_pnp.report.slurm import StudySlurmOptions
+    from lerobot_pnp.slurm_fields import check_slurm_field
+
+    options = StudySlurmOptions(partition="cpu,gpu-a100", job_name="pnp_study.v2", qos=None)
+    assert (options.partition, options.job_name, options.qos) == ("cpu,gpu-a100", "pnp_study.v2", None)
+    for name, value in [("partition", "cpu,"), ("qos", ""), ("job_name", None), ("partition", "a\tb")]:
+        with pytest.raises(ConfigError, match=f"^slurm.{name} may hold only") as err:
+            check_slurm_field(name, value)
+        assert "\n" not in str(err.value)

@@ -1,5 +1,5 @@
-"""Runs that cannot collide or waste work: a training folder is locked for its run and ``--overwrite`` replaces
-the run there whole (never a foreign file); ``viz --save`` checks its destination before any rollout; an eval
+"""Runs that cannot collide or waste work: a training folder is held for its run and ``--overwrite`` replaces
+the run there (never a user's file); ``viz --save`` checks its destination before any rollout; an eval
 batch size below 1 is refused instead of silently running batches of one."""
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ torch.set_num_threads(1)
 
 from keyframe_synth import REPO_ID, make_keyframe_dataset  # noqa: E402
 
-from lerobot_pnp.cache import lock_output  # noqa: E402
 from lerobot_pnp.errors import ConfigError, PnPError, one_line  # noqa: E402
+from lerobot_pnp.outputs import OutputFolder  # noqa: E402
 from lerobot_pnp.policy import PnpLstmConfig  # noqa: E402
 from lerobot_pnp.train_fast import TrainFastConfig, train_fast  # noqa: E402
 
@@ -46,7 +46,8 @@ def _previous_run(out: Path, step: str = "000999") -> None:
     (out / "checkpoints" / step / "pretrained_model").mkdir(parents=True)
     (out / "checkpoints" / step / "pretrained_model" / "config.json").write_text("{}")
     (out / "checkpoints" / "last").symlink_to(step)
-    (out / "train_fast_config.json").write_text('{"seed": 7}')
+    (out / "train_fast_config.json").write_text(json.dumps({"seed": 7, "dataset_repo_id": "x", "policy": {},
+                                                            "output_dir": str(out)}))  # fmt: skip
     (out / "loss_curve.csv").write_text("epoch\n0\n")
 
 
@@ -57,8 +58,11 @@ def test_a_second_run_into_a_folder_in_use_fails_at_once_and_writes_nothing(data
     out = tmp_path / "run"
     _previous_run(out)
     before = sorted(p.relative_to(out) for p in out.rglob("*"))
-    first_run = lock_output(out, "lerobot-pnp train")  # the first run, still training
-    with first_run, pytest.raises(PnPError, match="another `lerobot-pnp train` is using") as err:
+    first_run = OutputFolder(out, "lerobot-pnp train")  # the first run, still training
+    with (
+        first_run,
+        pytest.raises(PnPError, match="another command is writing .*`lerobot-pnp train` does not wait") as err,
+    ):
         train_fast(_cfg(dataset_root, out, overwrite=True))
     assert "\n" not in one_line(err.value)
     assert sorted(p.relative_to(out) for p in out.rglob("*")) == before  # the first run's files untouched
@@ -75,22 +79,28 @@ def test_overwrite_replaces_the_previous_run(dataset_root, tmp_path):
     assert len((out / "loss_curve.csv").read_text().splitlines()) == 3  # header, before training, epoch 1
 
 
-def test_overwrite_refuses_a_folder_with_foreign_files_before_any_work(dataset_root, tmp_path):
+def test_overwrite_keeps_a_users_file_and_refuses_one_under_a_run_files_name_before_any_work(dataset_root, tmp_path):
     out = tmp_path / "run"
     _previous_run(out)
     (out / "notes.txt").write_text("mine")
-    before = sorted(p.relative_to(out) for p in out.rglob("*"))
-    with pytest.raises(ConfigError, match="notes.txt") as err:
-        _cfg(dataset_root, out, overwrite=True)
+    train_fast(_cfg(dataset_root, out, overwrite=True))  # the run is replaced, the user's notes stay
+    assert (out / "notes.txt").read_text() == "mine" and not (out / "checkpoints" / "000999").exists()
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "loss_curve.csv").write_text("my own curve")  # a user's file under a name a run writes
+    before = sorted(p.relative_to(mine) for p in mine.rglob("*"))
+    with pytest.raises(ConfigError, match="loss_curve.csv") as err:
+        _cfg(dataset_root, mine, overwrite=True)
     assert "\n" not in one_line(err.value) and "did not write" in str(err.value)
-    assert sorted(p.relative_to(out) for p in out.rglob("*")) == before
+    assert sorted(p.relative_to(mine) for p in mine.rglob("*")) == before
     # a file that appears after the config was checked is caught under the lock, before anything is deleted
     cfg = _cfg(dataset_root, tmp_path / "other", overwrite=True)
-    _previous_run(tmp_path / "other")
-    (tmp_path / "other" / "notes.txt").write_text("mine")
-    with pytest.raises(ConfigError, match="notes.txt"):
+    (tmp_path / "other").mkdir()
+    (tmp_path / "other" / "checkpoints").mkdir()
+    (tmp_path / "other" / "checkpoints" / "mine.txt").write_text("mine")
+    with pytest.raises(ConfigError, match="checkpoints"):
         train_fast(cfg)
-    assert (tmp_path / "other" / "checkpoints" / "000999").is_dir()
+    assert (tmp_path / "other" / "checkpoints" / "mine.txt").read_text() == "mine"
 
 
 def test_a_run_failing_before_it_writes_leaves_no_folder(tmp_path):
@@ -105,12 +115,12 @@ def test_overwrite_through_the_cli_is_one_line(dataset_root, tmp_path, capsys):
 
     out = tmp_path / "run"
     out.mkdir()
-    (out / "data.csv").write_text("x")
+    (out / "loss_curve.csv").write_text("x")
     ds = ["--dataset_repo_id", REPO_ID, "--dataset_root", str(dataset_root), "--output_dir", str(out)]
     assert main(["train", *ds, "--overwrite", "true"]) == 2
     err = capsys.readouterr().err.strip()
-    assert "\n" not in err and "data.csv" in err, err
-    assert (out / "data.csv").read_text() == "x"
+    assert "\n" not in err and "loss_curve.csv" in err, err
+    assert (out / "loss_curve.csv").read_text() == "x"
 
 
 # ---- viz --save: the destination first ------------------------------------------------------------

@@ -354,17 +354,18 @@ def test_train_cli_rejects_bad_flags_before_any_work(dataset_root, tmp_path, cap
 
 
 def test_train_cli_bad_input(dataset_root, tmp_path, capsys):
-    """A folder the user already has is refused and kept; a test range reaches the trainer as written; a range
-    outside the dataset, found only while running, is one line."""
+    """A run beside a user's file keeps it, and a second run there without --overwrite is refused in one line; a
+    test range reaches the trainer as written; a range outside the dataset, found only while running, is one line."""
     from lerobot_pnp.cli import main
 
     ds = ["--dataset_repo_id", REPO_ID, "--dataset_root", str(dataset_root), "--progress", "false"]
     out = tmp_path / "out"
     out.mkdir()
     (out / "keep.txt").write_text("mine")
-    assert main(["train", *ds, "--output_dir", str(out)]) == 2
-    err = capsys.readouterr().err.strip()
-    assert "already exists and is not empty" in err and "\n" not in err, err
+    assert main(["train", *ds, "--output_dir", str(out), "--epochs", "1"]) == 0
+    assert main(["train", *ds, "--output_dir", str(out), "--epochs", "1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert "already holds a training run" in err and "--overwrite" in err, err
     assert (out / "keep.txt").read_text() == "mine"
 
     # '10:20' reaches the trainer as the range it is (not the base-60 number 620).
@@ -392,3 +393,25 @@ def test_train_cli_bad_datasets(tmp_path, kwargs, match, capsys):
     )
     _assert_one_line_error(result, match)
     assert len(result[1]) < 1000  # names the place, no dumped batch
+
+
+def test_overwrite_replaces_only_what_a_training_run_recorded(dataset_root, tmp_path):
+    """The run records its entries in the folder's manifest; ``--overwrite`` deletes those and refuses a file of
+    the user's even where it has a run file's name (``loss_curve.csv``)."""
+    from lerobot_pnp.outputs import MANIFEST_FILE
+
+    out = tmp_path / "run"
+    cfg = dict(policy=PnpLstmConfig(device="cpu", hidden_size=8), epochs=1, batch_size=8)
+    train_fast(_cfg(dataset_root, out, **cfg))
+    recorded = set(json.loads((out / MANIFEST_FILE).read_text())["owners"]["lerobot-pnp train"])
+    assert recorded == {"checkpoints", "train_fast_config.json", "loss_curve.csv", "loss_curve.png",
+                        "test_keyframe_error.json"}  # fmt: skip
+    train_fast(_cfg(dataset_root, out, overwrite=True, seed=5, **cfg))
+    assert json.loads((out / "train_fast_config.json").read_text())["seed"] == 5
+
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "loss_curve.csv").write_text("my own curve")
+    with pytest.raises(ConfigError, match="loss_curve.csv.*did not write"):
+        train_fast(_cfg(dataset_root, mine, overwrite=True, **cfg))
+    assert (mine / "loss_curve.csv").read_text() == "my own curve"

@@ -481,6 +481,24 @@ def test_cli_viz_saves_recording(dataset, policy_dir, tmp_path, capsys):
     assert rc != 0 and "no episode 5" in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
 
 
+def test_save_and_screenshot_replace_only_files_viz_wrote(dataset, tmp_path, capsys):
+    """``--save``/``--screenshot`` write through the output folder's owner: viz's own recording is replaced (one
+    rename, no temporary file left), a user's file of that name is refused in one line and kept."""
+    from lerobot_pnp.cli import main
+
+    argv = ["viz", "--repo_id", REPO_ID, "--root", str(dataset["root"]), "--episode_index", "0"]
+    out = tmp_path / "rec.rrd"
+    assert main([*argv, "--save", str(out)]) == 0 and main([*argv, "--save", str(out)]) == 0
+    assert out.is_file() and not (tmp_path / "rec.rrd.tmp").exists()
+    for flag, name in (("--save", "mine.rrd"), ("--screenshot", "mine.png")):
+        (tmp_path / name).write_text("my own file")
+        capsys.readouterr()
+        assert main([*argv, flag, str(tmp_path / name)]) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and name in err and flag in err, err
+        assert (tmp_path / name).read_text() == "my own file"
+
+
 def test_normalize_cli_args():
     import draccus
 

@@ -18,7 +18,8 @@ Layout of ``output_dir``::
 Every stage is keyed (``lerobot_pnp.cache``) by what determines it and recorded when complete: the datasets'
 ``stage.json``, ``round_XX/rollouts.json``, ``round_XX/train/done.json`` (the checkpoint relative to it) and
 ``round_XX/eval.stage.json``. A stage whose key changed (another seed, num_demos, round-0 checkpoint, ...) is
-re-run, and so is everything keyed by it; the folder is locked for the run.
+re-run, and so is everything keyed by it. The folder is held for the run, and each top-level entry is recorded
+as DAgger's before any work (``folder``): only recorded entries are replaced or deleted.
 """
 
 from __future__ import annotations
@@ -37,15 +38,13 @@ from lerobot_pnp.cache import (
     code_versions,
     digest_files,
     key_of,
-    lock_output,
-    remove,
     same_env_configs,
-    write_json_atomic,
 )
 from lerobot_pnp.evaluation.checkpoints import load_policy
-from lerobot_pnp.evaluation.stats import Rate
+from lerobot_pnp.outputs import OutputFolder, remove_path, write_json_atomic
 
 from .config import RECOVERING_CURVE_EVERY, DaggerConfig
+from .folder import COMMAND, SUMMARY_FILE, claim_run, remove_later_rounds, round_name, write_table
 from .rollouts import TEACHER_VERSION, evaluate, labelled_rollout, suite_env
 from .writer import aggregate, write_episodes
 
@@ -114,9 +113,9 @@ def _demos(cfg: DaggerConfig, out: Path, env_cfg) -> tuple[Path, str, str, str]:
                    repo_id=repo_id)  # fmt: skip
     if not stage.done("dagger demos"):
         gen = GenerateConfig(repo_id=repo_id, root=str(root), num_episodes=n, seed=cfg.seed, env=env_cfg,
-                             train_fraction=1 - cfg.test_fraction, workers=1, overwrite=root.exists(),
-                             progress=cfg.progress)  # fmt: skip
+                             train_fraction=1 - cfg.test_fraction, workers=1, progress=cfg.progress)  # fmt: skip
         stage.invalidate()  # only once the settings are valid: a bad flag leaves the demonstrations' record
+        remove_path(root)  # the run recorded "demos" as its own before any work (folder.claim_run)
         generate(gen)
         stage.commit()
     return root, repo_id, test, stage.key
@@ -127,7 +126,7 @@ def _rollouts(cfg: DaggerConfig, rnd: int, ckpt: tuple[Path, str], out: Path, en
     expert by ``cfg.beta_of(rnd)`` with ``cfg.dart``'s noise on the expert's steps (each part of the key when
     not 0 / off, so the keys of pure on-policy rounds are as before the mixture and DART existed; the teacher's
     version where the policy acts)."""
-    root, repo_id = out / f"round_{rnd:02d}" / "rollouts", f"{cfg.base_repo_id}_dagger{rnd:02d}"
+    root, repo_id = out / round_name(rnd) / "rollouts", f"{cfg.base_repo_id}_dagger{rnd:02d}"
     beta = cfg.beta_of(rnd)
     stage = _stage(root.parent / "rollouts.json", "rollouts", policy=ckpt[1], env=env_cfg.to_dict(),
                    episodes=cfg.rollouts_per_round, suites=cfg.rollout_suites, seed=cfg.seed + ROUND_SEED_STRIDE * rnd,
@@ -198,6 +197,7 @@ def _train(
     if stage.done(f"dagger {out_dir.parent.name} training"):
         return out_dir / stage.stored()["checkpoint"], stage.key
     stage.invalidate()  # a training killed midway leaves no record that a later run could match
+    remove_path(out_dir)  # inside the run's own round folder: the training starts from an empty folder
     result = train_fast(
         TrainFastConfig(
             dataset_repo_id=repo_id,
@@ -208,7 +208,6 @@ def _train(
             batch_size=cfg.batch_size,
             seed=cfg.seed,
             output_dir=str(out_dir),
-            overwrite=True,
             test_episodes=test,
             progress=cfg.progress,
             eval_every_epochs=RECOVERING_CURVE_EVERY,
@@ -244,35 +243,20 @@ def evaluate_checkpoint(cfg: DaggerConfig, ckpt: Path, env_cfg, out_file: Path, 
     return results
 
 
-def write_table(rows: list[tuple[str, dict]], suites: list[str], out: Path) -> str:
-    """Markdown table: one row per policy, success and Wilson 95 % interval per suite."""
-    lines = ["| policy | " + " | ".join(suites) + " |", "|---" * (len(suites) + 1) + "|"]
-    data = []
-    for name, res in rows:
-        rates = {s: Rate(res[s]["successes"], res[s]["n"]) for s in suites if s in res}
-        cells = [str(rates[s]) if s in rates else "-" for s in suites]
-        lines.append(f"| {name} | " + " | ".join(cells) + " |")
-        data.append(
-            {"policy": name, **{s: {**res[s], "rate": r.rate, "wilson95": r.interval} for s, r in rates.items()}}
-        )
-    table = "\n".join(lines) + "\n"
-    (out / "table.md").write_text(table)
-    (out / "table.json").write_text(json.dumps(data, indent=2))
-    return table
-
-
 def run_dagger(cfg: DaggerConfig) -> dict:
     """``lerobot-pnp dagger``: see ``DaggerConfig`` and the module docstring. Returns the summary table.
 
-    The output folder is locked for the whole run (a second run on it fails at once)."""
-    out = Path(cfg.output_dir)
-    with lock_output(out, "lerobot-pnp dagger"):
-        return _run_rounds(cfg, out)
+    The output folder is held for the whole run (a second run on it fails at once), and every entry the run
+    writes is recorded as its own before any work (``folder.claim_run``): an entry of the user's is refused."""
+    with OutputFolder(Path(cfg.output_dir), COMMAND) as folder:
+        claim_run(folder, cfg)
+        return _run_rounds(cfg, folder)
 
 
-def _run_rounds(cfg: DaggerConfig, out: Path) -> dict:
+def _run_rounds(cfg: DaggerConfig, folder: OutputFolder) -> dict:
     import torch
 
+    out = folder.path
     torch.set_num_threads(1)
     env_cfg = base_env_config(cfg)
     t0 = time.perf_counter()
@@ -285,7 +269,7 @@ def _run_rounds(cfg: DaggerConfig, out: Path) -> dict:
     ckpt = None
     rollout_summaries = {}
     for rnd in range(cfg.rounds + 1):
-        rdir = out / f"round_{rnd:02d}"
+        rdir = folder.entry(round_name(rnd))
         rdir.mkdir(exist_ok=True)
         t = time.perf_counter()
         if rnd > 0:
@@ -304,20 +288,13 @@ def _run_rounds(cfg: DaggerConfig, out: Path) -> dict:
         timings[f"round{rnd}_train_s"] = time.perf_counter() - t
         if cfg.eval_episodes > 0:
             rows.append((f"round {rnd}", evaluate_checkpoint(cfg, ckpt[0], env_cfg, rdir / "eval.json", ckpt[1])))
-            write_table(rows, cfg.eval_suites, out)
-    _remove_later_rounds(out, cfg.rounds)
-    table = write_table(rows, cfg.eval_suites, out) if rows else ""
+            write_table(rows, cfg.eval_suites, folder)
+    remove_later_rounds(folder, cfg.rounds)
+    table = write_table(rows, cfg.eval_suites, folder) if rows else ""
     final = ckpt[0].resolve()
     summary = {"final_checkpoint": str(final.relative_to(out.resolve())) if final.is_relative_to(out.resolve())
                else str(final), "rollouts": rollout_summaries,
                "timings_s": {k: round(v, 1) for k, v in timings.items()}, "table": table}  # fmt: skip
-    write_json_atomic(out / "summary.json", summary)
+    folder.write_json(SUMMARY_FILE, summary)
     # the returned summary names folders as this process sees them (the file: relative to the output folder)
     return {**summary, "output_dir": str(out), "final_checkpoint": str(ckpt[0])}
-
-
-def _remove_later_rounds(out: Path, rounds: int) -> None:
-    """Rounds beyond ``rounds`` left by an earlier run with more rounds would sit beside this run's table."""
-    for rdir in out.glob("round_*"):
-        if rdir.is_dir() and rdir.name[6:].isdigit() and int(rdir.name[6:]) > rounds:
-            remove(rdir)

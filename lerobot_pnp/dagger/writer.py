@@ -3,14 +3,14 @@
 The features are ``lerobot_pnp.dataset.dataset_features`` with ``observation.environment_state`` sized and
 named from the env config (object xyz [+ yaw features] [+ goal xy]), so expert demonstrations and DAgger
 episodes of one task aggregate into one dataset. The env config is recorded (``meta/baxter_pnp_env.json``).
-A dataset is written into ``<root>.tmp`` and renamed when finalized: a folder without the suffix is whole.
+A dataset is written into ``<root>.tmp`` and renamed when finalized: a folder without the suffix is whole. The
+caller's folder holds ``root`` as its own (a DAgger round); a link there is unlinked, never followed.
 """
 
 from __future__ import annotations
 
 import contextlib
 import functools
-import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import SimpleNamespace
@@ -20,6 +20,7 @@ import numpy as np
 
 from lerobot_pnp.dataset.episodes import frames_from_arrays
 from lerobot_pnp.dataset.merge import fix_index_stats
+from lerobot_pnp.outputs import remove_path
 
 
 @dataclass
@@ -56,8 +57,7 @@ def write_episodes(
     datasets.disable_progress_bars()  # one "Map" bar per saved episode would flood the terminal
     root = Path(root)
     tmp = root.with_name(root.name + ".tmp")
-    if tmp.exists():
-        shutil.rmtree(tmp)
+    remove_path(tmp)
     features = features_for(env_cfg)
     ds = LeRobotDataset.create(
         repo_id=repo_id,
@@ -86,8 +86,7 @@ def aggregate(
 
     out_root = Path(out_root)
     tmp = out_root.with_name(out_root.name + ".tmp")
-    if tmp.exists():
-        shutil.rmtree(tmp)
+    remove_path(tmp)
     with _bars_of(lerobot_aggregate, progress):
         lerobot_aggregate.aggregate_datasets(
             repo_ids=repo_ids, aggr_repo_id=repo_id, roots=[Path(r) for r in roots], aggr_root=tmp
@@ -119,7 +118,6 @@ def _commit(tmp: Path, root: Path, env_cfg, splits: dict | None) -> Path:
         info.splits = splits
         write_info(info, tmp)
     write_recorded(env_cfg, tmp)
-    if root.exists():
-        shutil.rmtree(root)
+    remove_path(root)  # a link is unlinked, never followed
     tmp.rename(root)
     return root

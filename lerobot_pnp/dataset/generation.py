@@ -15,7 +15,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import shutil
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -35,18 +34,19 @@ from lerobot_pnp.dataset.shards import GenerateShard, shard_dir, shard_is_valid
 from lerobot_pnp.dataset.splits import TRAIN_FRACTION
 from lerobot_pnp.dataset.validation import WORK_DIR, read_json, validate_dataset
 from lerobot_pnp.dataset.workdir import (
-    LOCK_FILE,
+    DATASET_ENTRIES,
+    GENERATE_ENTRIES,
     RUN_FILE,
+    DatasetRoot,
     disk_error,
     episodes_recorded,
-    generation_lock,
     read_run_record,
-    remove_generation,
-    root_state,
+    resume_advice,
 )
 from lerobot_pnp.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.errors import ConfigError, DatasetError, OtherSettingsError
-from lerobot_pnp.outputs import write_json_atomic
+from lerobot_pnp.outputs import LOCK_FILE, remove_path, write_json_atomic
+from lerobot_pnp.slurm_fields import check_slurm_fields
 
 EXECUTORS = ("local", "slurm")
 MAX_EPISODES = 10_000_000  # above this, --allow_huge must say it is meant (memory and disk grow with N)
@@ -73,6 +73,7 @@ class SlurmOptions:
     def __post_init__(self):
         if self.cpus_per_task < 1 or self.mem_per_cpu_gb <= 0:
             raise ConfigError("slurm.cpus_per_task must be >= 1 and slurm.mem_per_cpu_gb > 0")
+        check_slurm_fields(self)
 
 
 @dataclass
@@ -92,7 +93,7 @@ class GenerateConfig:
     train_fraction: float = TRAIN_FRACTION  # first episodes -> "train", the rest -> "test" (meta/info.json "splits")
     max_retries: int = 10  # reseeds per slot when the expert fails
     resume: bool = False  # finish an interrupted run in root (completed shards are kept)
-    overwrite: bool = False  # delete the dataset (or interrupted run) in root first; other files are kept
+    overwrite: bool = False  # replace the dataset (or interrupted run) generate wrote in root; other files are kept
     allow_huge: bool = False  # allow num_episodes above 10 million
     progress: bool = True  # one tqdm bar (datatrove's logs go to the logging folder)
     # the FSM phases as LeRobot subtask annotations (language_persistent rows; dataset/annotations.py); opt-in
@@ -154,23 +155,25 @@ class GenerateConfig:
 def generate(cfg: GenerateConfig) -> dict:
     """Generate ``cfg.num_episodes`` successful expert episodes into ``cfg.output_root``; return a summary."""
     t_start = time.perf_counter()
-    root = cfg.output_root.resolve()
+    root = cfg.output_root.resolve()  # the root given as a link is the user's choice; links inside are refused
     if root.is_file():
         raise DatasetError(f"{root} is a file, not a dataset folder")
     made = [p for p in (root, *root.parents) if not p.exists()]  # the folders this run creates
     try:
-        with generation_lock(root):  # taken before anything is deleted; a root that existed before is never removed
+        with DatasetRoot(root) as out:  # locked before anything is deleted; a root that existed before stays
             try:
-                return _generate_locked(cfg, root, t_start)
+                return _generate_locked(cfg, out, t_start)
             except Exception:
+                if not (root / WORK_DIR).exists():
+                    out.release()  # no run left to write what it claimed
                 if made and not any(p.name != LOCK_FILE for p in root.iterdir()):
                     _remove_made(made)  # made by this run, which leaves nothing in them: gone again
                 raise
     except OSError as err:
-        raise disk_error(root, err) from None
+        raise disk_error(root, err, resume_advice(cfg.overwrite)) from None
     except KeyboardInterrupt:
         raise DatasetError(
-            f"interrupted; the finished shards in {root} are kept: rerun the same command with --resume"
+            f"interrupted; the finished shards in {root} are kept: {resume_advice(cfg.overwrite)}"
         ) from None
 
 
@@ -184,10 +187,14 @@ def _remove_made(folders: list[Path]) -> None:
             return
 
 
-def _root_state_for(cfg: GenerateConfig, root: Path) -> str:
-    """The state of ``root`` this run starts from, after ``--overwrite``; DatasetError when it may not start."""
-    work = root / WORK_DIR
-    state = root_state(root)
+def _root_state_for(cfg: GenerateConfig, out: DatasetRoot) -> str:
+    """The state of the root this run starts from, after ``--overwrite``; DatasetError when it may not start.
+
+    Every entry a run writes is claimed here, before anything is written or deleted (the user's entries of
+    those names are refused). ``--overwrite`` deletes an interrupted run's work folder; a finished dataset
+    stays until the new one is committed in its place."""
+    root, work = out.path, out.path / WORK_DIR
+    state = out.state()
     jobs = _slurm_jobs(work)
     if state == "interrupted" and active_slurm_jobs(jobs) and (cfg.overwrite or cfg.resume):
         raise DatasetError(
@@ -196,24 +203,28 @@ def _root_state_for(cfg: GenerateConfig, root: Path) -> str:
         )
     if cfg.overwrite and state == "foreign":
         raise DatasetError(
-            f"refusing to --overwrite {root}: it does not look like a LeRobot dataset (no meta/info.json); "
-            "delete it yourself or pick another --root"
+            f"refusing to --overwrite {root}: it holds no dataset (no meta/info.json), only files `generate` did "
+            "not write; drop --overwrite to write the dataset beside them, or pick another --root"
         )
-    if cfg.overwrite:
-        remove_generation(root)
-        state = "empty"
     if state == "foreign":
-        raise DatasetError(f"{root} holds files that are not a dataset; pick another --root")
-    if state != "empty" and not cfg.resume:
+        state = "empty"  # the user's files stay, beside the dataset
+    if state != "empty" and not (cfg.resume or cfg.overwrite):
         what = {"interrupted": "an interrupted generation", "complete": "a dataset"}[state]
         raise DatasetError(
             f"{root} already exists ({what}); pass --resume to finish/keep it or --overwrite to replace it"
         )
+    if state == "complete" and cfg.resume:
+        return state
+    out.claim(*GENERATE_ENTRIES)
+    if cfg.overwrite:
+        out.remove(WORK_DIR)
+        return "empty"
     return state
 
 
-def _verify_complete(cfg: GenerateConfig, root: Path) -> dict:
+def _verify_complete(cfg: GenerateConfig, out: DatasetRoot) -> dict:
     """``--resume`` on a finished dataset: verify it matches this run's settings and report it."""
+    root = out.path
     info = validate_dataset(root)
     record = read_json(root / GENERATION_FILE, "generation record")
     made = record.get("generation") if isinstance(record, dict) else None
@@ -222,28 +233,29 @@ def _verify_complete(cfg: GenerateConfig, root: Path) -> dict:
         raise DatasetError(f"{root / GENERATION_FILE} or {recorded_task_path(root)} is not a record of this package")
     _check_same_run(made, cfg, env)
     if cfg.subtask_annotations:
+        out.claim(*(n for n in DATASET_ENTRIES if (root / n).exists()))  # rewritten: only a dataset of its own
         annotate_subtasks(root)
     return {"root": str(root), "status": "already complete", "episodes": info["total_episodes"],
             "frames": info["total_frames"], "splits": info.get("splits")}  # fmt: skip
 
 
-def _generate_locked(cfg: GenerateConfig, root: Path, t_start: float) -> dict:
-    """A run from the state ``root`` is in. One that fails before its first episode, started on an empty root,
-    leaves the root as it was (its work folder removed), so that the corrected command is a fresh start."""
-    work = root / WORK_DIR
-    state = _root_state_for(cfg, root)
+def _generate_locked(cfg: GenerateConfig, out: DatasetRoot, t_start: float) -> dict:
+    """A run from the state the root is in. A fresh run that fails before its first episode leaves the root as
+    it was (its work folder removed), so that the corrected command is a fresh start."""
+    state = _root_state_for(cfg, out)
     if state == "complete":
-        return _verify_complete(cfg, root)
+        return _verify_complete(cfg, out)
     try:
-        return _run(cfg, root, state, t_start)
+        return _run(cfg, out, state, t_start)
     except Exception:
-        if state == "empty" and not episodes_recorded(work):
-            shutil.rmtree(work, ignore_errors=True)
+        if state == "empty" and not episodes_recorded(out.path / WORK_DIR):
+            out.remove(WORK_DIR)
         raise
 
 
-def _run_settings(cfg: GenerateConfig, work: Path, state: str, workers: int) -> dict:
+def _run_settings(cfg: GenerateConfig, out: DatasetRoot, state: str, workers: int) -> dict:
     """The run's settings: recorded on a fresh start, checked on a resume (the shard layout comes from disk)."""
+    work = out.work()
     run_path = work / RUN_FILE
     if state == "interrupted" and run_path.is_file():
         run = read_run_record(work)
@@ -251,17 +263,16 @@ def _run_settings(cfg: GenerateConfig, work: Path, state: str, workers: int) -> 
         if cfg.tasks and cfg.tasks != run["tasks"]:
             raise ConfigError(f"--resume with --tasks {cfg.tasks} but the run on disk has {run['tasks']} shards")
         return run
-    if work.exists():  # killed before the settings were written: nothing in it is usable
-        shutil.rmtree(work)
+    out.remove(WORK_DIR)  # killed before the settings were written: nothing in it is usable
     run = cfg.run_record(cfg.tasks or cfg.auto_tasks(workers))
     write_json_atomic(run_path, run, indent=2)
     return run
 
 
-def _run(cfg: GenerateConfig, root: Path, state: str, t_start: float) -> dict:
-    work = root / WORK_DIR
+def _run(cfg: GenerateConfig, out: DatasetRoot, state: str, t_start: float) -> dict:
+    root, work = out.path, out.path / WORK_DIR
     workers = cfg.workers or default_workers()
-    run = _run_settings(cfg, work, state, workers)
+    run = _run_settings(cfg, out, state, workers)
     tasks = run["tasks"]
     logs = Path(cfg.logging_dir).resolve() if cfg.logging_dir else None
     if cfg.executor == "slurm":
@@ -275,8 +286,7 @@ def _run(cfg: GenerateConfig, root: Path, state: str, t_start: float) -> dict:
         max_retries=cfg.max_retries, parent_pid=os.getpid(),
     )  # fmt: skip
     progress_dir = work / "progress"
-    if progress_dir.exists():
-        shutil.rmtree(progress_dir)
+    remove_path(progress_dir)
     t_sim = time.perf_counter()
     with console_to_file(logs / "console.log") as terminal:
         with ProgressBar(progress_dir, cfg.num_episodes, terminal, cfg.progress, initial=reused):
@@ -288,7 +298,7 @@ def _run(cfg: GenerateConfig, root: Path, state: str, t_start: float) -> dict:
                 raise DatasetError(f"{err} (task logs: {logs}/logs)") from None
         sim_wall = time.perf_counter() - t_sim
         t_merge = time.perf_counter()
-        summary = merge_and_commit(root)
+        summary = merge_and_commit(out)
         if cfg.subtask_annotations:
             summary["subtask_rows"] = annotate_subtasks(root)
     merge_wall = time.perf_counter() - t_merge
@@ -377,5 +387,5 @@ def _submit(cfg: GenerateConfig, root: Path, run: dict, logs: Path) -> dict:
         "episodes_reused": reused,
         "logging_dir": str(logs),
         "next": f"watch: squeue -j {','.join(job_ids)}; done when {root}/{WORK_DIR} is gone "
-        "(a failed task: rerun the same command with --resume)",
+        f"(a failed task: {resume_advice(cfg.overwrite)})",
     }

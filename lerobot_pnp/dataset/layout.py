@@ -1,7 +1,8 @@
 """Where a dataset folder keeps what describes it, and the one reader of its JSON files.
 
 The paths are LeRobot's (``meta/info.json``, LeRobot's ``INFO_PATH``) and ours (``meta/baxter_pnp_env.json``,
-``recorded_task.RECORDED_FILE``); every module asks here instead of joining the path itself.
+``recorded_task.RECORDED_FILE``, and the generation record ``meta/pnp_generate.json``); every module asks here
+instead of joining the path itself.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from pathlib import Path
 from lerobot_pnp.errors import DatasetError
 
 INFO_FILE = "meta/info.json"  # LeRobot's INFO_PATH: the dataset's metadata, with its "splits"
+GENERATION_FILE = "meta/pnp_generate.json"  # how the data was made (the env config is in baxter_pnp_env.json)
 
 
 def read_json(path: Path, what: str) -> dict:

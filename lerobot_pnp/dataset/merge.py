@@ -4,31 +4,29 @@ Runs in the `generate` process after a local run, or as the one-task SLURM job t
 array (``slurm_aggregate_shards.py`` in LeRobot's examples). The merge is built in ``.pnp_work/merged``,
 verified (episode count, seeds in slot order, stats recomputed from the data), given the train/test split
 (``meta/info.json`` "splits"), the env config (``meta/baxter_pnp_env.json``) and the generation record
-(``meta/pnp_generate.json``), then moved into the root; the work folder is removed last.
+(``meta/pnp_generate.json``), then committed: moved into the root in place of the previous dataset's entries
+(``DatasetRoot.commit``); the work folder is removed last.
 """
 
 from __future__ import annotations
 
-import os
 import shutil
 from pathlib import Path
 
 from datatrove.pipeline.base import PipelineStep
 
 from lerobot_pnp import robot
-from lerobot_pnp.dataset.layout import is_dataset
+from lerobot_pnp.dataset.layout import GENERATION_FILE, is_dataset
 from lerobot_pnp.dataset.shards import SHARD_FILE, read_shard_record, shard_dir
 from lerobot_pnp.dataset.splits import split_of
 from lerobot_pnp.dataset.validation import WORK_DIR, read_json, verify_dataset
-from lerobot_pnp.dataset.workdir import TRASH_DIR, RootLock, remove_partial_commit
+from lerobot_pnp.dataset.workdir import DatasetRoot, resume_advice
 from lerobot_pnp.errors import DatasetError
-from lerobot_pnp.outputs import write_json_atomic
-
-GENERATION_FILE = "meta/pnp_generate.json"  # how the data was made (the env config is in baxter_pnp_env.json)
+from lerobot_pnp.outputs import remove_path, write_json_atomic
 
 
-def merge_and_commit(root: Path) -> dict:
-    """Merge the shards of the run in ``root/.pnp_work`` into ``root``; return a summary."""
+def merge_and_commit(out: DatasetRoot) -> dict:
+    """Merge the shards of the run in the root's work folder into the root; return a summary."""
     from lerobot.datasets.aggregate import aggregate_datasets
     from lerobot.datasets.io_utils import load_info, write_info
 
@@ -36,7 +34,7 @@ def merge_and_commit(root: Path) -> dict:
     from lerobot_pnp.env_config import BaxterPnPEnvConfig
     from lerobot_pnp.recorded_task import write_recorded
 
-    work = root / WORK_DIR
+    root, work = out.path, out.work()
     run = read_json(work / "run.json", "generation settings")
     n, tasks = run["num_episodes"], run["tasks"]
     records = []
@@ -44,7 +42,7 @@ def merge_and_commit(root: Path) -> dict:
         try:
             records.append(read_shard_record(work, rank))
         except (OSError, ValueError):
-            raise DatasetError(f"shard {rank} of {root} is missing or incomplete; rerun with --resume") from None
+            raise DatasetError(f"shard {rank} of {root} is missing or incomplete; {resume_advice()}") from None
     seeds = [s for r in records for s in r["seeds"]]
     if len(seeds) != n or len(set(seeds)) != n:
         raise DatasetError(
@@ -52,9 +50,7 @@ def merge_and_commit(root: Path) -> dict:
             "rerun with --overwrite"
         )
     merged = work / "merged"
-    if merged.exists():
-        shutil.rmtree(merged)
-    remove_partial_commit(root)
+    remove_path(merged)
     roots = [shard_dir(work, rank) for rank in range(tasks)]
     if tasks == 1:
         shutil.copytree(roots[0], merged, ignore=shutil.ignore_patterns(SHARD_FILE))
@@ -85,11 +81,7 @@ def merge_and_commit(root: Path) -> dict:
         },
         indent=2,
     )
-    # Commit: move the merged dataset into root, then drop the work folder (atomically renamed first).
-    for entry in merged.iterdir():
-        os.replace(entry, root / entry.name)
-    os.replace(work, root / TRASH_DIR)
-    shutil.rmtree(root / TRASH_DIR)
+    out.commit(merged)
     causes: dict[str, int] = {}
     for f in failures:
         causes[f["cause"]] = causes.get(f["cause"], 0) + 1
@@ -152,6 +144,6 @@ class MergeShards(PipelineStep):
         root = Path(self.root)
         if not (root / WORK_DIR).exists() and is_dataset(root):
             return None  # already merged (a requeued merge job)
-        with RootLock(root):
-            merge_and_commit(root)
+        with DatasetRoot(root) as out:
+            merge_and_commit(out)
         return None

@@ -14,7 +14,6 @@ from __future__ import annotations
 import json
 import logging
 import os
-import shutil
 import time
 from pathlib import Path
 
@@ -26,6 +25,7 @@ from lerobot_pnp.dataset.schema import ROBOT_TYPE, dataset_features, saves_witho
 from lerobot_pnp.dataset.validation import validate_dataset
 from lerobot_pnp.dataset.workdir import disk_error
 from lerobot_pnp.errors import DatasetError, PnPError
+from lerobot_pnp.outputs import remove_path
 
 SHARD_FILE = "pnp_shard.json"  # inside a finished shard: its slots, seeds and expert failures
 _ENVS: dict = {}
@@ -103,8 +103,7 @@ class GenerateShard(PipelineStep):
         final = shard_dir(self.work, rank)
         tmp = final.with_name(final.name + ".tmp")
         for path in (tmp, final):  # a rank not marked complete is redone from scratch
-            if path.exists():
-                shutil.rmtree(path)
+            remove_path(path)
         progress = Path(self.work) / "progress" / f"{rank:05d}"
         progress.parent.mkdir(parents=True, exist_ok=True)
         env_cfg = BaxterPnPEnvConfig.from_dict(self.env)

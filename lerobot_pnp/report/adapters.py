@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import csv
 import math
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -18,6 +19,8 @@ from lerobot_pnp.dataset.splits import recorded_splits
 from lerobot_pnp.errors import DatasetError, PnPError
 
 BATCH_SIZE = 64  # episodes per batch (the fast trainer's default)
+# the generator's advice to its own command; in a study, rerunning the study's command resumes the generation
+_GENERATE_RESUME = re.compile(r"rerun (the same command )?with --resume")
 
 
 def generate_dataset(
@@ -40,7 +43,15 @@ def generate_dataset(
 
     # an existing dataset is resumed or, when complete, verified against its record of how it was made (an
     # OtherSettingsError names the setting that differs)
-    return generate(dataset_config(root, num_episodes, seed, workers, preset, control_mode, env_changes))
+    try:
+        return generate(dataset_config(root, num_episodes, seed, workers, preset, control_mode, env_changes))
+    except DatasetError as err:
+        if isinstance(err.__context__, KeyboardInterrupt):  # the study says how it continues (run.run_study)
+            raise KeyboardInterrupt from None
+        if not _GENERATE_RESUME.search(str(err)):
+            raise
+        # the study passes --resume itself (``dataset_config``): its own command is what continues
+        raise DatasetError(_GENERATE_RESUME.sub("run the same study command again", str(err))) from None
 
 
 def dataset_config(

@@ -14,13 +14,14 @@ run; here one dataset read and one folder.
 from __future__ import annotations
 
 import json
-import shutil
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 from lerobot.processor import PolicyProcessorPipeline
 
 from lerobot_pnp.errors import ConfigError, DatasetError
+from lerobot_pnp.outputs import OutputFolder
 from lerobot_pnp.policy.configuration_pnp_lookup_table import PnpLookupTableConfig
 from lerobot_pnp.policy.modeling_pnp_lookup_table import PnpLookupTablePolicy, table_config
 from lerobot_pnp.policy.processor_pnp_lookup_table import make_pnp_lookup_table_pre_post_processors
@@ -51,17 +52,23 @@ class LookupTableCheckpointConfig:
     output_dir: str = "outputs/lookup_table"  # the checkpoint folder: lerobot-eval --policy.path <output_dir>
     split: str = "train"  # the episodes of this split of meta/info.json (all episodes if the dataset has no splits)
     n_episodes: int | None = None  # only the first n episodes of the split (None: all)
-    overwrite: bool = False  # replace a lookup-table checkpoint already in output_dir (any other folder is refused)
+    overwrite: bool = False  # replace the files of a lookup table this command wrote in output_dir (others stay)
 
     def __post_init__(self):
         if self.n_episodes is not None and not (isinstance(self.n_episodes, int) and self.n_episodes >= 1):
             raise ConfigError(f"n_episodes must be an integer >= 1 or None, got {self.n_episodes!r}")
 
 
+LOOKUP_TABLE_COMMAND = "lerobot-pnp lookup-table"
+
+
 def write_lookup_table(cfg: LookupTableCheckpointConfig) -> dict:
-    """Build the table from ``cfg.dataset_root`` and write it to ``cfg.output_dir``; returns a summary."""
+    """Build the table from ``cfg.dataset_root`` and write it to ``cfg.output_dir``; returns a summary.
+
+    The folder goes through ``lerobot_pnp.outputs``: the checkpoint's files are written all-or-nothing beside
+    whatever else the folder holds, and ``--overwrite`` replaces only the files this command recorded there."""
     from lerobot_pnp.dataset.layout import is_dataset
-    from lerobot_pnp.recorded_task import RECORDED_FILE, copy_recorded, dataset_task
+    from lerobot_pnp.recorded_task import RECORDED_FILE, dataset_task
     from lerobot_pnp.report.adapters import load_train_episodes
 
     root = Path(cfg.dataset_root).expanduser()
@@ -73,17 +80,17 @@ def write_lookup_table(cfg: LookupTableCheckpointConfig) -> dict:
         raise DatasetError(
             f"lookup-table: {root} records no baxter_pnp task ({RECORDED_FILE}); give a dataset of lerobot-pnp generate"
         )
-    out = Path(cfg.output_dir).expanduser()
-    _check_output(out, cfg.overwrite)
-    episodes = load_train_episodes(root, split=cfg.split, limit=cfg.n_episodes)
-    source = f"{root} split {cfg.split!r}" + (f", first {cfg.n_episodes} episodes" if cfg.n_episodes else "")
-    policy = LookupTablePolicy(episodes, source=source)
-    if out.exists():
-        shutil.rmtree(out)
-    policy.save_pretrained(out)
-    for pipeline in identity_processors(policy.config):
-        pipeline.save_pretrained(out)
-    copy_recorded(root, out)
+    with OutputFolder(Path(cfg.output_dir).expanduser(), LOOKUP_TABLE_COMMAND) as folder:
+        _check_output(folder, cfg.overwrite)
+        episodes = load_train_episodes(root, split=cfg.split, limit=cfg.n_episodes)
+        source = f"{root} split {cfg.split!r}" + (f", first {cfg.n_episodes} episodes" if cfg.n_episodes else "")
+        policy = LookupTablePolicy(episodes, source=source)
+        files = _checkpoint_files(policy, root)
+        stale = folder.entries - set(files)
+        folder.write_set(files)
+        for name in sorted(stale):  # a file of the previous table this one does not have
+            folder.remove(name)
+        out = folder.path
     return {
         "output_dir": str(out),
         "episodes": policy.config.table_episodes,
@@ -93,18 +100,53 @@ def write_lookup_table(cfg: LookupTableCheckpointConfig) -> dict:
     }
 
 
-def _check_output(out: Path, overwrite: bool) -> None:
-    """An absent or empty folder is written; a lookup-table checkpoint is replaced only with ``overwrite``."""
-    if not out.exists() or (out.is_dir() and not any(out.iterdir())):
-        return
-    config = out / "config.json"
+def _checkpoint_files(policy: LookupTablePolicy, dataset_root: Path) -> dict[str, bytes]:
+    """The checkpoint folder's files (name -> bytes): the policy, its identity processors, the dataset's task."""
+    from lerobot_pnp.recorded_task import copy_recorded
+
+    with tempfile.TemporaryDirectory(prefix="lerobot_pnp_lookup_") as tmp:
+        policy.save_pretrained(Path(tmp))
+        for pipeline in identity_processors(policy.config):
+            pipeline.save_pretrained(tmp)
+        copy_recorded(dataset_root, tmp)
+        return {p.name: p.read_bytes() for p in sorted(Path(tmp).iterdir()) if p.is_file()}
+
+
+def _is_table_file(name: str) -> bool:
+    """A name a lookup-table checkpoint's file has (``_checkpoint_files``)."""
+    from lerobot_pnp.recorded_task import CHECKPOINT_RECORDED_FILE
+
+    return name in ("config.json", "model.safetensors", CHECKPOINT_RECORDED_FILE) or (
+        name.startswith("policy_") and name.endswith((".json", ".safetensors"))
+    )
+
+
+def _legacy_table(folder: OutputFolder) -> list[str]:
+    """The files of a lookup table written before the manifest (its ``config.json`` says ``pnp_lookup_table``,
+    nothing is recorded yet); a user's file beside them is not among them."""
+    config = folder.path / "config.json"
+    if folder.owners or config.is_symlink() or not config.is_file():
+        return []
     try:
         ours = json.loads(config.read_text()).get("type") == "pnp_lookup_table"
     except (OSError, ValueError, AttributeError):
         ours = False
-    if not ours:
+    return [n for n in folder.foreign() if _is_table_file(n) and (folder.path / n).is_file()] if ours else []
+
+
+def _check_output(folder: OutputFolder, overwrite: bool) -> None:
+    """Refuse a user's entry under a name a table's checkpoint has, and a table of this command's without
+    ``overwrite`` (a table from before the manifest is recorded as this command's then); other files stay."""
+    legacy = _legacy_table(folder)
+    ours = folder.entries | set(legacy)
+    if blocking := [n for n in folder.foreign() if _is_table_file(n) and n not in ours]:
         raise ConfigError(
-            f"lookup-table: {out} exists and is not a lookup-table checkpoint; choose another --output_dir"
+            f"lookup-table: {folder.path / blocking[0]} exists and `{LOOKUP_TABLE_COMMAND}` did not write it (a "
+            "lookup-table checkpoint has a file of that name); move it or choose another --output_dir"
         )
-    if not overwrite:
-        raise ConfigError(f"lookup-table: {out} already holds a lookup table; pass --overwrite true to replace it")
+    if not overwrite and any((folder.path / n).exists() or (folder.path / n).is_symlink() for n in ours):
+        raise ConfigError(
+            f"lookup-table: {folder.path} already holds a lookup table; pass --overwrite true to replace it"
+        )
+    if legacy:
+        folder.adopt(*legacy)

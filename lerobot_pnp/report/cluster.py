@@ -25,14 +25,22 @@ import subprocess
 import time
 from pathlib import Path
 
-from lerobot_pnp.cache import STAGE_FILE, Stage, write_json_atomic
+from lerobot_pnp.cache import STAGE_FILE, Stage
 from lerobot_pnp.dataset.executors import active_slurm_jobs, slurm_available
 from lerobot_pnp.errors import ClusterJobError, one_line
+from lerobot_pnp.outputs import write_json_atomic
+from lerobot_pnp.report.layout import CLUSTER_DIR
 from lerobot_pnp.report.schedule import TRAINING, Job
 
-CLUSTER_DIR = "slurm"  # in a study folder: submitit's job folders (logs, pickles) and JOBS_FILE
 JOBS_FILE = "jobs.json"
 POLL_S = (0.5, 10.0)  # seconds between two looks at the queue: at first, and at most (a long wait looks less often)
+
+
+def check_available() -> None:
+    """Refuse ``--executor slurm`` (one line) where SLURM's client binaries are missing: before the study writes
+    anything."""
+    if not slurm_available():
+        raise ClusterJobError("--executor slurm: sbatch/squeue not found on PATH (is this a SLURM login node?)")
 
 
 def refuse_live_jobs(out: Path) -> None:
@@ -121,8 +129,7 @@ class Submitter:
     def __init__(self, outs: list[Path], options, workers: int):
         import submitit
 
-        if not slurm_available():
-            raise ClusterJobError("--executor slurm: sbatch/squeue not found on PATH (is this a SLURM login node?)")
+        check_available()
         self.outs, self.options, self.ids = outs, options, []
         self.folder = outs[0] / CLUSTER_DIR
         self.executor = submitit.SlurmExecutor(folder=self.folder / "%j", max_num_timeout=0)

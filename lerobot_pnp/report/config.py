@@ -11,12 +11,12 @@ preset's value.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, fields
 
 from lerobot_pnp.errors import ConfigError
-from lerobot_pnp.evaluation.stats import wilson_interval
 from lerobot_pnp.evaluation.suites import HELD_OUT_AXES, get_suites
 from lerobot_pnp.presets import PRESETS as TASK_PRESETS
+from lerobot_pnp.report.episode_rule import EpisodeRule, RuleChanges, resolve_rule
 from lerobot_pnp.report.methods import DATA_EFFICIENCY_METHODS, METHODS, RECOVERING, get_methods
 from lerobot_pnp.report.slurm import StudySlurmOptions, checked
 
@@ -25,100 +25,6 @@ from lerobot_pnp.report.slurm import StudySlurmOptions, checked
 class SuiteSpec:
     name: str  # a suite of suites.SUITES, or a sweep group ("nudge")
     n_episodes: int = 200
-
-
-@dataclass(frozen=True)
-class EpisodeRule:
-    """Episode counts chosen from the interval width a cell needs (``StudyConfig.episodes_rule``).
-
-    An evaluation of a method not in ``fixed_methods`` runs its suite's seeds in blocks of ``block`` episodes
-    (a multiple of the eval batch size, so each block is exactly batches a fixed-n run makes: its first blocks
-    are that run's first episodes, episode by episode) and stops after the first block where the 95 % Wilson
-    interval of what it has so far is at most ``half_width`` either side, or at the suite's n. Each evaluation
-    decides alone (no coordination between stages, so the job pool runs them side by side).
-
-    A method of ``claim_methods`` is the one whose cells are read against the claims' bars (90 / 95 / 98 %):
-    its evaluations run at least the suite's n and go on in blocks while the interval is wider than
-    ``claim_half_width`` either side, up to ``claim_max_factor`` times n (``ExtendedRule``). A cell near a bar
-    is where an interval at n cannot decide it, and only there are more episodes spent."""
-
-    half_width: float = 0.1  # target 95 % Wilson half-width (a fraction: 0.1 = +-10 pts)
-    block: int = 50  # episodes between two looks at the interval; a multiple of StudyConfig.eval_batch_size
-    # methods whose evaluations always run the suite's whole n: the claims' methods, and the lookup table, every
-    # paired comparison's baseline (a comparison pairs on the seeds both ran: at the baseline's n, the method's)
-    fixed_methods: tuple[str, ...] = ("expert", "lookup_table", "recovering")
-    # methods whose evaluations run at least the suite's n and more where their interval is still wide
-    claim_methods: tuple[str, ...] = ()
-    claim_half_width: float = 0.045  # their target 95 % Wilson half-width per evaluation (a fraction)
-    claim_max_factor: int = 2  # their most episodes: this times the suite's n
-
-    def check(self, eval_batch_size: int) -> None:
-        """A clear ConfigError naming the bad value; methods are checked by ``StudyConfig``."""
-        for name in ("half_width", "claim_half_width"):
-            if not 0 < getattr(self, name) < 0.5:
-                raise ConfigError(f"episodes_rule.{name} must be in (0, 0.5) (a fraction), got {getattr(self, name)!r}")
-        if self.block < 1 or self.block % eval_batch_size:
-            raise ConfigError(
-                f"episodes_rule.block must be a positive multiple of eval_batch_size ({eval_batch_size}), "
-                f"got {self.block!r}"
-            )
-        if not isinstance(self.claim_max_factor, int) or self.claim_max_factor < 1:
-            raise ConfigError(f"episodes_rule.claim_max_factor must be an integer >= 1, got {self.claim_max_factor!r}")
-        if both := sorted(set(self.claim_methods) & set(self.fixed_methods)):
-            raise ConfigError(f"episodes_rule: {both} both in fixed_methods and claim_methods; name each in one")
-
-    def key(self) -> dict:
-        """What an adaptive evaluation's stage key records of the rule (``fixed_methods`` decides only whether a
-        method's evaluation is adaptive, not what it produces)."""
-        return {"half_width": self.half_width, "block": self.block}
-
-    def for_method(self, name: str):
-        """The rule ``name``'s evaluations run under: None (the suite's whole n), this rule, or its
-        ``ExtendedRule`` for a claim method."""
-        if name in self.claim_methods:
-            return ExtendedRule(
-                half_width=self.claim_half_width, block=self.block, fixed_methods=(), max_factor=self.claim_max_factor
-            )
-        return None if name in self.fixed_methods else self
-
-    def stops(self, n_episodes: int, batch_size: int) -> list[int]:
-        """Where an evaluation of at most ``n_episodes`` may stop: after each block, and at n. A block end that
-        leaves fewer than a batch of episodes to n is skipped: that last short run would be a smaller batch than
-        the fixed-n run's last one (the episodes of a learned policy can depend on the batch)."""
-        return [k for k in range(self.block, n_episodes, self.block) if n_episodes - k >= batch_size] + [n_episodes]
-
-    def stop_at(self, outcomes: list[bool], n_episodes: int, batch_size: int) -> int | None:
-        """Episodes the rule keeps of ``outcomes`` (the first seeds' successes, in seed order): the first stop
-        whose prefix is decided (half-width <= ``half_width``), the last stop when none is; None if
-        ``outcomes`` ends first."""
-        stops = self.stops(n_episodes, batch_size)
-        for stop in stops:
-            if stop > len(outcomes):
-                return None
-            if stop == stops[-1] or self.decided(sum(map(bool, outcomes[:stop])), stop):
-                return stop
-        return None  # pragma: no cover - the last stop returns
-
-    def decided(self, successes: int, n: int) -> bool:
-        lo, hi = wilson_interval(successes, n)
-        return (hi - lo) / 2 <= self.half_width
-
-
-@dataclass(frozen=True)
-class ExtendedRule(EpisodeRule):
-    """A claim method's rule (``EpisodeRule.claim_methods``): the suite's n first, exactly as a fixed-n run
-    makes them, then blocks until the interval is at most ``half_width`` either side, or at ``max_factor`` x n."""
-
-    max_factor: int = 2
-
-    def key(self) -> dict:
-        return {"half_width": self.half_width, "block": self.block, "from_n": True, "max_factor": self.max_factor}
-
-    def stops(self, n_episodes: int, batch_size: int) -> list[int]:
-        """n, then every block after it, and ``max_factor`` x n: each extension is whole blocks of seeds after
-        the fixed run's last one, so its first n episodes are that run's."""
-        most = self.max_factor * n_episodes
-        return [*range(n_episodes, most, self.block), most]
 
 
 # Every suite of the held-out protocol's axes, each once, in axis order
@@ -279,9 +185,10 @@ class StudyConfig:
     cli_check_episodes: int | None = None
     eval_seed: int = 100_000  # first evaluation seed (disjoint from the dataset's seeds 0..)
     eval_batch_size: int = 50  # sub-envs of the SyncVectorEnv
-    # episode counts chosen from the interval widths (EpisodeRule), e.g. '{"half_width": 0.1, "block": 50,
-    # "fixed_methods": ["expert", "recovering"]}'; None = the preset's (heldout: on; others: off, every suite's n)
-    episodes_rule: EpisodeRule | None = None
+    # episode counts chosen from the interval widths (EpisodeRule), e.g. '{"half_width": 0.2}' or --episodes_rule.block
+    # 100: the fields given change the preset's rule, the others keep its values; None = the preset's (heldout: on;
+    # others: off, every suite's n)
+    episodes_rule: RuleChanges | None = None
     # each training seed of a learned method runs n / seeds of a suite's episodes (whole eval batches), so its
     # pooled cell holds about n; None = the preset's (heldout: on; others: off, n per seed)
     split_over_seeds: bool | None = None
@@ -290,7 +197,7 @@ class StudyConfig:
     # PnpLstmConfig fields changed in the recovering recipe for every method that takes it (the planner, its
     # DAgger/DART rounds, the matched MLPs), e.g. '{"num_layers": 1}'; None = the preset's (full: one LSTM layer)
     recipe_changes: dict | None = None
-    fresh: bool = False  # delete output_dir first
+    fresh: bool = False  # delete what the study wrote in output_dir first (its manifest); the user's files stay
     report_only: bool = False  # write the report from the finished evaluations only (train/evaluate nothing)
     # config files of other studies run in the same process pool, each with its own output_dir and report:
     # their jobs fill the cores this study's leave idle; --fresh and --report_only apply to them too
@@ -342,20 +249,11 @@ class StudyConfig:
         return share if share <= batch else math.ceil(share / batch) * batch
 
     def _check_rule(self) -> None:
+        rule = self.episodes_rule = resolve_rule(self.episodes_rule, PRESETS[self.preset].get("episodes_rule"))
         if self.fixed_episodes:
-            self.episodes_rule = None
-        if isinstance(self.episodes_rule, dict):
-            valid = EpisodeRule.__dataclass_fields__
-            unknown = sorted(set(self.episodes_rule) - set(valid))
-            if unknown:
-                raise ConfigError(f"episodes_rule: unknown field(s) {unknown}; valid: {sorted(valid)}")
-            self.episodes_rule = EpisodeRule(**self.episodes_rule)
-        if self.episodes_rule is None:
+            rule = self.episodes_rule = None
+        if rule is None:
             return
-        r = self.episodes_rule
-        rule = self.episodes_rule = replace(  # a list from the command line, a tuple in the key
-            r, fixed_methods=tuple(r.fixed_methods), claim_methods=tuple(r.claim_methods)
-        )
         rule.check(self.eval_batch_size)
         for name in ("fixed_methods", "claim_methods"):
             unknown = [m for m in getattr(rule, name) if m not in METHODS]

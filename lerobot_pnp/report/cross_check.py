@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import time
 
-from lerobot_pnp.cache import STAGE_FILE, Stage, code_versions, remove
+from lerobot_pnp.cache import STAGE_FILE, Stage, code_versions
+from lerobot_pnp.outputs import remove_path as remove
 from lerobot_pnp.report import adapters, coverage
 from lerobot_pnp.report.config import StudyConfig
 from lerobot_pnp.report.job import train_context

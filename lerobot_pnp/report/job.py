@@ -12,9 +12,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from lerobot_pnp.cache import Stage, write_json_atomic
+from lerobot_pnp.cache import Stage
 from lerobot_pnp.evaluation.records import records_from_json, records_to_json
 from lerobot_pnp.evaluation.suites import get_suites
+from lerobot_pnp.outputs import write_json_atomic
 from lerobot_pnp.recorded_task import read_recorded
 from lerobot_pnp.report import coverage
 from lerobot_pnp.report.config import StudyConfig, SuiteSpec

@@ -9,6 +9,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+CLUSTER_DIR = "slurm"  # the cluster jobs' folder (``--executor slurm``): submitit's job folders, the submitted ids
+
 
 @dataclass(frozen=True)
 class StudyLayout:
@@ -51,6 +53,10 @@ class StudyLayout:
     def summary(self) -> Path:
         return self.out / "summary.json"
 
+    @property
+    def cluster(self) -> Path:
+        return self.out / CLUSTER_DIR
+
     def stage_names(self) -> tuple[str, ...]:
         """The top-level entries the stages write (claimed in the manifest before they run)."""
         return (self.config.name, self.dataset().name, "train", "evals", self.cli_check.parent.name)
@@ -58,3 +64,9 @@ class StudyLayout:
     def report_names(self) -> tuple[str, ...]:
         """The top-level entries the report stage writes."""
         return (self.report.name, self.summary.name, self.figures.name)
+
+    def names(self, recordings: list[str], cluster: bool) -> tuple[str, ...]:
+        """Every top-level entry a study writes: its stages', the datasets of its other ``recordings``, the cluster
+        jobs' folder (with ``cluster``) and the report's."""
+        others = tuple(self.dataset(r).name for r in recordings if r != "keyframe")
+        return tuple(dict.fromkeys((*self.stage_names(), *others, *self.report_names(), *(CLUSTER_DIR,) * cluster)))

@@ -11,8 +11,9 @@ method, data key, seed and epochs, an evaluation by the training's key, the suit
 episodes and seeds, and the episode rule when one chooses its count (``config.EpisodeRule``; a fixed-n
 record is then reused cut to where the rule stops, when exact); the key is stored in its JSON, written
 atomically. Rerunning the same command only does what is missing; a changed flag re-runs what depends on it,
-so the report states the config of its results. The output folder is locked for the run; ``--fresh`` deletes
-only the entries of its manifest, every study's manifest checked before any folder is cleared.
+so the report states the config of its results. The output folder is locked for the run, and every name the
+study writes there is checked before any folder is written or cleared (``report.folder``): the study writes,
+replaces and (``--fresh``) deletes only what it wrote.
 
 This module runs the stages in order; the jobs and their pool: ``report.schedule``; what one job does (train,
 evaluate): ``report.job``; the same datasets and jobs as SLURM jobs (``--executor slurm``): ``report.cluster``; the `lerobot-eval` cross-check: ``report.cross_check``; the config and its presets:
@@ -26,19 +27,20 @@ from contextlib import ExitStack
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
-from lerobot_pnp.cache import MANIFEST_FILE, Manifest, lock_output, write_json_atomic
 from lerobot_pnp.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.errors import ConfigError
+from lerobot_pnp.outputs import OutputFolder
 from lerobot_pnp.recorded_task import read_recorded
 from lerobot_pnp.report import coverage, cross_check
 from lerobot_pnp.report.adapters import check_same_demonstrations
 from lerobot_pnp.report.config import StudyConfig, SuiteSpec  # noqa: F401  (SuiteSpec: the CLI's and callers')
+from lerobot_pnp.report.folder import interrupted, open_study_folder, refuse_taken, study_names
 from lerobot_pnp.report.job import job_suites, run_job, suites_for
-from lerobot_pnp.report.layout import StudyLayout
+from lerobot_pnp.report.layout import CLUSTER_DIR, StudyLayout
 from lerobot_pnp.report.methods import DATA_EFFICIENCY_METHODS, get_methods
 from lerobot_pnp.report.provenance import command, machine
 from lerobot_pnp.report.schedule import Job, job_processes, run_jobs, split_jobs
-from lerobot_pnp.report.stages import dataset_stage, written_by_the_study
+from lerobot_pnp.report.stages import dataset_stage
 
 # The recordings a method can train on besides the keyframe dataset (``Method.data``): what they are and the
 # env-config changes they are generated with (the same seeds, so the same demonstrations).
@@ -61,7 +63,9 @@ def run_study(cfg: StudyConfig) -> dict:
     first, then all their trainings and evaluations side by side, then each study's cross-check and report
     (``make demo``: the recovery headline beside the paper's study; the summary is the first study's, the others'
     under ``"alongside"``). Each output folder is locked for the whole run (a second study on it fails at
-    once); the top-level entries a study writes are listed in its manifest, so ``--fresh`` deletes only those."""
+    once). Before anything is written or cleared, in any folder: the executor is checked, and every name a
+    study writes (``folder.refuse_taken``); ``--fresh`` then deletes only what the study wrote. An interrupted
+    run is one line saying how to continue (``folder.interrupted``)."""
     cfgs = [cfg, *(load_study_config(path) for path in cfg.alongside)]
     for c in cfgs[1:]:  # how to run (not what to run) is the command line's, for every study
         c.fresh, c.report_only = c.fresh or cfg.fresh, c.report_only or cfg.report_only
@@ -69,33 +73,35 @@ def run_study(cfg: StudyConfig) -> dict:
     outs = [Path(c.output_dir).resolve() for c in cfgs]
     if len(set(outs)) < len(outs):
         raise ConfigError(f"alongside: two studies write to the same output_dir ({[c.output_dir for c in cfgs]})")
-    with ExitStack() as stack:
-        for c in cfgs:  # every folder locked before any is cleared or written: a held one stops the run at once
-            stack.enter_context(lock_output(Path(c.output_dir), "lerobot-pnp report/demo"))
-        if any((out / "slurm").is_dir() for out in outs):  # an earlier run's cluster jobs still at work
-            from lerobot_pnp.report.cluster import refuse_live_jobs
+    if cfg.executor == "slurm":  # SLURM missing: refused before any folder is made
+        from lerobot_pnp.report.cluster import check_available
 
-            for out in outs:
-                refuse_live_jobs(out)
-        manifests = [_manifest(Path(c.output_dir), c.fresh) for c in cfgs]  # every one read and checked first
-        for c, manifest in zip(cfgs, manifests, strict=True):
-            if c.fresh:
-                manifest.clear()
-        runs = [_prepare(c, StudyLayout(Path(c.output_dir)), m) for c, m in zip(cfgs, manifests, strict=True)]
-        summaries = _run_prepared(runs)
+        check_available()
+    try:
+        with ExitStack() as stack:
+            folders = [stack.enter_context(open_study_folder(Path(c.output_dir))) for c in cfgs]  # all locked first
+            runs = _start(cfgs, folders)
+            summaries = _run_prepared(runs)
+    except KeyboardInterrupt:
+        raise interrupted(Path(cfg.output_dir)) from None
     return summaries[0] if len(summaries) == 1 else {**summaries[0], "alongside": summaries[1:]}
 
 
-def _manifest(out: Path, fresh: bool) -> Manifest:
-    """The study's manifest of ``out`` (refused in one line when it is not one), with what a study folder
-    written before manifests provably holds of the study's claimed into it; with ``fresh``, a folder holding
-    anything else is refused here, before any folder of the run is cleared."""
-    manifest = Manifest(out, "lerobot-pnp report/demo")
-    if not manifest.path.exists() and StudyLayout(out).config.is_file():
-        manifest.claim(*(p.name for p in out.iterdir() if written_by_the_study(p)))  # an older study
-    if fresh and (foreign := manifest.foreign()):
-        manifest.refuse_fresh(foreign)
-    return manifest
+def _start(cfgs: list[StudyConfig], folders: list[OutputFolder]) -> list[_PreparedStudy]:
+    """Every study's folder checked (cluster jobs of an earlier run, the names it writes), then cleared
+    (``--fresh``), then its datasets made."""
+    if any(f.path.joinpath(CLUSTER_DIR).is_dir() for f in folders):  # an earlier run's cluster jobs still at work
+        from lerobot_pnp.report.cluster import refuse_live_jobs
+
+        for f in folders:
+            refuse_live_jobs(f.path)
+    layouts = [StudyLayout(f.path) for f in folders]
+    for c, f, layout in zip(cfgs, folders, layouts, strict=True):
+        refuse_taken(f, study_names(c, layout))
+    for c, f in zip(cfgs, folders, strict=True):
+        if c.fresh:
+            f.clear()
+    return [_prepare(c, layout, f) for c, f, layout in zip(cfgs, folders, layouts, strict=True)]
 
 
 def load_study_config(path: str) -> StudyConfig:
@@ -123,8 +129,7 @@ class _PreparedStudy:
 
     cfg: StudyConfig
     layout: StudyLayout
-    manifest: Manifest
-    before: set[str]  # the output folder's entries before the run
+    folder: OutputFolder
     methods: list
     base_env: BaxterPnPEnvConfig
     roots: dict[str, Path]
@@ -139,12 +144,11 @@ class _PreparedStudy:
         return self.cfg, self.layout, self.roots, self.base_env, self.keys
 
 
-def _prepare(cfg: StudyConfig, layout: StudyLayout, manifest: Manifest) -> _PreparedStudy:
+def _prepare(cfg: StudyConfig, layout: StudyLayout, folder: OutputFolder) -> _PreparedStudy:
     """Stage 1: the study's datasets (made or found), and its jobs."""
     out = layout.out
-    before = {p.name for p in out.iterdir()}
-    manifest.claim(*layout.stage_names())
-    write_json_atomic(layout.config, asdict(cfg))
+    folder.claim(*layout.stage_names())
+    folder.write_json(layout.config.name, asdict(cfg))
     timings: dict[str, float] = {}
     started = time.perf_counter()
     methods = get_methods(cfg.methods)
@@ -155,10 +159,9 @@ def _prepare(cfg: StudyConfig, layout: StudyLayout, manifest: Manifest) -> _Prep
     keys: dict[str, str] = {}  # recording -> its dataset's stage key
     make_dataset = dataset_stage
     if cfg.executor == "slurm":  # each dataset made by a cluster job
-        from lerobot_pnp.report.cluster import CLUSTER_DIR
         from lerobot_pnp.report.cluster import dataset_on_slurm as make_dataset
 
-        manifest.claim(CLUSTER_DIR)
+        folder.claim(CLUSTER_DIR)
     generation, keys["keyframe"] = make_dataset(out, root.name, cfg)
     timings["dataset"] = time.perf_counter() - t
     base_env = BaxterPnPEnvConfig.from_dict(read_recorded(root) or {})
@@ -170,14 +173,14 @@ def _prepare(cfg: StudyConfig, layout: StudyLayout, manifest: Manifest) -> _Prep
         _stage(f"1b/4 {data} dataset: the same {cfg.num_episodes} demonstrations {what}")
         t = time.perf_counter()
         roots[data] = layout.dataset(data)
-        manifest.claim(roots[data].name)
+        folder.claim(roots[data].name)
         generation[data], keys[data] = make_dataset(out, roots[data].name, cfg, changes)
         if not cfg.report_only or generation[data].get("status") == "reused":
             check_same_demonstrations(root, roots[data])
         timings[f"dataset_{data}"] = time.perf_counter() - t
     jobs = [Job(m.name, str(s), None) for m in methods for s in (cfg.train_seeds if m.learned else ["-"])]
     jobs += [Job(m, f"n{n}", n) for n in cfg.data_efficiency for m in DATA_EFFICIENCY_METHODS]
-    return _PreparedStudy(cfg, layout, manifest, before, methods, base_env, roots, keys, generation, timings, jobs,
+    return _PreparedStudy(cfg, layout, folder, methods, base_env, roots, keys, generation, timings, jobs,
                           started)  # fmt: skip
 
 
@@ -232,11 +235,10 @@ def _finish(run: _PreparedStudy, jobs: list[Job], finished: dict, processes: int
     timings["run/processes"] = processes
 
     _stage(f"4/4 report ({layout.out})")
-    run.manifest.claim(*layout.report_names())
+    run.folder.claim(*layout.report_names())
     aliases = coverage.suite_aliases(suites_for(cfg, None), run.base_env)
     study = StudyInputs(cfg, run.methods, results, run.base_env, run.generation, timings, machine(), command(),
                         cli_check, left, {a: of for a, of in aliases.items() if a != of})  # fmt: skip
     summary = write_report(layout, study)
-    run.manifest.claim(*({p.name for p in layout.out.iterdir()} - run.before - {MANIFEST_FILE}))  # what else it wrote
     print(f"\nreport: {layout.report}")
     return summary

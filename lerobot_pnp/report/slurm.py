@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 from lerobot_pnp.dataset.generation import SlurmOptions
 from lerobot_pnp.errors import ConfigError
+from lerobot_pnp.slurm_fields import check_slurm_fields
 
 EXECUTORS = ("local", "slurm")
 # sbatch --time: minutes, MM:SS, HH:MM:SS, D-HH, D-HH:MM or D-HH:MM:SS
@@ -34,6 +35,7 @@ class StudySlurmOptions(SlurmOptions):
 
     def __post_init__(self):
         super().__post_init__()
+        check_slurm_fields(self)  # each a line of the job script: a newline there would be a line of its own
         if not isinstance(self.suites_per_job, int) or self.suites_per_job < 0:
             raise ConfigError(f"slurm.suites_per_job must be an integer >= 0, got {self.suites_per_job!r}")
         if not isinstance(self.dataset_cpus, int) or self.dataset_cpus < 0:

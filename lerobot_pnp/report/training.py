@@ -7,8 +7,9 @@ from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from lerobot_pnp.cache import STAGE_FILE, Stage, code_versions, remove
+from lerobot_pnp.cache import STAGE_FILE, Stage, code_versions
 from lerobot_pnp.dagger.rollouts import TEACHER_VERSION
+from lerobot_pnp.outputs import remove_path as remove
 from lerobot_pnp.report.recipes import SCHEDULE_BEFORE_KEYED, policy_acts, policy_settings
 
 if TYPE_CHECKING:

@@ -10,6 +10,7 @@ import json
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
+from lerobot_pnp.outputs import write_bytes_atomic, write_json_atomic
 from lerobot_pnp.report import figures, markdown
 from lerobot_pnp.report.layout import StudyLayout
 from lerobot_pnp.report.results import build_comparisons, build_table, evaluated_suites, held_out_axes
@@ -77,10 +78,10 @@ def write_report(layout: StudyLayout, study: StudyInputs) -> dict:
     held_out = held_out_axes(table, methods)
     if held_out:  # only a study that ran every suite of an axis (the held-out protocol)
         summary["held_out_axes"] = [r.to_json() for r in held_out]
-    layout.summary.write_text(json.dumps(summary, indent=1, default=str))
+    write_json_atomic(layout.summary, summary)
     text = markdown.render(layout, cfg, methods, results, suite_names, table, comparisons, figs, summary,
                            (study.left_out, study.aliases))  # fmt: skip
-    layout.report.write_text(text)
+    write_bytes_atomic(layout.report, text.encode())
     labels = {m.name: m.label for m in methods}
     return {
         "report": str(layout.report),

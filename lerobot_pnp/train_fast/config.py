@@ -57,11 +57,10 @@ class TrainFastConfig:
     seed: int = 1000
     """Seed of the initialisation and of the episode order."""
     output_dir: str = "outputs/train_fast/pnp_lstm"
-    """Where the checkpoints, loss curve and held-out error are written; must not exist (or be empty) unless
-    ``overwrite``. Locked for the run: a second run into it fails at once."""
+    """Where the checkpoints, loss curve and held-out error are written; must not hold a training run unless
+    ``overwrite`` (other files may be there and stay). Held for the run: a second run into it fails at once."""
     overwrite: bool = False
-    """Replace the training run in an existing ``output_dir`` (its files are deleted first; a folder holding any
-    other file is refused)."""
+    """Replace the training run in ``output_dir`` (only the files a run recorded there are deleted)."""
     test_episodes: str | None = None
     """``"start:stop"``: held-out episodes, overriding the dataset's test split."""
     eval_every_epochs: int = 1

@@ -7,6 +7,7 @@ DataLoader. Checkpoints are written with LeRobot's own ``save_checkpoint`` in ``
 
 from __future__ import annotations
 
+import io
 import json
 import logging
 import math
@@ -22,13 +23,14 @@ import torch
 from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_STATE
 
 from lerobot_pnp.errors import ConfigError
+from lerobot_pnp.outputs import OutputFolder
 from lerobot_pnp.policy import PnpLstmPolicy, PnpPixelsConfig
 from lerobot_pnp.progress import log_friendly_tqdm
 from lerobot_pnp.registration import register_task_record
 
 from .config import TrainFastConfig
 from .data import load_keyframe_data
-from .output import clear_previous_run, locked_output
+from .output import CONFIG_FILE, clear_previous_run, run_folder
 from .report import CHUNK_EPISODES, action_names, keyframe_error, write_curve
 
 logger = logging.getLogger(__name__)
@@ -59,7 +61,7 @@ class _Run:
     """What a checkpoint needs, gathered once."""
 
     cfg: TrainFastConfig
-    out_dir: Path
+    folder: OutputFolder  # the output folder, held for the run
     total_steps: int
     policy: PnpLstmPolicy
     optimizer: Any
@@ -68,6 +70,10 @@ class _Run:
     postprocessor: Any
     opt_cfg: Any
     sched_cfg: Any
+
+    @property
+    def out_dir(self) -> Path:
+        return self.folder.path
 
     def save(self, step: int) -> Path:
         from lerobot.common.train_utils import get_step_checkpoint_dir, save_checkpoint, update_last_checkpoint
@@ -155,7 +161,7 @@ def _normalised(preprocessor, data, rows: torch.Tensor, device) -> dict[str, tor
     return {**out, **{k: v.to(device) for k, v in data.extras(rows).items()}}
 
 
-def _optimisation(cfg: TrainFastConfig, out_dir: Path, policy, preprocessor, postprocessor, n_train: int):
+def _optimisation(cfg: TrainFastConfig, folder: OutputFolder, policy, preprocessor, postprocessor, n_train: int):
     """The optimiser and scheduler of the policy's presets (``cfg.lr`` overrides the rate) over the run's
     steps (``cfg.steps``, else ``cfg.epochs`` whole epochs); returns ``(_Run, epochs)``."""
     opt_cfg = cfg.policy.get_optimizer_preset()
@@ -167,7 +173,7 @@ def _optimisation(cfg: TrainFastConfig, out_dir: Path, policy, preprocessor, pos
     n_epochs = math.ceil(total_steps / steps_per_epoch)
     optimizer = opt_cfg.build(policy.get_optim_params())
     scheduler = sched_cfg.build(optimizer, total_steps) if sched_cfg is not None else None
-    run = _Run(cfg, out_dir, total_steps, policy, optimizer, scheduler, preprocessor, postprocessor, opt_cfg, sched_cfg)
+    run = _Run(cfg, folder, total_steps, policy, optimizer, scheduler, preprocessor, postprocessor, opt_cfg, sched_cfg)
     return run, n_epochs
 
 
@@ -197,7 +203,7 @@ def _final_report(
     run: _Run, ds, data, train_all, test_all, step: int, ckpt_dir: Path, history: list
 ) -> TrainFastResult:
     """The final MSEs and the held-out keyframe error (``test_keyframe_error.json``), the loss curve."""
-    cfg, policy, out_dir = run.cfg, run.policy, run.out_dir
+    cfg, policy = run.cfg, run.policy
     final_train = _mse(policy, train_all)
     final_test = _mse(policy, test_all)
     if test_all is not None:
@@ -218,8 +224,8 @@ def _final_report(
             "checkpoint": str(ckpt_dir),
         }
     )
-    (out_dir / "test_keyframe_error.json").write_text(json.dumps(err, indent=2))
-    write_curve(history, out_dir)
+    run.folder.write_text("test_keyframe_error.json", json.dumps(err, indent=2))
+    write_curve(history, run.folder)
     logger.info(
         "pnp_lstm fast training done: train MSE %.4g, test MSE %.4g, test joint MAE %.3f deg -> %s",
         final_train,
@@ -248,14 +254,13 @@ def _continue_from(policy: PnpLstmPolicy, ckpt: Path) -> tuple:
 def train_fast(cfg: TrainFastConfig) -> TrainFastResult:
     """Train ``pnp_lstm`` on whole keyframe episodes; see the package docstring for what is written.
 
-    The output folder is locked for the whole run (``output.locked_output``: a second run into it fails at
-    once) and a previous run there is deleted once the data and the policy are ready (``--overwrite``)."""
+    The output folder is held for the whole run (``output.run_folder``: a second run into it fails at once) and
+    a previous run there is deleted once the data and the policy are ready (``--overwrite``)."""
     register_task_record()  # its checkpoints record the dataset's task, as under stock lerobot-train
     if cfg.num_threads is not None:
         torch.set_num_threads(cfg.num_threads)
-    out_dir = Path(cfg.output_dir)
-    with locked_output(out_dir, cfg.overwrite):
-        return _train(cfg, out_dir)
+    with run_folder(Path(cfg.output_dir), cfg.overwrite) as folder:
+        return _train(cfg, folder)
 
 
 def _policy_and_processors(cfg: TrainFastConfig, ds) -> tuple[PnpLstmPolicy, Any, Any]:
@@ -274,7 +279,7 @@ def _policy_and_processors(cfg: TrainFastConfig, ds) -> tuple[PnpLstmPolicy, Any
     return policy, preprocessor, postprocessor
 
 
-def _train(cfg: TrainFastConfig, out_dir: Path) -> TrainFastResult:
+def _train(cfg: TrainFastConfig, folder: OutputFolder) -> TrainFastResult:
     seed_everything(cfg.seed)
     max_length = cfg.policy.max_episode_length if cfg.policy.recovering else None
     with_images = isinstance(cfg.policy, PnpPixelsConfig)
@@ -291,12 +296,14 @@ def _train(cfg: TrainFastConfig, out_dir: Path) -> TrainFastResult:
     train_all = _normalised(preprocessor, data, data.train_idx, device)
     test_all = _normalised(preprocessor, data, data.test_idx, device)
     assert train_all is not None  # train_test guarantees training episodes
-    run, n_epochs = _optimisation(cfg, out_dir, policy, preprocessor, postprocessor, len(data.train_idx))
+    run, n_epochs = _optimisation(cfg, folder, policy, preprocessor, postprocessor, len(data.train_idx))
 
-    clear_previous_run(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    with open(out_dir / "train_fast_config.json", "w") as f, draccus.config_type("json"):
-        draccus.dump(cfg, f, indent=4)
+    clear_previous_run(folder)
+    text = io.StringIO()
+    with draccus.config_type("json"):
+        draccus.dump(cfg, text, indent=4)
+    folder.write_text(CONFIG_FILE, text.getvalue())
+    folder.claim("checkpoints")  # before the first checkpoint is written into it
     history, step = _fit(run, train_all, test_all, n_epochs, device)
     policy.eval()
     ckpt_dir = run.save(step)

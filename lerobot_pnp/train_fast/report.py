@@ -3,14 +3,15 @@
 from __future__ import annotations
 
 import csv
+import io
 import math
-from pathlib import Path
 from typing import Any
 
 import torch
 from lerobot.utils.constants import ACTION
 
 from lerobot_pnp import robot
+from lerobot_pnp.outputs import OutputFolder
 from lerobot_pnp.policy import PnpLstmPolicy
 
 
@@ -71,11 +72,12 @@ def keyframe_error(
     return out
 
 
-def write_curve(history: list[dict[str, float]], out_dir: Path) -> None:
-    with open(out_dir / "loss_curve.csv", "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(history[0].keys()))
-        w.writeheader()
-        w.writerows(history)
+def write_curve(history: list[dict[str, float]], folder: OutputFolder) -> None:
+    """``loss_curve.csv`` and ``loss_curve.png`` (train vs held-out MSE per epoch), written together."""
+    text = io.StringIO()
+    w = csv.DictWriter(text, fieldnames=list(history[0].keys()), lineterminator="\r\n")
+    w.writeheader()
+    w.writerows(history)
     import matplotlib
 
     matplotlib.use("Agg", force=False)
@@ -92,5 +94,7 @@ def write_curve(history: list[dict[str, float]], out_dir: Path) -> None:
     ax.grid(True, which="both", alpha=0.3)
     ax.legend()
     fig.tight_layout()
-    fig.savefig(out_dir / "loss_curve.png", dpi=120)
+    png = io.BytesIO()
+    fig.savefig(png, format="png", dpi=120)
     plt.close(fig)
+    folder.write_set({"loss_curve.csv": text.getvalue().encode(), "loss_curve.png": png.getvalue()})

@@ -8,7 +8,8 @@ import tempfile
 from pathlib import Path
 
 from lerobot_pnp.errors import ConfigError
-from lerobot_pnp.viz.config import VizConfig
+from lerobot_pnp.outputs import TMP_SUFFIX, OutputFolder, remove_path
+from lerobot_pnp.viz.config import COMMAND, VizConfig
 from lerobot_pnp.viz.recording import log_cameras_and_events, log_policy_comparison, log_run, make_blueprint
 from lerobot_pnp.viz.screenshot import take_screenshot
 
@@ -35,9 +36,9 @@ def visualize(cfg: VizConfig) -> dict:
             "no display to spawn the Rerun viewer on: pass --save out.rrd (open it with `rerun out.rrd`) "
             "or --screenshot out.png"
         )
-    for flag, path in (("save", cfg.save), ("screenshot", cfg.screenshot)):
-        if path is not None:
-            check_destination(flag, Path(path).expanduser())
+    destinations = {f: Path(p).expanduser() for f, p in (("save", cfg.save), ("screenshot", cfg.screenshot)) if p}
+    for flag, path in destinations.items():
+        check_destination(flag, path)
     # Load and check everything before opening the recording, so bad input fails fast and writes nothing.
     episodes, replay_cfg = [], None
     if cfg.repo_id is not None:
@@ -54,6 +55,7 @@ def visualize(cfg: VizConfig) -> dict:
         rendered = {c: (policy_cfg.image_height, policy_cfg.image_width) for c in policy_cfg.cameras}
         check_policy_features(loaded.policy.config, len(policy_cfg.environment_state_names), rendered)  # fits
     seeds = [cfg.seed + i for i in range(cfg.n_rollouts)] if loaded is not None else []
+    claim_destinations(destinations)  # a file of the user's there is refused before any rollout
 
     runs = [replay_episode(ep, replay_cfg, cfg.log_hz) for ep in episodes]
     runs += [
@@ -62,7 +64,7 @@ def visualize(cfg: VizConfig) -> dict:
     ]
 
     with tempfile.TemporaryDirectory(prefix="lerobot_pnp_viz_") as tmp:
-        rrd = Path(cfg.save).expanduser() if cfg.save else Path(tmp) / "recording.rrd"
+        rrd = _recording_file(destinations["save"]) if cfg.save else Path(tmp) / "recording.rrd"
         rec = rr.RecordingStream(APPLICATION_ID, recording_id=None)
         blueprint = make_blueprint(
             [(run.name, run.is_rollout, list(run.images)) for run in runs],
@@ -87,11 +89,36 @@ def visualize(cfg: VizConfig) -> dict:
         rec.flush()
         if cfg.save is not None or cfg.screenshot is not None:
             rec.disconnect()
+        if cfg.save is not None:
+            rrd = _publish(rrd, destinations["save"])
         if cfg.save is None and cfg.screenshot is not None:
             summary["recording"] = None
         if cfg.screenshot is not None:
             summary["screenshot"] = str(take_screenshot(rrd, cfg.screenshot, cfg.window))
     return summary
+
+
+def claim_destinations(destinations: dict[str, Path]) -> None:
+    """Record each ``--save``/``--screenshot`` file as this command's in its folder's manifest
+    (``lerobot_pnp.outputs``) before it is written; a file of that name the command did not write is refused."""
+    for flag, path in destinations.items():
+        with OutputFolder(path.parent, COMMAND, flag=f"--{flag}") as folder:
+            folder.claim(path.name)
+
+
+def _recording_file(dest: Path) -> Path:
+    """Where the recording for ``--save dest`` is written until it is complete: ``dest`` + ``.tmp``."""
+    tmp = dest.with_name(dest.name + TMP_SUFFIX)
+    remove_path(tmp)  # a leftover of an interrupted run (a link is unlinked, never followed)
+    return tmp
+
+
+def _publish(tmp: Path, dest: Path) -> Path:
+    """Move the complete recording ``tmp`` to ``dest`` in one rename, over a file only this command wrote."""
+    with OutputFolder(dest.parent, COMMAND, flag="--save") as folder:
+        final = folder.claim(dest.name)
+        os.replace(tmp, final)
+    return final
 
 
 def check_destination(flag: str, path: Path) -> None:

@@ -11,6 +11,7 @@ import numpy as np
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.presets import CONTROL_MODES, OBSERVATION_DEFAULTS, TASK_FIELDS
 
+COMMAND = "lerobot-pnp viz"  # its name in an output folder's manifest (--save, --screenshot)
 ENV_CHANGE_FIELDS = (*TASK_FIELDS, *OBSERVATION_DEFAULTS)
 # The study's first evaluation seed (report.run.StudyConfig.eval_seed): disjoint from the seeds a dataset's
 # episodes are generated with (seed 0 + slot, retries above), so a rollout shows the policy on a new episode.

@@ -12,9 +12,12 @@ import re
 import shutil
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 from lerobot_pnp.errors import PnPError
+from lerobot_pnp.outputs import OutputFolder
+from lerobot_pnp.viz.config import COMMAND
 
 TIMEOUT_S = 180
 # What the viewer prints when this machine has no graphics adapter wgpu can use (the one condition under
@@ -39,24 +42,28 @@ def viewer_binary() -> str:
 
 
 def take_screenshot(recording: str | Path, out: str | Path, window: tuple[int, int] = (1600, 1000)) -> Path:
-    """Render ``recording`` (an .rrd with its blueprint) in the headless viewer and save a PNG to ``out``."""
+    """Render ``recording`` (an .rrd with its blueprint) in the headless viewer and save a PNG to ``out``.
+
+    The viewer writes into a temporary folder; the picture then goes into ``out``'s folder through
+    ``lerobot_pnp.outputs`` (atomically, and only over a file ``lerobot-pnp viz`` wrote there)."""
     out = Path(out).expanduser().resolve()
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(f".{out.stem}.tmp.png")
-    tmp.unlink(missing_ok=True)
-    cmd = [viewer_binary(), str(recording), "--headless", "--screenshot-to", str(tmp)]
-    cmd += ["--window-size", f"{window[0]}x{window[1]}", "--port", "auto"]  # never clash with a running viewer
-    # RUST_LOG=warn: no info notifications ("Listening for gRPC connections ...") drawn over the picture.
-    env = {**os.environ, "RERUN_ANALYTICS": "0", "RUST_LOG": "warn"}
-    try:
-        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=TIMEOUT_S, env=env)
-    except subprocess.TimeoutExpired:
-        raise ScreenshotError(f"the headless Rerun viewer did not finish within {TIMEOUT_S} s") from None
-    log = proc.stdout + proc.stderr
-    if NO_ADAPTER.search(log):
-        raise ViewerUnavailableError(f"the Rerun viewer found no graphics adapter here: {NO_ADAPTER.search(log)[0]}")
-    if proc.returncode != 0 or not tmp.is_file():
-        last = [line for line in log.strip().splitlines() if line.strip()][-1:] or ["(no output)"]
-        raise ScreenshotError(f"the headless Rerun viewer failed (exit {proc.returncode}): {last[0][-300:]}")
-    tmp.replace(out)
+    with tempfile.TemporaryDirectory(prefix="lerobot_pnp_shot_") as tmp_dir:
+        tmp = Path(tmp_dir) / "shot.png"
+        cmd = [viewer_binary(), str(recording), "--headless", "--screenshot-to", str(tmp)]
+        cmd += ["--window-size", f"{window[0]}x{window[1]}", "--port", "auto"]  # never clash with a running viewer
+        # RUST_LOG=warn: no info notifications ("Listening for gRPC connections ...") drawn over the picture.
+        env = {**os.environ, "RERUN_ANALYTICS": "0", "RUST_LOG": "warn"}
+        try:
+            proc = subprocess.run(cmd, capture_output=True, text=True, timeout=TIMEOUT_S, env=env)
+        except subprocess.TimeoutExpired:
+            raise ScreenshotError(f"the headless Rerun viewer did not finish within {TIMEOUT_S} s") from None
+        log = proc.stdout + proc.stderr
+        if NO_ADAPTER.search(log):
+            found = NO_ADAPTER.search(log)[0]
+            raise ViewerUnavailableError(f"the Rerun viewer found no graphics adapter here: {found}")
+        if proc.returncode != 0 or not tmp.is_file():
+            last = [line for line in log.strip().splitlines() if line.strip()][-1:] or ["(no output)"]
+            raise ScreenshotError(f"the headless Rerun viewer failed (exit {proc.returncode}): {last[0][-300:]}")
+        with OutputFolder(out.parent, COMMAND, flag="--screenshot") as folder:
+            folder.write_bytes(out.name, tmp.read_bytes())
     return out
