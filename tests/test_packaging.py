@@ -8,10 +8,13 @@ import os
 import shutil
 import subprocess
 import sys
+import tomllib
 import zipfile
 from pathlib import Path
 
 import pytest
+from packaging.requirements import Requirement
+from packaging.utils import canonicalize_name
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -20,6 +23,32 @@ def _wheel_env(site: Path) -> dict[str, str]:
     """The environment of a user who installed the wheel: only the install folder on the path, no source tree."""
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
     return {**env, "PYTHONPATH": str(site), "OMP_NUM_THREADS": "1", "HF_HUB_OFFLINE": "1", "MUJOCO_GL": "egl"}
+
+
+def _lock_pins(text: str) -> dict[str, str]:
+    """requirements.lock as {name: version}: every line one ``name==version`` pin (markers allowed)."""
+    pins = {}
+    for line in text.splitlines():
+        if line.split("#", 1)[0].strip():
+            req = Requirement(line.split("#", 1)[0])
+            (spec,) = req.specifier
+            assert spec.operator == "==", f"not a pin in requirements.lock: {line}"
+            pins[canonicalize_name(req.name)] = spec.version
+    return pins
+
+
+def test_the_lock_pins_every_requirement_of_the_install_and_the_test_extra_at_an_allowed_version():
+    """make install takes exactly the lock's versions: a requirement of pyproject.toml the lock misses, or pins
+    outside its range, means the lock is stale (make lock)."""
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    pins = _lock_pins((ROOT / "requirements.lock").read_text())
+    for req in map(Requirement, [*project["dependencies"], *project["optional-dependencies"]["test"]]):
+        name = canonicalize_name(req.name)
+        assert name in pins, f"{req} is not in requirements.lock: make lock"
+        assert req.specifier.contains(pins[name], prereleases=True), (
+            f"requirements.lock pins {name}=={pins[name]}: {req}"
+        )
+    assert "diffusers" not in pins  # the diffusion extra stays out of the default install
 
 
 @pytest.fixture(scope="session")
