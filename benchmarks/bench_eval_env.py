@@ -43,7 +43,7 @@ import torch
 torch.set_num_threads(1)
 from lerobot_pnp.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.evaluation.checkpoints import load_policy
-from lerobot_pnp.evaluation.episodes import eval_expert, eval_lerobot_policy
+from lerobot_pnp.closed_loop import eval_expert, eval_lerobot_policy
 from lerobot_pnp.evaluation.suites import get_suites
 from lerobot_pnp.recorded_task import read_recorded
 from lerobot_pnp.report import act_baseline

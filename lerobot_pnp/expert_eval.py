@@ -87,7 +87,7 @@ def _written_before_the_manifest(folder: OutputFolder) -> bool:
 
 
 def _evaluate_suites(cfg: ExpertEvalConfig, suites: dict[str, BaxterPnPEnvConfig]) -> tuple[dict, dict]:
-    from lerobot_pnp.evaluation.episodes import eval_expert
+    from lerobot_pnp.closed_loop import eval_expert
     from lerobot_pnp.evaluation.records import summarize
 
     groups, start = {}, time.perf_counter()

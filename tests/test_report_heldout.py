@@ -10,9 +10,9 @@ import pytest
 
 from lerobot_pnp.cache import Stage, code_versions
 from lerobot_pnp.errors import ConfigError
-from lerobot_pnp.evaluation.suites import HELD_OUT_AXES
+from lerobot_pnp.evaluation.suites import HELD_OUT_AXES, PROTOCOL_SUITES
 from lerobot_pnp.report import methods
-from lerobot_pnp.report.config import PROTOCOL_SUITES, StudyConfig, SuiteSpec
+from lerobot_pnp.report.config import StudyConfig, SuiteSpec
 from lerobot_pnp.report.stages import dataset_parts
 
 

@@ -7,7 +7,7 @@ One of each concept, so a name means one thing everywhere:
 * ``stats``: the one Wilson interval (``Rate``), the sign test and paired comparisons;
 * ``records``: ``EpisodeRecord`` (what one evaluation episode ended with) and its counts / JSON;
 * ``checkpoints``: the one strict checkpoint loader (``load_policy``) and its feature / value checks;
-* ``episodes``: the evaluators: one seeded episode of a loaded policy (``run_episode``, the viewer's and
+* ``lerobot_pnp.closed_loop`` (beside this package, above the env config): the evaluators: one seeded episode of a loaded policy (``run_episode``, the viewer's and
   DAgger's), the serial evaluator built on it, and stock LeRobot ``eval_policy`` with per-episode records (the
   study's).
 
