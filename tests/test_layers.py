@@ -1,5 +1,5 @@
-"""The package's import layers (pyproject.toml, ``[tool.importlinter]``): checked by import-linter, the same
-``lint-imports`` that ``make test`` runs, imports inside functions included."""
+"""The package's import contracts (pyproject.toml, ``[tool.importlinter]``): its layers and no import cycle,
+checked by import-linter, the same ``lint-imports`` that ``make test`` runs, imports inside functions included."""
 
 from __future__ import annotations
 
@@ -26,19 +26,40 @@ def _lint_imports(root: Path) -> subprocess.CompletedProcess:
     )
 
 
-def test_no_module_imports_a_layer_above_its_own():
+def _copy(tmp_path: Path) -> Path:
+    """A copy of the package and its contracts under ``tmp_path``."""
+    shutil.copytree(ROOT / "lerobot_pnp", tmp_path / "lerobot_pnp", ignore=shutil.ignore_patterns("__pycache__"))
+    shutil.copy(ROOT / "pyproject.toml", tmp_path / "pyproject.toml")
+    return tmp_path / "lerobot_pnp"
+
+
+def _add(module: Path, code: str) -> None:
+    module.write_text(module.read_text() + "\n\n" + code + "\n")
+
+
+def test_no_module_imports_a_layer_above_its_own_and_no_imports_go_round():
     proc = _lint_imports(ROOT)
     assert proc.returncode == 0, proc.stdout + proc.stderr
-    assert "Contracts: 1 kept, 0 broken." in proc.stdout, proc.stdout
+    assert "layers KEPT" in proc.stdout and "no cycles KEPT" in proc.stdout, proc.stdout
 
 
 def test_an_upward_import_breaks_the_layers(tmp_path):
-    """A copy of the package whose leaf ``robot`` imports the command line fails the check, naming the import."""
-    shutil.copytree(ROOT / "lerobot_pnp", tmp_path / "lerobot_pnp", ignore=shutil.ignore_patterns("__pycache__"))
-    shutil.copy(ROOT / "pyproject.toml", tmp_path / "pyproject.toml")
-    robot = tmp_path / "lerobot_pnp" / "robot.py"
-    robot.write_text(robot.read_text() + "\n\ndef _upward():\n    from lerobot_pnp import cli  # noqa: F401\n")
+    """A copy of the package whose leaf ``robot`` imports the command line (inside a function) fails the check,
+    naming the import."""
+    package = _copy(tmp_path)
+    _add(package / "robot.py", "def _upward():\n    from lerobot_pnp import cli  # noqa: F401")
     proc = _lint_imports(tmp_path)
     assert proc.returncode == 1, proc.stdout + proc.stderr
+    assert "layers BROKEN" in proc.stdout, proc.stdout
     assert "lerobot_pnp.robot is not allowed to import lerobot_pnp.cli" in proc.stdout, proc.stdout
-    assert "Contracts: 0 kept, 1 broken." in proc.stdout, proc.stdout
+
+
+def test_two_modules_of_one_layer_importing_each_other_break_the_no_cycles_contract(tmp_path):
+    """``presets`` and ``robot`` share a layer: importing each other keeps the layers but is a cycle."""
+    package = _copy(tmp_path)
+    _add(package / "robot.py", "from lerobot_pnp import presets  # noqa: E402, F401")
+    _add(package / "presets.py", "from lerobot_pnp import robot  # noqa: E402, F401")
+    proc = _lint_imports(tmp_path)
+    assert proc.returncode == 1, proc.stdout + proc.stderr
+    assert "layers KEPT" in proc.stdout and "no cycles BROKEN" in proc.stdout, proc.stdout
+    assert ".presets -> .robot" in proc.stdout or ".robot -> .presets" in proc.stdout, proc.stdout
