@@ -31,8 +31,9 @@ A method may train on some task presets only (``Method.tasks``): the clocked pla
 demonstrations (the paper's task), so a study on the ``full`` task refuses them up front (``StudyConfig``).
 
 The parts live beside this catalogue: ``recipes`` (the recovering recipe, the DAgger and DART schedules,
-``policy_settings``), ``builders`` (how each method is trained and evaluated) and ``training`` (a training's key,
-and the keyed training that reuses one on disk).
+``policy_settings``), ``builders`` (how each method is trained and evaluated), ``training`` (a training's key,
+and the keyed training that reuses one on disk) and ``method_spec`` (``Method``, ``TrainContext``). A training
+that continues another method's run finds that method through the catalogue's lookup, handed down to it.
 """
 
 from __future__ import annotations
