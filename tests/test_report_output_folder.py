@@ -33,7 +33,13 @@ def _sums(root: Path) -> dict[str, str]:
 
 def _users_dataset(root: Path) -> None:
     """A dataset `lerobot-pnp generate --root X/dataset` made (its files, as the generator lays them out)."""
-    for name in ("meta/info.json", "meta/pnp_generate.json", "data/chunk-000/file-000.parquet", "videos/c.mp4"):
+    for name in (
+        "meta/info.json",
+        "meta/pnp_generate.json",
+        "meta/baxter_pnp_env.json",
+        "data/chunk-000/file-000.parquet",
+        "videos/c.mp4",
+    ):
         (root / name).parent.mkdir(parents=True, exist_ok=True)
         (root / name).write_text(f"the user's {name}")
 
