@@ -60,4 +60,4 @@ docs: $(STAMP)
 	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict
 
 clean:
-	rm -rf $(VENV) outputs build site *.egg-info
+	rm -rf $(VENV) outputs build site *.egg-info .import_linter_cache
