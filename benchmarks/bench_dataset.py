@@ -85,8 +85,8 @@ def breakdown(control_mode: str, episodes: int, out: Path) -> dict:
     import mujoco
 
     from lerobot_pnp.dataset.shards import GenerateShard, quiet_and_single_threaded, read_shard_record
-    from lerobot_pnp.env_config import BaxterPnPEnvConfig
-    from lerobot_pnp.ik import ArmIK
+    from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
+    from lerobot_pnp.sim.ik import ArmIK
 
     quiet_and_single_threaded()
     physics, ik = _Timer(), _Timer()

@@ -41,11 +41,11 @@ import glob, json, sys, time
 from pathlib import Path
 import torch
 torch.set_num_threads(1)
-from lerobot_pnp.env_config import BaxterPnPEnvConfig
+from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.evaluation.checkpoints import load_policy
-from lerobot_pnp.closed_loop import eval_expert, eval_lerobot_policy
-from lerobot_pnp.evaluation.suites import get_suites
-from lerobot_pnp.recorded_task import read_recorded
+from lerobot_pnp.evaluation.closed_loop import eval_expert, eval_lerobot_policy
+from lerobot_pnp.sim.suites import get_suites
+from lerobot_pnp.integration.recorded_task import read_recorded
 from lerobot_pnp.report import act_baseline
 
 root, method, seed, suite, n = Path(sys.argv[1]), sys.argv[2], sys.argv[3], sys.argv[4], int(sys.argv[5])

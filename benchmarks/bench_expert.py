@@ -16,11 +16,11 @@ import json
 import math
 from pathlib import Path
 
-from lerobot_pnp.env_config import BaxterPnPEnvConfig
+from lerobot_pnp.evaluation.expert_eval import ExpertEvalConfig, evaluate_expert
 from lerobot_pnp.evaluation.stats import wilson_interval as wilson
-from lerobot_pnp.evaluation.suites import HELD_OUT_AXES, SUITES
-from lerobot_pnp.expert_eval import ExpertEvalConfig, evaluate_expert
 from lerobot_pnp.presets import NARROW_FULL_DISTURBANCES
+from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
+from lerobot_pnp.sim.suites import HELD_OUT_AXES, SUITES
 
 BUDGET = {"keyframe_budget": 40}  # room for recoveries
 # Whole tasks (env configs), not changes to a training task: a preset each, with its own names.

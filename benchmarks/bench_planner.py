@@ -133,8 +133,8 @@ def latency(ckpt: Path, calls: int = 2000) -> float:
 def cli_check(cfg: DaggerConfig, out: Path, rnd: int) -> dict:
     """Stock ``lerobot-eval`` (subprocess) on round ``rnd``'s checkpoint, suite by suite, against the
     in-process evaluation of the same seeds (``round_XX/eval.json``)."""
-    from lerobot_pnp.evaluation.suites import SUITES
     from lerobot_pnp.report.cli_eval import EvalSpec, run_eval
+    from lerobot_pnp.sim.suites import SUITES
 
     rdir = out / "dagger" / f"round_{rnd:02d}"
     ckpt = rdir / "train" / "checkpoints" / "last" / "pretrained_model"

@@ -36,7 +36,7 @@ SETTINGS = {"effects": True, "no effects": False}
 
 def frame_cost(camera: str, size: int, frames: int, png_dir: Path | None) -> dict:
     """Median ms per frame of each setting over ``frames`` renders, in rounds over 4 seeded states."""
-    from lerobot_pnp.env_config import make_env
+    from lerobot_pnp.sim.env_config import make_env
 
     env = make_env(preset="full", render_mode=None)
     physics = env.unwrapped.physics

@@ -20,8 +20,8 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import mujoco
 
 from lerobot_pnp import robot
-from lerobot_pnp.env_config import make_env
-from lerobot_pnp.expert import run_expert_episode
+from lerobot_pnp.sim.env_config import make_env
+from lerobot_pnp.sim.expert import run_expert_episode
 
 
 def raw_step_rate(n_steps: int = 20000) -> float:

@@ -39,9 +39,9 @@ def tiny_checkpoint(path: Path) -> Path:
     import torch
     from lerobot.configs import FeatureType, PolicyFeature
 
-    from lerobot_pnp.env_config import BaxterPnPEnvConfig
+    from lerobot_pnp.integration.recorded_task import write_checkpoint_task
     from lerobot_pnp.policy import PnpLstmConfig, PnpLstmPolicy, make_pnp_lstm_pre_post_processors
-    from lerobot_pnp.recorded_task import write_checkpoint_task
+    from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
 
     task = BaxterPnPEnvConfig(preset="full")
     width = len(task.environment_state_names)
@@ -87,8 +87,8 @@ def run_stock_no_videos(ckpt: Path, task: str, n: int, batch: int) -> float:
     from lerobot.envs.factory import make_env_pre_post_processors
     from lerobot.scripts.lerobot_eval import eval_policy_all
 
-    from lerobot_pnp.env_config import BaxterPnPEnvConfig
     from lerobot_pnp.evaluation.checkpoints import load_policy
+    from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
 
     cfg = BaxterPnPEnvConfig(task_source=str(ckpt), task=task)
     t = time.perf_counter()
@@ -104,10 +104,10 @@ def run_stock_no_videos(ckpt: Path, task: str, n: int, batch: int) -> float:
 
 def run_study(ckpt: Path, task: str, n: int, batch: int) -> tuple[dict[str, float], dict[str, list[bool]]]:
     """The study's evaluator on each suite (``_checkpoint_eval``): its wall time and outcomes per suite."""
-    from lerobot_pnp.closed_loop import eval_lerobot_policy
-    from lerobot_pnp.env_config import BaxterPnPEnvConfig
     from lerobot_pnp.evaluation.checkpoints import load_policy
-    from lerobot_pnp.evaluation.stock_suites import suite_configs
+    from lerobot_pnp.evaluation.closed_loop import eval_lerobot_policy
+    from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
+    from lerobot_pnp.sim.stock_suites import suite_configs
 
     times, outcomes = {}, {}
     for suite, env_cfg in suite_configs(BaxterPnPEnvConfig(task_source=str(ckpt), task=task)).items():
@@ -154,7 +154,7 @@ def main() -> None:
     ap.add_argument("--keep", type=Path, default=None, help="keep the first stock run's output folder here")
     ap.add_argument("--out", type=Path, default=Path("bench_stock_suites.json"))
     args = ap.parse_args()
-    from lerobot_pnp.registration import register_all
+    from lerobot_pnp.integration.registration import register_all
 
     register_all()
     import torch

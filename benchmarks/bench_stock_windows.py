@@ -84,7 +84,7 @@ def _loader(repo_id: str, root: str, spec: dict):
     from lerobot.datasets.lerobot_dataset import LeRobotDataset, LeRobotDatasetMetadata
     from lerobot.datasets.streaming_dataset import StreamingLeRobotDataset
 
-    from lerobot_pnp.stock_train import phase_windows, stream_labels_as_arrays
+    from lerobot_pnp.integration.stock_train import phase_windows, stream_labels_as_arrays
 
     meta = LeRobotDatasetMetadata(repo_id, root=root)
     keys = [k for k in meta.features if k.startswith("observation.") or k == "action"]
@@ -114,8 +114,8 @@ def _trainer(repo_id: str, root: str, spec: dict):
     from lerobot.policies.factory import make_pre_post_processors
     from lerobot.utils.feature_utils import dataset_to_policy_features
 
+    from lerobot_pnp.integration.stock_train import labels_kept
     from lerobot_pnp.policy import PnpLstmPolicy
-    from lerobot_pnp.stock_train import labels_kept
 
     loader, meta = _loader(repo_id, root, spec)
     cfg = spec["policy"]

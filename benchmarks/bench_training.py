@@ -34,7 +34,7 @@ TARGET_S = 15 * 60  # the shipped recovering recipe trains in under 15 minutes o
 def _time_training(method: str, root: Path, workdir: Path, epochs: int, seed: int) -> dict:
     """Train ``method`` as the study does on ``root``; its wall time and what it trained."""
     from lerobot_pnp.dataset.layout import read_info
-    from lerobot_pnp.recorded_task import read_recorded
+    from lerobot_pnp.integration.recorded_task import read_recorded
     from lerobot_pnp.report.methods import TrainContext, get_methods, policy_settings
 
     (m,) = get_methods([method])

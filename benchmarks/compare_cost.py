@@ -27,7 +27,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from lerobot_pnp.evaluation.stock_suites import suite_names
+from lerobot_pnp.sim.stock_suites import suite_names
 
 TARGET_EPISODES, TARGET_SECONDS = 100_000, 5.0
 RATES = {"stock": 0.8, "expert": 0.7}

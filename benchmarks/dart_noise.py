@@ -28,7 +28,7 @@ from lerobot_pnp.dagger import DaggerConfig
 from lerobot_pnp.dagger.dart import DartNoise
 from lerobot_pnp.dagger.loop import base_env_config
 from lerobot_pnp.dagger.rollouts import labelled_rollout, suite_env
-from lerobot_pnp.expert import run_expert_episode
+from lerobot_pnp.sim.expert import run_expert_episode
 
 
 class _Idle:

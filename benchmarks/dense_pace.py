@@ -22,9 +22,9 @@ from pathlib import Path
 
 import numpy as np
 
-from lerobot_pnp.env_config import BaxterPnPEnvConfig, make_env
-from lerobot_pnp.evaluation.suites import get_suites
-from lerobot_pnp.expert import run_expert_episode
+from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig, make_env
+from lerobot_pnp.sim.expert import run_expert_episode
+from lerobot_pnp.sim.suites import get_suites
 
 
 def episode_steps(cfg: BaxterPnPEnvConfig, seeds: range) -> list[int]:

@@ -31,14 +31,14 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(HERE))
 
-from lerobot_pnp.env_config import BaxterPnPEnvConfig  # noqa: E402
-from lerobot_pnp.recorded_task import read_recorded  # noqa: E402
+from lerobot_pnp.integration.recorded_task import read_recorded  # noqa: E402
 from lerobot_pnp.report import coverage  # noqa: E402
 from lerobot_pnp.report.config import StudyConfig  # noqa: E402
 from lerobot_pnp.report.job import suites_for  # noqa: E402
 from lerobot_pnp.report.layout import StudyLayout  # noqa: E402
 from lerobot_pnp.report.methods import get_methods  # noqa: E402
 from lerobot_pnp.report.stages import share_of_time  # noqa: E402
+from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig  # noqa: E402
 
 
 def stage_row(record: Path, rule, batch: int, fixed: bool) -> dict:
@@ -65,11 +65,11 @@ def verify(cfg: StudyConfig, layout: StudyLayout, what: str) -> dict:
     """The fixed run and the block-by-block run of one finished stage, compared episode by episode."""
     from dataclasses import asdict
 
-    from lerobot_pnp.evaluation.suites import get_suites
     from lerobot_pnp.report.config import EpisodeRule
     from lerobot_pnp.report.job import evaluate, train_context
     from lerobot_pnp.report.methods import keyed_train, train_stage
     from lerobot_pnp.report.schedule import Job
+    from lerobot_pnp.sim.suites import get_suites
 
     name, tag, suite_name = what.split("/")
     (method,) = get_methods([name])

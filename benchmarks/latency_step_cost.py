@@ -33,12 +33,12 @@ from pathlib import Path
 
 import numpy as np
 
-from lerobot_pnp.env_config import BaxterPnPEnvConfig, make_env
 from lerobot_pnp.evaluation.records import EpisodeRecord, summarize
 from lerobot_pnp.evaluation.stats import Rate, paired_comparison
-from lerobot_pnp.evaluation.suites import get_suites
-from lerobot_pnp.expert import FSMExpert
 from lerobot_pnp.robot import Phase
+from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig, make_env
+from lerobot_pnp.sim.expert import FSMExpert
+from lerobot_pnp.sim.suites import get_suites
 
 MOVE_TOL = 1e-3  # a keyframe that changes the command by less (a hold keyframe) is not waited for
 

@@ -25,11 +25,11 @@ SEED = 100_000  # the study's first evaluation seed; the demonstrations use seed
 
 def lookup_table(demos: int):
     """The lookup table over ``demos`` expert episodes of the paper's task (seeds 0..)."""
-    from lerobot_pnp.env_config import BaxterPnPEnvConfig, make_env
     from lerobot_pnp.errors import PnPError
-    from lerobot_pnp.expert import run_expert_episode
     from lerobot_pnp.report.adapters import Episodes
     from lerobot_pnp.report.baselines import LookupTablePolicy
+    from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig, make_env
+    from lerobot_pnp.sim.expert import run_expert_episode
 
     env = make_env(BaxterPnPEnvConfig(preset="paper"), render_mode=None)
     episodes = []
@@ -55,11 +55,11 @@ def main() -> None:
     from lerobot.envs.factory import make_env_pre_post_processors
     from lerobot.scripts.lerobot_eval import eval_policy_all
 
-    from lerobot_pnp.closed_loop import eval_lerobot_policy
-    from lerobot_pnp.env_config import BaxterPnPEnvConfig
-    from lerobot_pnp.evaluation.stock_suites import suite_configs
-    from lerobot_pnp.registration import register_all
+    from lerobot_pnp.evaluation.closed_loop import eval_lerobot_policy
+    from lerobot_pnp.integration.registration import register_all
     from lerobot_pnp.report.baselines import identity_processors
+    from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
+    from lerobot_pnp.sim.stock_suites import suite_configs
 
     register_all()
     torch.set_num_threads(1)

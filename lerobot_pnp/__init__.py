@@ -6,7 +6,7 @@ register with their modules; LeRobot's plugin discovery runs ``registration.regi
 ``lerobot_policy_pnp_lstm``), our own entry points ``registration.register_all``.
 """
 
-from lerobot_pnp.registration import register_gym
+from lerobot_pnp.integration.registration import register_gym
 from lerobot_pnp.version import __version__ as __version__  # the one place it is set: version.py
 
 register_gym()

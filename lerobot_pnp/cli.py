@@ -15,7 +15,7 @@ import tempfile
 import typing
 from pathlib import Path
 
-from lerobot_pnp.cli_config import expand_home, layered_config_file
+from lerobot_pnp.support.cli_config import expand_home, layered_config_file
 
 # name -> ("module:ConfigClass", "module:function", help)
 COMMANDS: dict[str, tuple[str, str, str]] = {
@@ -36,8 +36,8 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
         "inspect episodes or policy rollouts in Rerun (viewer, --save rec.rrd, or --screenshot shot.png)",
     ),
     "expert": (
-        "lerobot_pnp.expert_eval:ExpertEvalConfig",
-        "lerobot_pnp.expert_eval:evaluate_expert",
+        "lerobot_pnp.evaluation.expert_eval:ExpertEvalConfig",
+        "lerobot_pnp.evaluation.expert_eval:evaluate_expert",
         "run the scripted expert on seeded episodes or on lerobot-eval's suites: success, failures by cause",
     ),
     "lookup-table": (
@@ -195,7 +195,7 @@ def main(argv: list[str] | None = None) -> int:
     import draccus
 
     from lerobot_pnp.errors import PnPError, one_line
-    from lerobot_pnp.registration import register_all
+    from lerobot_pnp.integration.registration import register_all
 
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or argv[0] in ("-h", "--help"):
@@ -212,7 +212,7 @@ def main(argv: list[str] | None = None) -> int:
         func = _load(func_ref)
         config_cls, config_path, args = command_config(name, args)
         if "-h" in args or "--help" in args:  # the options of the class chosen (train: of its policy type)
-            from lerobot_pnp.cli_help import command_help
+            from lerobot_pnp.support.cli_help import command_help
 
             print(command_help(name, summary, config_cls))
             return 0

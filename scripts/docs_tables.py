@@ -108,7 +108,7 @@ def _verdict(entry: dict) -> str:
 
 def heldout_verdicts(base: str) -> str:
     """The recovering planner's verdict per disturbance axis of the held-out protocol."""
-    from lerobot_pnp.evaluation.suites import HELD_OUT_AXES
+    from lerobot_pnp.sim.suites import HELD_OUT_AXES
 
     summary = _json("study/heldout/summary.json")
     rows = {(e["axis"], e["method"]): e for e in summary["held_out_axes"]}
@@ -242,9 +242,9 @@ def _changes(changes: dict, base: dict) -> str:
 
 def presets_table(base: str) -> str:
     """The task fields where the two presets differ, with each preset's value and the field's description."""
-    from lerobot_pnp.cli_help import field_doc
-    from lerobot_pnp.env_config import BaxterPnPEnvConfig
     from lerobot_pnp.presets import FULL_TASK, PAPER_TASK
+    from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
+    from lerobot_pnp.support.cli_help import field_doc
 
     lines = ["| field | `paper` | `full` | what it is |", "|---|---|---|---|"]
     for k, v in FULL_TASK.items():
@@ -258,8 +258,8 @@ def presets_table(base: str) -> str:
 
 def suite_catalogue(base: str) -> str:
     """Every suite of ``evaluation/suites.py``, grouped as the studies use them, with what it changes."""
-    from lerobot_pnp.evaluation.suites import HELD_OUT_AXES, SUITES
     from lerobot_pnp.presets import FULL_TASK
+    from lerobot_pnp.sim.suites import HELD_OUT_AXES, SUITES
 
     groups = {
         "The paper-task study (base: the task a policy was trained on)": [],
@@ -289,7 +289,7 @@ def suite_catalogue(base: str) -> str:
 def cli_help(base: str) -> str:
     """``lerobot-pnp --help`` and every command's ``--help``, as the CLI prints them at 100 columns."""
     from lerobot_pnp import cli
-    from lerobot_pnp.cli_help import command_help
+    from lerobot_pnp.support.cli_help import command_help
 
     with mock.patch.dict(os.environ, {"COLUMNS": "100"}):
         out = ["```text", "$ lerobot-pnp --help", cli._usage(), "```"]
@@ -306,7 +306,7 @@ def cli_help(base: str) -> str:
 
 
 def _field_table(cls, prefix: str) -> str:
-    from lerobot_pnp.cli_help import field_rows
+    from lerobot_pnp.support.cli_help import field_rows
 
     lines = ["| flag | type | description [default] |", "|---|---|---|"]
     for flag, tp, text in field_rows(cls):
@@ -317,7 +317,7 @@ def _field_table(cls, prefix: str) -> str:
 
 def env_fields(base: str) -> str:
     """Every field of the env config: flags of lerobot-eval, lerobot-train and lerobot-pnp (``--env.*``)."""
-    from lerobot_pnp.env_config import BaxterPnPEnvConfig
+    from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
 
     return _field_table(BaxterPnPEnvConfig, "--env.")
 

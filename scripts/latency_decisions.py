@@ -31,12 +31,12 @@ import numpy as np
 import protocol_runs  # scripts/: the protocol runs on disk
 import torch
 
-from lerobot_pnp.closed_loop import run_episode
-from lerobot_pnp.env_config import BaxterPnPEnvConfig, make_env
 from lerobot_pnp.evaluation.checkpoints import load_policy
+from lerobot_pnp.evaluation.closed_loop import run_episode
 from lerobot_pnp.evaluation.stats import Rate
-from lerobot_pnp.evaluation.suites import SUITES
 from lerobot_pnp.policy import observation_gate
+from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig, make_env
+from lerobot_pnp.sim.suites import SUITES
 
 MOVED_Q, MOVED_GRIP = 0.01, 0.05  # rad, gripper opening: a step that moved the arm or the gripper (truth)
 

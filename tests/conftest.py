@@ -9,7 +9,7 @@ os.environ.setdefault("HF_HUB_OFFLINE", "1")
 
 import pytest
 
-from lerobot_pnp.registration import register_all
+from lerobot_pnp.integration.registration import register_all
 
 register_all()  # the env, the policy and the task record, as LeRobot's plugin discovery does
 

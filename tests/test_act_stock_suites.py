@@ -10,12 +10,12 @@ from __future__ import annotations
 
 import pytest
 
-from lerobot_pnp.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.errors import ConfigError
-from lerobot_pnp.evaluation.stock_suites import suite_configs, suite_names
-from lerobot_pnp.evaluation.suites import SUITES
-from lerobot_pnp.recorded_task import write_checkpoint_task
+from lerobot_pnp.integration.recorded_task import write_checkpoint_task
 from lerobot_pnp.report import act_baseline
+from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
+from lerobot_pnp.sim.stock_suites import suite_configs, suite_names
+from lerobot_pnp.sim.suites import SUITES
 
 NUDGE_STEP = 19  # a dense step of the first keyframe (the study reads it from the dense demonstrations)
 

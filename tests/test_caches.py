@@ -284,8 +284,8 @@ def test_7_a_checkpoint_saved_by_lerobot_carries_its_task_and_a_bad_record_is_re
     from lerobot.datasets.lerobot_dataset import LeRobotDatasetMetadata
     from lerobot.policies.factory import make_policy
 
+    from lerobot_pnp.integration.recorded_task import copy_recorded, read_recorded
     from lerobot_pnp.policy import PnpLstmConfig
-    from lerobot_pnp.recorded_task import copy_recorded, read_recorded
 
     root = _copy(dagger_run / "demos", tmp_path / "demos")
     task = read_recorded(root)
@@ -350,8 +350,8 @@ def test_8_a_failed_slurm_submission_does_not_block_a_local_run(tmp_path, monkey
 def test_8_nan_and_zero_std_in_a_checkpoint_are_named_as_the_checkpoints(dagger_run, tmp_path, caplog):
     from safetensors.numpy import load_file, save_file
 
-    from lerobot_pnp.env_config import BaxterPnPEnvConfig
     from lerobot_pnp.evaluation.checkpoints import IncompatiblePolicyError, PolicyLoadError, load_policy
+    from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
 
     ckpt = _copy(dagger_run / CKPT, tmp_path / "ckpt")
     weights = load_file(ckpt / "model.safetensors")
@@ -383,7 +383,7 @@ def test_8_nan_and_zero_std_in_a_checkpoint_are_named_as_the_checkpoints(dagger_
 
 
 def test_8_bad_actions_episode_length_and_reset_height_are_clear_errors(keyframe_env):
-    from lerobot_pnp.env_config import BaxterPnPEnvConfig
+    from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
 
     keyframe_env.reset(seed=0)
     for action in ("abc", np.full(8, 1 + 2j), [[0.0] * 8, [0.0]]):
@@ -412,7 +412,7 @@ def test_stage_records_name_the_changed_parts(tmp_path):
 
 @pytest.mark.slow
 def test_7_stock_lerobot_train_checkpoints_carry_their_task(dagger_run, tmp_path):
-    from lerobot_pnp.recorded_task import read_recorded
+    from lerobot_pnp.integration.recorded_task import read_recorded
 
     root = _copy(dagger_run / "demos", tmp_path / "demos")
     task = read_recorded(root)
@@ -434,7 +434,7 @@ def test_7_stock_lerobot_train_checkpoints_carry_their_task(dagger_run, tmp_path
 
 def test_a_task_field_added_since_a_stage_ran_counts_as_unchanged_at_its_paper_value():
     from lerobot_pnp.cache import same_env_configs
-    from lerobot_pnp.env_config import BaxterPnPEnvConfig
+    from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
 
     now = BaxterPnPEnvConfig(preset="full").to_dict()
     old = {k: v for k, v in now.items() if k != "observe_phase"}  # recorded before the field existed

@@ -35,7 +35,7 @@ def test_help_subprocess(tmp_path):
 def test_command_help_documents_every_field(name, capsys):
     import dataclasses
 
-    from lerobot_pnp.cli_help import field_rows
+    from lerobot_pnp.support.cli_help import field_rows
 
     assert cli.main([name, "--help"]) == 0
     out = capsys.readouterr().out
@@ -96,8 +96,8 @@ def test_train_help_lists_the_options_of_the_policy_type_asked_for(capsys, monke
 
 
 def test_help_keeps_a_default_on_one_line():
-    from lerobot_pnp.cli_help import command_help
-    from lerobot_pnp.env_config import BaxterPnPEnvConfig
+    from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
+    from lerobot_pnp.support.cli_help import command_help
 
     text = command_help("x", "summary", BaxterPnPEnvConfig)
     assert "[default:\n" not in text and not any(line.strip().endswith("[default:") for line in text.split("\n"))
@@ -225,7 +225,7 @@ def test_expert_output_dir_replaces_only_its_own_eval_info(tmp_path, capsys):
 def test_in_process_eval_keeps_one_progress_bar_and_none_in_a_log(capsys):
     from lerobot.scripts import lerobot_eval
 
-    from lerobot_pnp.progress import quiet_rollout_bars
+    from lerobot_pnp.support.progress import quiet_rollout_bars
 
     stock = lerobot_eval.trange
     with quiet_rollout_bars():
@@ -263,7 +263,7 @@ def test_lerobots_own_help_of_our_configs_hides_derived_fields(capsys):
     import draccus
     from lerobot.envs.configs import EnvConfig
 
-    from lerobot_pnp.env_config import BaxterPnPEnvConfig
+    from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
 
     with pytest.raises(SystemExit):
         draccus.parse(BaxterPnPEnvConfig, args=["--help"])

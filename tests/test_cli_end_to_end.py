@@ -114,8 +114,8 @@ def test_end_to_end_real_clis(tmp_path, capsys, monkeypatch):
 @pytest.mark.slow
 def test_lerobot_eval_refuses_a_contradicting_flag_and_a_checkpoint_of_other_features(tmp_path):
     """The real lerobot-eval, on untrained checkpoints (both refusals come before any rollout)."""
-    from lerobot_pnp.env_config import BaxterPnPEnvConfig
-    from lerobot_pnp.recorded_task import write_checkpoint_task
+    from lerobot_pnp.integration.recorded_task import write_checkpoint_task
+    from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
 
     # A checkpoint trained for other features must not run, and must not write results.
     bad = tmp_path / "bad_ckpt"

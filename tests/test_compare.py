@@ -19,7 +19,7 @@ from lerobot_pnp.evaluation.compare import CompareConfig, run_compare
 from lerobot_pnp.evaluation.eval_info import read_eval_info
 from lerobot_pnp.evaluation.records import EpisodeRecord
 from lerobot_pnp.evaluation.stats import Rate, chi2_sf, paired_difference_interval, seed_agreement, wilson_interval
-from lerobot_pnp.evaluation.suites import HELD_OUT_AXES
+from lerobot_pnp.sim.suites import HELD_OUT_AXES
 
 AXIS = next(a for a in HELD_OUT_AXES if a.name == "latency")
 SUITES = ("nominal", *AXIS.in_distribution, *AXIS.held_out)
@@ -362,7 +362,7 @@ def test_user_text_is_escaped_wherever_it_reaches_markdown(tmp_path, capsys):
 
 
 def test_markdown_text_leaves_plain_names_alone_and_escapes_the_rest():
-    from lerobot_pnp.markdown_text import code, text
+    from lerobot_pnp.support.markdown_text import code, text
 
     assert text("camera_planner-2.0 /x") == "camera_planner-2.0 /x" and code("a_b") == "`a_b`"
     assert text("a<b>&c|d\\e\r\nf\u2028g") == "a&lt;b&gt;&amp;c\\|d\\\\e f g"

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from lerobot_pnp import cli
-from lerobot_pnp.registration import register_all
+from lerobot_pnp.integration.registration import register_all
 
 register_all()
 

@@ -12,8 +12,8 @@ from lerobot_pnp.dagger import DaggerConfig, labelled_rollout, run_dagger
 from lerobot_pnp.dagger.dart import DartNoise
 from lerobot_pnp.dagger.rollouts import suite_env
 from lerobot_pnp.dagger.writer import aggregate, features_for, write_episodes
-from lerobot_pnp.env_config import BaxterPnPEnvConfig, make_env
 from lerobot_pnp.errors import ConfigError
+from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig, make_env
 
 
 class _Follower:
@@ -83,7 +83,7 @@ def test_a_stuck_policy_is_labelled_with_the_way_forward(full_cfg):
 def test_written_datasets_load_and_aggregate(full_cfg, tmp_path, capfd):
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
-    from lerobot_pnp.recorded_task import read_recorded
+    from lerobot_pnp.integration.recorded_task import read_recorded
 
     env = suite_env(full_cfg, "quiet_grasp_miss")
     eps = [labelled_rollout(env, _Follower(env), seed=s) for s in (1, 2)]
@@ -184,7 +184,7 @@ def test_a_state_the_expert_cannot_reach_ends_the_labelled_episode(full_cfg, mon
 def test_teacher_labels_equal_the_demonstrations_along_an_expert_trajectory(full_cfg, suite):
     """DAgger labels and demonstrations must not contradict each other on the states both visit."""
     from lerobot_pnp.dagger.rollouts import Teacher
-    from lerobot_pnp.expert import run_expert_episode
+    from lerobot_pnp.sim.expert import run_expert_episode
 
     env = suite_env(full_cfg, suite)
     ep = run_expert_episode(env, 4)
@@ -221,7 +221,7 @@ def test_a_hold_leaves_the_teachers_label_pending(full_cfg):
     """A policy that holds where the expert moves on is labelled with the same keyframe again: the close and the
     open keep the arm where it is, so judged by the arm alone a close not yet commanded passed for a missed grasp
     and the next label lifted with the gripper open."""
-    from lerobot_pnp.expert import run_expert_episode
+    from lerobot_pnp.sim.expert import run_expert_episode
 
     env = suite_env(full_cfg, "quiet")
     demo = run_expert_episode(env, 4)
@@ -366,7 +366,7 @@ def test_a_dart_rollout_executes_noise_and_keeps_the_clean_expert_labels(full_cf
 
 
 def test_dart_with_sigma_0_reproduces_the_expert_episode(full_cfg):
-    from lerobot_pnp.expert import run_expert_episode
+    from lerobot_pnp.sim.expert import run_expert_episode
 
     env = suite_env(full_cfg, "quiet_drop")
     expert = run_expert_episode(env, 4)

@@ -111,7 +111,7 @@ def test_keyframe_episodes_reproduce_the_expert_exactly(kf):
     import gymnasium as gym
     import pyarrow.parquet as pq
 
-    from lerobot_pnp.expert import run_expert_episode
+    from lerobot_pnp.sim.expert import run_expert_episode
 
     root, _ = kf
     table = pq.read_table(sorted((root / "data").rglob("*.parquet"))).sort_by("index").to_pydict()
@@ -185,7 +185,7 @@ def test_deterministic_across_worker_counts(kf, tmp_path):
 def test_a_small_generation_starts_no_worker_pool():
     """Each shard beyond the first costs a spawned worker, which imports LeRobot and torch before it simulates
     anything: shards of less than half their size run in this process instead, larger ones on every core."""
-    from lerobot_pnp.env_config import BaxterPnPEnvConfig
+    from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
 
     def tasks(n: int, **env) -> int:
         return _cfg("/nowhere", num_episodes=n, env=BaxterPnPEnvConfig(**env)).auto_tasks(workers=2)
@@ -199,7 +199,7 @@ def test_a_large_local_generation_has_a_bounded_number_of_shards():
     """The merge rewrites the growing merged video for every shard it appends: locally the auto shard count stops
     at ``MAX_LOCAL_SHARDS`` and the shards grow instead; on SLURM (parallel tasks) it does not."""
     from lerobot_pnp.dataset.generation import MAX_LOCAL_SHARDS
-    from lerobot_pnp.env_config import BaxterPnPEnvConfig
+    from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
 
     cams = BaxterPnPEnvConfig(cameras=["front", "wrist"])
     assert _cfg("/nowhere", num_episodes=3600, env=cams).auto_tasks(workers=2) == MAX_LOCAL_SHARDS
@@ -372,7 +372,7 @@ def test_dense_small(tmp_path):
     import gymnasium as gym
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
-    from lerobot_pnp.expert import run_expert_episode
+    from lerobot_pnp.sim.expert import run_expert_episode
 
     root = tmp_path / "dense"
     summary = generate(_cfg(root, repo_id="test/pnp_dense", num_episodes=2, env={"control_mode": "dense", "fps": 20}))
@@ -406,7 +406,7 @@ def test_dense_with_camera_video(tmp_path):
 
 
 def test_expert_failures_are_retried_with_disjoint_seeds_and_reported(tmp_path, monkeypatch):
-    import lerobot_pnp.expert as expert
+    import lerobot_pnp.sim.expert as expert
     from lerobot_pnp.errors import ExpertFailure, UnreachableError
 
     real = expert.run_expert_episode
@@ -451,8 +451,8 @@ def test_full_preset_dataset_has_goal_yaw_and_recoveries(tmp_path):
     """The `full` task: 7-d environment state (object, yaw features, goal), recovery episodes kept, preset recorded."""
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
-    from lerobot_pnp.env_config import BaxterPnPEnvConfig
-    from lerobot_pnp.recorded_task import read_recorded
+    from lerobot_pnp.integration.recorded_task import read_recorded
+    from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
 
     root = tmp_path / "full"
     generate(_cfg(root, num_episodes=8, env=BaxterPnPEnvConfig(preset="full")))

@@ -3,12 +3,12 @@
 import numpy as np
 import pytest
 
-from lerobot_pnp import disturbances
-from lerobot_pnp.env_config import BaxterPnPEnvConfig, make_env
 from lerobot_pnp.errors import ConfigError
-from lerobot_pnp.evaluation.suites import HELD_OUT_AXES, SUITES
-from lerobot_pnp.expert import run_expert_episode
 from lerobot_pnp.presets import FULL_TASK, NARROW_FULL_DISTURBANCES, PAPER_TASK
+from lerobot_pnp.sim import disturbances
+from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig, make_env
+from lerobot_pnp.sim.expert import run_expert_episode
+from lerobot_pnp.sim.suites import HELD_OUT_AXES, SUITES
 
 N_RESETS = 500
 

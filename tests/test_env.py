@@ -7,11 +7,11 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 from lerobot_pnp import robot
-from lerobot_pnp.env import BaxterPnPEnv
-from lerobot_pnp.env_config import BaxterPnPEnvConfig, make_env
 from lerobot_pnp.errors import ConfigError
-from lerobot_pnp.ik import ArmIK, gripper_down_rotation
 from lerobot_pnp.presets import GYM_ID, PAPER_TASK
+from lerobot_pnp.sim.env import BaxterPnPEnv
+from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig, make_env
+from lerobot_pnp.sim.ik import ArmIK, gripper_down_rotation
 
 # Reference poses of Rethink's left arm (docs/baxter.md): joints -> left_gripper position, z axis.
 REFERENCE_POSES = [
@@ -99,7 +99,7 @@ def test_keyframe_step_reaches_the_commanded_keyframe(keyframe_env):
 
 
 def test_straight_path_keeps_the_gripper_on_the_segment(model):
-    from lerobot_pnp.interpolation import joint_trajectory
+    from lerobot_pnp.sim.interpolation import joint_trajectory
 
     ik = ArmIK(model)
     top, bottom = np.array([0.5, 0.12, robot.CUBE_REST_Z + 0.15]), np.array([0.5, 0.12, robot.CUBE_REST_Z])
@@ -183,8 +183,8 @@ def test_bad_reset_options_raise(keyframe_env, options, message):
 
 
 def test_task_is_settable_from_the_env_config_and_recorded(tmp_path):
-    from lerobot_pnp.recorded_files import write_recorded
-    from lerobot_pnp.recorded_task import read_recorded
+    from lerobot_pnp.integration.recorded_task import read_recorded
+    from lerobot_pnp.sim.recorded_files import write_recorded
 
     cfg = BaxterPnPEnvConfig(
         object_low=(0.5, 0.2), object_high=(0.6, 0.3), place_low=(0.65, -0.1), place_high=(0.65, -0.1)
@@ -211,8 +211,8 @@ def test_task_is_settable_from_the_env_config_and_recorded(tmp_path):
 def test_a_config_never_reads_the_command_line_only_the_stock_script_boundary_does(tmp_path, monkeypatch):
     import sys
 
-    from lerobot_pnp.recorded_files import write_recorded
-    from lerobot_pnp.registration import hand_over_command_line
+    from lerobot_pnp.integration.registration import hand_over_command_line
+    from lerobot_pnp.sim.recorded_files import write_recorded
 
     write_recorded(BaxterPnPEnvConfig(preset="full"), tmp_path / "full")
     monkeypatch.setattr(BaxterPnPEnvConfig, "command_line_source", None)  # restored after the test
@@ -276,7 +276,7 @@ def test_lerobot_rollout_signal_is_accepted(keyframe_env):
 def test_observe_phase_appends_the_inferred_phase_one_hot():
     """The phase-told controls' observation: a one-hot of the phase the env reports in ``info``, after the
     object features; everything else of the observation is unchanged (same seed, same draws)."""
-    from lerobot_pnp.expert import FSMExpert
+    from lerobot_pnp.sim.expert import FSMExpert
 
     plain, told = make_env(BaxterPnPEnvConfig()), make_env(BaxterPnPEnvConfig(observe_phase=True))
     assert told.unwrapped.config.environment_state_names[3:] == [f"phase={n}" for n in robot.PHASE_NAMES]

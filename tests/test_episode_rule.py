@@ -10,16 +10,16 @@ from dataclasses import replace
 import pytest
 
 from lerobot_pnp import cli
-from lerobot_pnp.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.evaluation.stats import wilson_interval
-from lerobot_pnp.recorded_task import read_recorded
+from lerobot_pnp.integration.recorded_task import read_recorded
 from lerobot_pnp.report import methods
 from lerobot_pnp.report.config import EpisodeRule, StudyConfig, SuiteSpec
 from lerobot_pnp.report.job import run_job
 from lerobot_pnp.report.layout import StudyLayout
 from lerobot_pnp.report.schedule import Job
 from lerobot_pnp.report.stages import dataset_stage, eval_stage
+from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
 
 RULE = EpisodeRule(half_width=0.1, block=50, fixed_methods=())
 

@@ -12,7 +12,7 @@ from lerobot_pnp import robot
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.evaluation.records import EpisodeRecord, phase_name, summarize
 from lerobot_pnp.evaluation.stats import Rate, paired_comparison, sign_test_p, wilson_interval
-from lerobot_pnp.evaluation.suites import SUITES, Suite
+from lerobot_pnp.sim.suites import SUITES, Suite
 
 
 # ---------------------------------------------------------------------------------------------- stats
@@ -85,7 +85,7 @@ def test_renamed_dagger_suites_keep_their_env_changes(old):
 
 
 def test_dagger_suite_env_is_the_catalogue_change_on_the_base_task():
-    from lerobot_pnp.env_config import BaxterPnPEnvConfig
+    from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
 
     base = BaxterPnPEnvConfig(preset="full")
     (drop,) = SUITES["quiet_drop"].env_configs(base)
@@ -154,11 +154,11 @@ def test_dagger_evaluate_equals_its_former_loop():
 
     from lerobot_pnp.dagger import evaluate
     from lerobot_pnp.dagger.rollouts import suite_env
-    from lerobot_pnp.env_config import BaxterPnPEnvConfig
     from lerobot_pnp.evaluation.checkpoints import LoadedPolicy
-    from lerobot_pnp.expert import run_expert_episode
     from lerobot_pnp.report.adapters import Episodes
     from lerobot_pnp.report.baselines import LookupTablePolicy, identity_processors
+    from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
+    from lerobot_pnp.sim.expert import run_expert_episode
 
     base, seeds = BaxterPnPEnvConfig(preset="paper"), [3, 4, 5]
     env = suite_env(base, "quiet")

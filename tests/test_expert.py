@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 from lerobot_pnp import robot
-from lerobot_pnp.env import BaxterPnPEnv
 from lerobot_pnp.errors import ConfigError, UnreachableError
-from lerobot_pnp.expert import ExpertConfig, FSMExpert, grasp_yaw, run_expert_episode
+from lerobot_pnp.sim.env import BaxterPnPEnv
+from lerobot_pnp.sim.expert import ExpertConfig, FSMExpert, grasp_yaw, run_expert_episode
 
 
 def test_expert_episode_has_the_papers_ten_states(keyframe_env):
@@ -107,7 +107,7 @@ PERTURBATIONS = {
 
 @pytest.mark.parametrize("name", sorted(PERTURBATIONS))
 def test_each_perturbation_happens_and_the_expert_recovers(name):
-    from lerobot_pnp.env_config import make_env
+    from lerobot_pnp.sim.env_config import make_env
 
     changes, recovery = PERTURBATIONS[name]
     env = make_env(render_mode=None, keyframe_budget=30, **changes)
@@ -120,7 +120,7 @@ def test_each_perturbation_happens_and_the_expert_recovers(name):
 
 
 def test_the_grasp_really_misses_and_the_object_really_leaves_the_gripper():
-    from lerobot_pnp.env_config import make_env
+    from lerobot_pnp.sim.env_config import make_env
 
     env = make_env(render_mode=None, keyframe_budget=30, grasp_miss_prob=1.0)
     env.reset(seed=2)
@@ -141,7 +141,7 @@ def test_the_grasp_really_misses_and_the_object_really_leaves_the_gripper():
 
 
 def test_full_preset_observes_yaw_and_goal_and_is_deterministic():
-    from lerobot_pnp.env_config import make_env
+    from lerobot_pnp.sim.env_config import make_env
 
     env = make_env(render_mode=None, preset="full")
     cfg = env.unwrapped.config
@@ -161,7 +161,7 @@ def test_full_preset_observes_yaw_and_goal_and_is_deterministic():
 
 
 def test_env_info_reports_phase_and_failure_cause():
-    from lerobot_pnp.env_config import make_env
+    from lerobot_pnp.sim.env_config import make_env
 
     env = make_env(render_mode=None, episode_length=4)
     obs, info = env.reset(seed=3)
@@ -177,7 +177,7 @@ def test_env_info_reports_phase_and_failure_cause():
 
 def test_expert_labels_any_state_and_following_its_labels_succeeds():
     """DAgger's teacher: from a state reached by someone else, the labelled keyframes still finish the task."""
-    from lerobot_pnp.env_config import make_env
+    from lerobot_pnp.sim.env_config import make_env
 
     env = make_env(render_mode=None, keyframe_budget=30)
     for seed in range(4):
@@ -198,7 +198,7 @@ def test_expert_labels_any_state_and_following_its_labels_succeeds():
 def test_a_label_commands_the_demonstrations_gripper_whatever_the_gripper_is_now():
     """Above the object with the gripper closed (a policy closed it early): the label descends to grasp with it
     open, as every demonstration does, not with the gripper as it happens to be."""
-    from lerobot_pnp.env_config import make_env
+    from lerobot_pnp.sim.env_config import make_env
 
     env = make_env(render_mode=None, nudge_max=0.0, grasp_miss_prob=0.0)
     env.reset(seed=3)
@@ -211,7 +211,7 @@ def test_a_label_commands_the_demonstrations_gripper_whatever_the_gripper_is_now
 
 @pytest.mark.parametrize("size", [0.045, 0.06])
 def test_object_size_is_simulated_and_handled_by_the_expert(size):
-    from lerobot_pnp.env_config import make_env
+    from lerobot_pnp.sim.env_config import make_env
 
     env = make_env(render_mode=None, size_range=(size, size))
     obs, _ = env.reset(seed=1)
@@ -225,7 +225,7 @@ def test_object_size_is_simulated_and_handled_by_the_expert(size):
 def test_a_short_carry_keeps_a_heavy_cube_only_when_gentle(carry_min_time, kept):
     """A re-pick 8 cm from the target (wide displacements make them common): at the joint velocity limits the
     short move accelerates hard enough to shake the smallest, heaviest, least grippy cube loose."""
-    from lerobot_pnp.env_config import make_env
+    from lerobot_pnp.sim.env_config import make_env
 
     worst = {"size_range": (0.045, 0.045), "mass_range": (0.8, 0.8), "friction_range": (0.7, 0.7)}
     env = make_env(

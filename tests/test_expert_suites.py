@@ -7,7 +7,7 @@ from __future__ import annotations
 import json
 
 from lerobot_pnp import cli
-from lerobot_pnp.env_config import BaxterPnPEnvConfig
+from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
 
 SUITES = ("nominal", "drop")
 SEED, N = 300, 3
@@ -15,8 +15,8 @@ SEED, N = 300, 3
 
 def test_expert_on_suites_writes_stock_eval_info_equal_to_the_study(tmp_path, capsys):
     from lerobot_pnp.evaluation.compare import parse_runs
-    from lerobot_pnp.evaluation.suites import SUITES as CATALOGUE
     from lerobot_pnp.report.builders import expert_eval
+    from lerobot_pnp.sim.suites import SUITES as CATALOGUE
 
     out = tmp_path / "expert"
     args = ["--env.preset", "paper", "--env.task", ",".join(SUITES), "--n_episodes", str(N), "--seed", str(SEED)]
@@ -49,7 +49,7 @@ def test_expert_refuses_an_unknown_suite_in_one_line_and_writes_nothing(tmp_path
 
 def test_expert_default_task_keeps_its_summary(tmp_path, capsys):
     """Without suites: one task, the causes summary as before, and eval_info.json under the env type's name."""
-    from lerobot_pnp.expert_eval import ExpertEvalConfig, evaluate_expert
+    from lerobot_pnp.evaluation.expert_eval import ExpertEvalConfig, evaluate_expert
 
     cfg = ExpertEvalConfig(n_episodes=2, seed=SEED, progress=False, output_dir=str(tmp_path))
     summary = evaluate_expert(cfg)

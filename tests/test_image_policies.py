@@ -18,10 +18,10 @@ import pytest
 from clis import exe as _exe
 from clis import run
 
-from lerobot_pnp.env_config import BaxterPnPEnvConfig
-from lerobot_pnp.env_validation import MAX_IMAGE_SIDE, MIN_IMAGE_HEIGHT, MIN_IMAGE_WIDTH
-from lerobot_pnp.recorded_files import write_recorded
-from lerobot_pnp.registration import hand_over_command_line
+from lerobot_pnp.integration.registration import hand_over_command_line
+from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
+from lerobot_pnp.sim.env_validation import MAX_IMAGE_SIDE, MIN_IMAGE_HEIGHT, MIN_IMAGE_WIDTH
+from lerobot_pnp.sim.recorded_files import write_recorded
 
 REPO = Path(__file__).resolve().parents[1]
 ENV = {
@@ -88,7 +88,7 @@ def test_bad_image_size_is_one_clear_error_naming_the_range(height, width):
 
 def test_the_extreme_image_sizes_render():
     """A side above the MJCF's offscreen framebuffer (640x480) renders: the framebuffer is the image's size."""
-    from lerobot_pnp.env_config import make_env
+    from lerobot_pnp.sim.env_config import make_env
 
     for height, width in ((MAX_IMAGE_SIDE, MIN_IMAGE_WIDTH), (MIN_IMAGE_HEIGHT, 704)):
         env = make_env(cameras=["front"], image_height=height, image_width=width, render_mode=None)

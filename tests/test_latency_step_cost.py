@@ -5,8 +5,8 @@ from pathlib import Path
 
 import pytest
 
-from lerobot_pnp.env_config import BaxterPnPEnvConfig, make_env
-from lerobot_pnp.evaluation.suites import get_suites
+from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig, make_env
+from lerobot_pnp.sim.suites import get_suites
 
 
 @pytest.fixture(scope="module")

@@ -67,3 +67,12 @@ def test_two_modules_of_one_package_importing_each_other_break_the_no_cycles_con
     assert proc.returncode == 1, proc.stdout + proc.stderr
     assert "layers KEPT" in proc.stdout and "no cycles BROKEN" in proc.stdout, proc.stdout
     assert "No cycles are allowed in lerobot_pnp.evaluation." in proc.stdout, proc.stdout
+
+
+def test_the_package_root_holds_at_most_ten_modules_and_one_package_per_layer():
+    """The layering shows in the folder tree: the simulated domain, the LeRobot integration and the shared leaf
+    helpers are packages of their own, and the root keeps at most ten modules."""
+    root_modules = sorted(p.name for p in (ROOT / "lerobot_pnp").glob("*.py"))
+    assert len(root_modules) <= 10, root_modules
+    for package, module in (("sim", "env_config"), ("integration", "registration"), ("support", "cli_help")):
+        assert (ROOT / "lerobot_pnp" / package / f"{module}.py").is_file(), (package, module)

@@ -12,7 +12,7 @@ import pytest
 from lerobot_pnp import cli
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.evaluation.leaderboard import MARKER, LeaderboardConfig, analyse_rows, compact_table, render
-from lerobot_pnp.evaluation.stock_suites import suite_names
+from lerobot_pnp.sim.stock_suites import suite_names
 
 ROOT = Path(__file__).resolve().parents[1]
 RUNS, PAGE = ROOT / "docs" / "results" / "leaderboard", ROOT / "docs" / "leaderboard.md"

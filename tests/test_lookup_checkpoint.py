@@ -12,7 +12,7 @@ import pytest
 import torch
 
 from lerobot_pnp import cli
-from lerobot_pnp.env_config import BaxterPnPEnvConfig
+from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
 
 SEED = 100  # the demonstrations are seeds 100.. and so are the evaluated episodes: nominal replays them exactly
 SUITES = ("nominal", "drop")
@@ -38,8 +38,8 @@ def checkpoint(demos):
 
 
 def test_save_then_load_round_trips_the_table_and_its_actions(demos, checkpoint):
+    from lerobot_pnp.integration.recorded_task import read_recorded
     from lerobot_pnp.policy.modeling_pnp_lookup_table import PnpLookupTablePolicy
-    from lerobot_pnp.recorded_task import read_recorded
     from lerobot_pnp.report.adapters import load_train_episodes
     from lerobot_pnp.report.baselines import LookupTablePolicy
 
@@ -64,8 +64,8 @@ def test_stock_eval_of_the_checkpoint_equals_the_study_episode_by_episode(demos,
     from lerobot.policies.factory import make_policy, make_pre_post_processors
     from lerobot.scripts.lerobot_eval import eval_policy_all
 
-    from lerobot_pnp.evaluation.suites import SUITES as CATALOGUE
     from lerobot_pnp.report.builders import lookup_eval
+    from lerobot_pnp.sim.suites import SUITES as CATALOGUE
 
     env_cfg = BaxterPnPEnvConfig(task=",".join(SUITES), task_source=str(checkpoint))
     policy_cfg = PreTrainedConfig.from_pretrained(checkpoint)

@@ -140,7 +140,7 @@ def test_the_constants_import_no_torch_lerobot_or_mujoco_and_the_gym_id_still_re
 def test_keyframe_eval_envs_are_sync_with_a_warning(caplog):
     import gymnasium as gym
 
-    from lerobot_pnp.env_config import BaxterPnPEnvConfig
+    from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
 
     with caplog.at_level("WARNING"):
         envs = BaxterPnPEnvConfig().create_envs(n_envs=2, use_async_envs=True)["baxter_pnp"][0]
@@ -153,7 +153,7 @@ def test_dense_eval_envs_beyond_the_cpu_count_are_sync_with_a_warning(caplog, mo
     """More async workers than CPUs would only contend for them (and hold an interpreter each)."""
     import gymnasium as gym
 
-    from lerobot_pnp.env_config import BaxterPnPEnvConfig
+    from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
 
     monkeypatch.setattr("os.cpu_count", lambda: 1)
     monkeypatch.setattr("os.sched_getaffinity", lambda pid: {0}, raising=False)  # one CPU allowed
@@ -168,7 +168,7 @@ def test_dense_eval_envs_beyond_the_cpu_count_are_sync_with_a_warning(caplog, mo
 def test_async_vector_envs_through_the_lerobot_config():
     import gymnasium as gym
 
-    from lerobot_pnp.env_config import BaxterPnPEnvConfig
+    from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
 
     # dense control keeps async envs (worker processes re-import the plugin)
     envs = BaxterPnPEnvConfig(control_mode="dense").create_envs(n_envs=2, use_async_envs=True)["baxter_pnp"][0]

@@ -19,9 +19,9 @@ from pathlib import Path
 
 import pytest
 
-from lerobot_pnp.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.errors import ConfigError
-from lerobot_pnp.recorded_files import RECORDED_FILE, write_recorded
+from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
+from lerobot_pnp.sim.recorded_files import RECORDED_FILE, write_recorded
 
 BIN = Path(sys.executable).parent
 PLAIN_ENV = {k: v for k, v in os.environ.items() if k != "MUJOCO_GL"}  # as a user without our defaults
@@ -53,8 +53,13 @@ def _discovery(argv: list[str], then: str = "") -> dict:
     return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
-LIGHT = {"lerobot_pnp", "lerobot_pnp.registration", "lerobot_pnp.presets", "lerobot_pnp.stock_cli"}
-LIGHT |= {"lerobot_pnp.recorded_files", "lerobot_pnp.errors", "lerobot_pnp.version", "lerobot_pnp.mujoco_gl"}
+LIGHT = {
+    "lerobot_pnp",
+    "lerobot_pnp.integration.registration",
+    "lerobot_pnp.presets",
+    "lerobot_pnp.integration.stock_cli",
+}
+LIGHT |= {"lerobot_pnp.sim.recorded_files", "lerobot_pnp.errors", "lerobot_pnp.version", "lerobot_pnp.sim.mujoco_gl"}
 
 # After discovery, what lerobot-train / lerobot-eval do later in the calibrate order: LeRobot's config modules
 # imported after the plugin, our configs parsed, the policy class asked for (its modeling loads then).
@@ -90,7 +95,7 @@ def test_plugin_discovery_alone_changes_nothing_and_our_configs_still_parse():
     assert seen["MUJOCO_GL"] is None and seen["hook_unchanged"] and not seen["mujoco"], seen
     assert set(seen["ours"]) <= LIGHT and not seen["lerobot_configs"], seen
     assert (seen["env"], seen["budget"], seen["policy"]) == ("BaxterPnPEnvConfig", 12, "pnp_lstm"), seen
-    assert not any(m.startswith(("lerobot_pnp.policy.modeling", "lerobot_pnp.physics")) for m in seen["parsed"])
+    assert not any(m.startswith(("lerobot_pnp.policy.modeling", "lerobot_pnp.sim.physics")) for m in seen["parsed"])
     assert seen["policy_class"] == "PnpLstmPolicy" and seen["task_record"], seen
     assert seen["MUJOCO_GL_after"] is None, seen
 
@@ -108,7 +113,7 @@ def test_plugin_discovery_alone_changes_nothing_and_our_configs_still_parse():
     ],
 )
 def test_hooks_only_in_a_lerobot_run_on_our_env_policy_or_data(argv, ours, tmp_path, monkeypatch):
-    from lerobot_pnp.registration import install_stock_hooks
+    from lerobot_pnp.integration.registration import install_stock_hooks
 
     write_recorded(BaxterPnPEnvConfig(), tmp_path / "data")
     (tmp_path / "ckpt").mkdir()
@@ -122,7 +127,7 @@ def test_hooks_only_in_a_lerobot_run_on_our_env_policy_or_data(argv, ours, tmp_p
 
 
 def test_mujoco_gl_default_only_on_linux_and_never_over_the_user(monkeypatch):
-    from lerobot_pnp.mujoco_gl import default_mujoco_gl
+    from lerobot_pnp.sim.mujoco_gl import default_mujoco_gl
 
     monkeypatch.delitem(sys.modules, "mujoco", raising=False)
     monkeypatch.delenv("MUJOCO_GL", raising=False)
@@ -142,7 +147,7 @@ def test_an_unknown_field_in_a_recorded_task_is_refused_by_every_reader(tmp_path
     copy), viz's (replay and rollouts): one message naming the field and the version that cannot read it."""
     import types
 
-    from lerobot_pnp.recorded_task import copy_recorded, dataset_task, read_recorded
+    from lerobot_pnp.integration.recorded_task import copy_recorded, dataset_task, read_recorded
     from lerobot_pnp.version import __version__
     from lerobot_pnp.viz.rollouts import rollout_config
     from lerobot_pnp.viz.sources import replay_config
@@ -323,7 +328,7 @@ def test_lerobot_evals_policy_builders_on_our_env_refuse_what_cannot_load_as_pol
     from lerobot.policies.factory import make_policy, make_pre_post_processors
 
     from lerobot_pnp.errors import PolicyError
-    from lerobot_pnp.stock_eval import EVAL_MODULE, install_stock_eval_hooks
+    from lerobot_pnp.integration.stock_eval import EVAL_MODULE, install_stock_eval_hooks
 
     module = types.SimpleNamespace(make_policy=make_policy, make_pre_post_processors=make_pre_post_processors)
     monkeypatch.setitem(sys.modules, EVAL_MODULE, module)

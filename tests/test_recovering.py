@@ -278,7 +278,7 @@ def test_latency_augmentation_delays_whole_episodes_by_one_step():
 def full_root(tmp_path_factory):
     """A few `full` keyframe demonstrations (recoveries included, so the lengths differ)."""
     from lerobot_pnp.dataset import GenerateConfig, generate
-    from lerobot_pnp.env_config import BaxterPnPEnvConfig
+    from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
 
     root = tmp_path_factory.mktemp("full") / "data"
     env = BaxterPnPEnvConfig(preset="full", drop_prob=0.5)

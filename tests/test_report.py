@@ -10,17 +10,17 @@ import numpy as np
 import pytest
 import torch
 
-from lerobot_pnp.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.errors import ConfigError, PolicyError
-from lerobot_pnp.evaluation.suites import SUITES, get_suites
 from lerobot_pnp.presets import PAPER_TASK
 from lerobot_pnp.report.adapters import Episodes
 from lerobot_pnp.report.baselines import LookupTablePolicy
+from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
+from lerobot_pnp.sim.suites import SUITES, get_suites
 
 
 # ---------------------------------------------------------------------------------------------- suites
 def _object_starts(env_cfg, n: int) -> np.ndarray:
-    from lerobot_pnp.task import PickPlaceTask
+    from lerobot_pnp.sim.task import PickPlaceTask
 
     task, rng = PickPlaceTask(env_cfg), np.random.default_rng(0)
     return np.stack([task._sample_object_xy(rng) for _ in range(n)])
@@ -92,7 +92,7 @@ def test_lookup_table_rejects_a_task_with_other_observations():
 # ---------------------------------------------------------------------------------------------- evaluation
 def test_recorder_agrees_with_eval_policy_and_explains_failures():
     """A policy that never moves fails every episode; the records carry seeds, causes and start positions."""
-    from lerobot_pnp.closed_loop import eval_lerobot_policy
+    from lerobot_pnp.evaluation.closed_loop import eval_lerobot_policy
     from lerobot_pnp.report.baselines import identity_processors
 
     class Still(LookupTablePolicy):

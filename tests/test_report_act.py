@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 import torch
 
-from lerobot_pnp.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.errors import DatasetError
 from lerobot_pnp.report import act_baseline, adapters
 from lerobot_pnp.report.run import StudyConfig, SuiteSpec, run_study
+from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
 
 N = 10  # demonstrations: 8 train / 2 test
 

@@ -259,7 +259,7 @@ def test_held_out_axes_pool_each_side_and_need_every_suite():
 )
 def test_generalises_along_an_axis(held, verdict, text):
     from lerobot_pnp.evaluation.results import axis_result
-    from lerobot_pnp.evaluation.suites import HELD_OUT_AXES
+    from lerobot_pnp.sim.suites import HELD_OUT_AXES
 
     rates = {**LATENCY, ("recovering", "heldout_latency_2"): (held[0], 100)}
     rates[("recovering", "heldout_latency_jitter")] = (held[1], 100)

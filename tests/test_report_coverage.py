@@ -10,12 +10,12 @@ import pytest
 
 from lerobot_pnp import cli
 from lerobot_pnp.cache import Stage
-from lerobot_pnp.env_config import BaxterPnPEnvConfig
-from lerobot_pnp.evaluation.suites import get_suites
 from lerobot_pnp.report import coverage, methods
 from lerobot_pnp.report.config import StudyConfig
 from lerobot_pnp.report.job import suites_for
 from lerobot_pnp.report.stages import eval_stage
+from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
+from lerobot_pnp.sim.suites import get_suites
 
 
 def test_suites_of_the_same_conditions_on_the_task_are_aliases():

@@ -10,10 +10,10 @@ import pytest
 
 from lerobot_pnp.cache import Stage, code_versions
 from lerobot_pnp.errors import ConfigError
-from lerobot_pnp.evaluation.suites import HELD_OUT_AXES, PROTOCOL_SUITES
 from lerobot_pnp.report import methods
 from lerobot_pnp.report.config import StudyConfig, SuiteSpec
 from lerobot_pnp.report.stages import dataset_parts
+from lerobot_pnp.sim.suites import HELD_OUT_AXES, PROTOCOL_SUITES
 
 
 def test_a_paper_study_keeps_its_stage_keys(tmp_path):
@@ -116,7 +116,7 @@ def test_a_tiny_heldout_study_reports_the_axis_table_and_cross_checks_on_the_ful
         suites=[SuiteSpec("nominal", 2), *(SuiteSpec(s, 2) for s in latency)],
         cli_check_episodes=2,
     )
-    from lerobot_pnp.recorded_task import read_recorded
+    from lerobot_pnp.integration.recorded_task import read_recorded
     from lerobot_pnp.report.run import run_study
 
     run_study(cfg)

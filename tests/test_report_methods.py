@@ -7,7 +7,7 @@ import pytest
 
 from lerobot_pnp.dagger.rollouts import TEACHER_VERSION
 from lerobot_pnp.errors import ConfigError
-from lerobot_pnp.recorded_task import read_recorded
+from lerobot_pnp.integration.recorded_task import read_recorded
 from lerobot_pnp.report import methods, recipes
 from lerobot_pnp.report.run import StudyConfig, SuiteSpec, run_study
 

@@ -162,7 +162,7 @@ def test_a_newline_in_a_slurm_name_from_a_config_file_is_one_line(tmp_path, caps
 
 def test_slurm_names_sbatch_reads_as_one_name_are_accepted():
     from lerobot_pnp.report.slurm import StudySlurmOptions
-    from lerobot_pnp.slurm_fields import check_slurm_field
+    from lerobot_pnp.support.slurm_fields import check_slurm_field
 
     options = StudySlurmOptions(partition="cpu,gpu-a100", job_name="pnp_study.v2", qos=None)
     assert (options.partition, options.job_name, options.qos) == ("cpu,gpu-a100", "pnp_study.v2", None)

@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 from clis import ENV, exe, run
 
-from lerobot_pnp.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.evaluation.checkpoints import IncompatiblePolicyError, load_policy
-from lerobot_pnp.recorded_task import write_checkpoint_task
+from lerobot_pnp.integration.recorded_task import write_checkpoint_task
+from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
 
 SIZE = 32
 REPO = Path(__file__).resolve().parents[1]
@@ -59,7 +59,7 @@ def test_the_stock_eval_hook_refuses_other_cameras_before_building_the_policy(
     """lerobot-eval's make_policy, as the plugin wraps it: the env config of the run against the checkpoint."""
     from lerobot.configs import PreTrainedConfig
 
-    from lerobot_pnp.stock_eval import _checked_make_policy
+    from lerobot_pnp.integration.stock_eval import _checked_make_policy
 
     built = []
     make_policy = _checked_make_policy(lambda *args, **kwargs: built.append(args))

@@ -11,10 +11,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lerobot_pnp.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.errors import ConfigError
-from lerobot_pnp.evaluation.stock_suites import suite_names, valid_names
-from lerobot_pnp.recorded_task import write_checkpoint_task
+from lerobot_pnp.integration.recorded_task import write_checkpoint_task
+from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
+from lerobot_pnp.sim.stock_suites import suite_names, valid_names
 
 SUITES = ("nominal", "nudge_0.02", "drop")  # a mixed outcome, a recovery budget (20 steps), all failures
 SEED = 100
@@ -24,10 +24,10 @@ SEED = 100
 def lookup_table():
     """The study's lookup table over expert demonstrations of seeds 100-103: it replays them, so it succeeds on
     nominal where the demonstration started and fails where a disturbance moves the object."""
-    from lerobot_pnp.env_config import make_env
-    from lerobot_pnp.expert import run_expert_episode
     from lerobot_pnp.report.adapters import Episodes
     from lerobot_pnp.report.baselines import LookupTablePolicy
+    from lerobot_pnp.sim.env_config import make_env
+    from lerobot_pnp.sim.expert import run_expert_episode
 
     env = make_env(BaxterPnPEnvConfig(preset="paper"))
     demos = [run_expert_episode(env, s) for s in range(SEED, SEED + 4)]
@@ -43,9 +43,9 @@ def test_stock_eval_of_suites_equals_the_study_evaluator_episode_by_episode(look
     from lerobot.envs.factory import make_env_pre_post_processors
     from lerobot.scripts.lerobot_eval import eval_policy_all
 
-    from lerobot_pnp.closed_loop import eval_lerobot_policy
-    from lerobot_pnp.evaluation.suites import SUITES as CATALOGUE
+    from lerobot_pnp.evaluation.closed_loop import eval_lerobot_policy
     from lerobot_pnp.report.baselines import identity_processors
+    from lerobot_pnp.sim.suites import SUITES as CATALOGUE
 
     base = BaxterPnPEnvConfig(preset="paper")
     cfg = base.with_changes(task=",".join(SUITES))
@@ -72,7 +72,7 @@ def test_stock_eval_of_suites_equals_the_study_evaluator_episode_by_episode(look
 
 
 def test_names_aliases_axes_and_the_default():
-    from lerobot_pnp.evaluation.suites import HELD_OUT_AXES, PROTOCOL_SUITES
+    from lerobot_pnp.sim.suites import HELD_OUT_AXES, PROTOCOL_SUITES
 
     assert suite_names(None) is None and suite_names("BaxterPnP-v0") is None
     heldout = suite_names("heldout")
@@ -184,7 +184,7 @@ def test_lerobot_eval_runs_named_suites_and_refuses_an_unknown_one(tmp_path):
 def test_video_frames_are_sketches_and_a_frozen_scene_is_drawn_once():
     """Without cameras a suite's video frame is a sketch of the simulator's state; once the episode ended the
     frame of the frozen scene is drawn once, until the next rollout's reset."""
-    from lerobot_pnp.evaluation.stock_suites import SKETCH_SIZE, make_suite_env
+    from lerobot_pnp.sim.stock_suites import SKETCH_SIZE, make_suite_env
 
     env = make_suite_env(BaxterPnPEnvConfig(preset="paper").to_dict(), "nominal")
     env.reset(seed=3, options={"lerobot_new_rollout": True})

@@ -12,8 +12,8 @@ from pathlib import Path
 import pytest
 
 from lerobot_pnp.errors import ConfigError
-from lerobot_pnp.stock_checkpoints import TRAIN_MODULE
-from lerobot_pnp.stock_train import FACTORY_MODULE, install_stock_train_hooks
+from lerobot_pnp.integration.stock_checkpoints import TRAIN_MODULE
+from lerobot_pnp.integration.stock_train import FACTORY_MODULE, install_stock_train_hooks
 
 REPO_ID = "local/t_stream"
 

@@ -143,7 +143,7 @@ def test_progress_into_a_log_is_a_few_lines(dataset_root, tmp_path, capsys):
     epoch: a short run writes its first and last state only. On a terminal it is redrawn twice a second."""
     import io
 
-    from lerobot_pnp.progress import LOG_INTERVAL_S, redraw_interval_s
+    from lerobot_pnp.support.progress import LOG_INTERVAL_S, redraw_interval_s
 
     class Terminal(io.StringIO):
         def isatty(self) -> bool:

@@ -19,9 +19,9 @@ import numpy as np
 import pytest
 
 from lerobot_pnp import robot
-from lerobot_pnp.env_config import BaxterPnPEnvConfig, make_env
 from lerobot_pnp.errors import ConfigError, DatasetError, PnPError, PolicyError
-from lerobot_pnp.recorded_files import RECORDED_FILE, write_recorded
+from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig, make_env
+from lerobot_pnp.sim.recorded_files import RECORDED_FILE, write_recorded
 
 REPO_ID = "test/viz_keyframe"
 SEEDS = (0, 1)
@@ -54,7 +54,7 @@ def _write_dataset(root: Path, config: BaxterPnPEnvConfig, seeds, record_task: b
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
     from lerobot_pnp.dataset import dataset_features
-    from lerobot_pnp.expert import run_expert_episode
+    from lerobot_pnp.sim.expert import run_expert_episode
 
     ds = LeRobotDataset.create(
         REPO_ID, fps=1, features=dataset_features(), root=root, robot_type="baxter", use_videos=False
@@ -327,7 +327,7 @@ def test_kinematic_replay_without_seed(dataset):
 
 # ---------------------------------------------------------------------------------------------- policy rollouts
 def test_policy_rollout_recording(policy_dir, tmp_path):
-    from lerobot_pnp.expert import run_expert_episode
+    from lerobot_pnp.sim.expert import run_expert_episode
     from lerobot_pnp.viz import VizConfig, visualize
 
     out = tmp_path / "rollout.rrd"
@@ -410,8 +410,8 @@ def test_rollout_task_from_task_source(policy_dir, custom_dataset, tmp_path):
 def test_run_episode_is_deterministic(policy_dir, capsys):
     """evaluation.episodes.run_episode follows LeRobot's eval pipeline; the same seed gives the same episode.
     Loading prints nothing (LeRobot's per-load "Loading weights" line would flood a study's log)."""
-    from lerobot_pnp.closed_loop import run_episode
     from lerobot_pnp.evaluation.checkpoints import load_policy
+    from lerobot_pnp.evaluation.closed_loop import run_episode
 
     capsys.readouterr()
     loaded = load_policy(policy_dir)

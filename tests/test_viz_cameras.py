@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lerobot_pnp.env_config import BaxterPnPEnvConfig, make_env
+from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig, make_env
 
 SIZE, KEYPOINTS, CAMERAS = 32, 4, ("front", "wrist")
 
@@ -27,9 +27,9 @@ def pixels_checkpoint(tmp_path_factory) -> Path:
     import torch
     from lerobot.configs.types import FeatureType, PolicyFeature
 
+    from lerobot_pnp.integration.recorded_task import write_checkpoint_task
     from lerobot_pnp.policy import PnpPixelsConfig, PnpPixelsPolicy
     from lerobot_pnp.policy.processor_pnp_pixels import make_pnp_pixels_pre_post_processors
-    from lerobot_pnp.recorded_task import write_checkpoint_task
 
     task = _task()
     env = make_env(task, render_mode=None)

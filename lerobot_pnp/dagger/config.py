@@ -7,9 +7,9 @@ from pathlib import Path
 from typing import Any
 
 from lerobot_pnp.errors import ConfigError
-from lerobot_pnp.evaluation.suites import SUITES
 from lerobot_pnp.policy import PnpLstmConfig
 from lerobot_pnp.presets import TASK_FIELDS
+from lerobot_pnp.sim.suites import SUITES
 
 from .dart import DartNoise
 
@@ -21,7 +21,7 @@ DEFAULT_EVAL_SUITES = [
     "quiet", "quiet_grasp_miss", "quiet_drop", "quiet_nudge_0.03", "quiet_displace", "quiet_noise_latency",
 ]  # fmt: skip
 
-# DAgger's own suite names before the one catalogue (lerobot_pnp.evaluation.suites), and the catalogue entry
+# DAgger's own suite names before the one catalogue (lerobot_pnp.sim.suites), and the catalogue entry
 # with the same env changes. Several old names are catalogue names with another meaning (DAgger's "nominal" had
 # every perturbation off; the catalogue's is the training task unchanged), so a list that still holds one of
 # the retired names is refused with the renames, rather than read with the new meanings.
@@ -124,7 +124,7 @@ class DaggerConfig:
             joint target, ``--dart.gripper_flip`` probability per step); the frames keep the clean labels. With
             ``beta = 1`` a round's rollouts are noisy expert demonstrations: DART. Off by default.
         test_fraction: The fraction of the round-0 episodes (the last ones) held out of training.
-        rollout_suites: Suites of the one catalogue (``lerobot_pnp.evaluation.suites``, one part each) that the
+        rollout_suites: Suites of the one catalogue (``lerobot_pnp.sim.suites``, one part each) that the
             rollouts cycle over: ``nominal`` (the task as recorded), the ``quiet*`` suites (every perturbation off,
             then one at a time).
         eval_suites: The suites every round's policy is evaluated on (same catalogue).

@@ -72,7 +72,7 @@ def _tqdm(total: int, desc: str, enabled: bool):
 
 def base_env_config(cfg: DaggerConfig):
     """The task DAgger runs on: ``base_root``'s recorded task, or the preset, with ``env_changes`` applied."""
-    from lerobot_pnp.env_config import BaxterPnPEnvConfig
+    from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
 
     if cfg.base_root:
         return BaxterPnPEnvConfig(task_source=cfg.base_root, **cfg.env_changes)

@@ -3,7 +3,7 @@
 ``FSMExpert(env).label()`` plans the expert's next keyframe from the current physical state without side
 effects, so every state the *policy* visits gets the keyframe a perfect teacher would command there (DAgger).
 The env is always built with ``make_env`` from an env config (the dataset's recorded task + the changes of a
-suite of the one catalogue, ``lerobot_pnp.evaluation.suites``).
+suite of the one catalogue, ``lerobot_pnp.sim.suites``).
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ import numpy as np
 from lerobot_pnp import robot
 from lerobot_pnp.errors import UnreachableError
 from lerobot_pnp.evaluation.checkpoints import LoadedPolicy
-from lerobot_pnp.evaluation.suites import SUITES
+from lerobot_pnp.sim.suites import SUITES
 
 from .dart import DartNoise
 from .writer import LabelledEpisode
@@ -21,7 +21,7 @@ from .writer import LabelledEpisode
 
 def suite_env(base_cfg, suite: str):
     """The env for the catalogue's ``suite`` (one part): the base task config with its changes (``make_env``)."""
-    from lerobot_pnp.env_config import make_env
+    from lerobot_pnp.sim.env_config import make_env
 
     return make_env(SUITES[suite].env_configs(base_cfg)[0])
 
@@ -67,7 +67,7 @@ class Teacher:
     """
 
     def __init__(self, env):
-        from lerobot_pnp.expert import FSMExpert
+        from lerobot_pnp.sim.expert import FSMExpert
 
         self.expert = FSMExpert(env)
         self.physics = env.unwrapped.physics
@@ -183,7 +183,7 @@ def follows(action: np.ndarray, label: np.ndarray) -> bool:
 
 def evaluate(policy: LoadedPolicy, base_cfg, suite: str, seeds: list[int], progress=None) -> dict:
     """Success of ``policy`` on ``suite`` over ``seeds`` (one env, seeded resets), with failures by cause."""
-    from lerobot_pnp.closed_loop import evaluate_serial
+    from lerobot_pnp.evaluation.closed_loop import evaluate_serial
     from lerobot_pnp.evaluation.records import summarize
 
     counts = summarize(evaluate_serial(policy, SUITES[suite].env_configs(base_cfg)[0], seeds, progress))

@@ -44,7 +44,7 @@ class PixelRecorder:
 
 def make_recording_env(env_cfg):
     """The env for ``env_cfg`` (built by the one factory), recording camera frames when it renders any."""
-    from lerobot_pnp.env_config import make_env
+    from lerobot_pnp.sim.env_config import make_env
 
     env = make_env(env_cfg)
     return PixelRecorder(env) if env_cfg.cameras else env
@@ -55,7 +55,7 @@ def simulate_slot(env, base_seed: int, num_episodes: int, slot: int, max_retries
 
     Returns the ExpertEpisode. Raises DatasetError when ``max_retries + 1`` seeds in a row fail.
     """
-    from lerobot_pnp.expert import failure_cause, run_expert_episode
+    from lerobot_pnp.sim.expert import failure_cause, run_expert_episode
 
     for retry in range(max_retries + 1):
         seed = slot_seed(base_seed, num_episodes, slot, retry)

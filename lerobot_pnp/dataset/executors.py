@@ -58,7 +58,7 @@ class ProgressBar:
         from tqdm import tqdm
 
         self.dir, self.initial = progress_dir, initial
-        from lerobot_pnp.progress import redraw_interval_s
+        from lerobot_pnp.support.progress import redraw_interval_s
 
         # redrawn twice a second on a terminal; into a log (no terminal) only every 15 s, so a log
         # gets a line of progress now and then instead of a flood of carriage-return updates

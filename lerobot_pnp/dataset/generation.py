@@ -43,10 +43,10 @@ from lerobot_pnp.dataset.workdir import (
     read_run_record,
     resume_advice,
 )
-from lerobot_pnp.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.errors import ConfigError, DatasetError, OtherSettingsError
 from lerobot_pnp.outputs import LOCK_FILE, remove_path, write_json_atomic
-from lerobot_pnp.slurm_fields import check_slurm_fields
+from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
+from lerobot_pnp.support.slurm_fields import check_slurm_fields
 
 EXECUTORS = ("local", "slurm")
 MAX_EPISODES = 10_000_000  # above this, --allow_huge must say it is meant (memory and disk grow with N)

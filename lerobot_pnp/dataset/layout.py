@@ -11,7 +11,7 @@ import json
 from pathlib import Path
 
 from lerobot_pnp.errors import DatasetError
-from lerobot_pnp.recorded_files import RECORDED_FILE
+from lerobot_pnp.sim.recorded_files import RECORDED_FILE
 
 INFO_FILE = "meta/info.json"  # LeRobot's INFO_PATH: the dataset's metadata, with its "splits"
 

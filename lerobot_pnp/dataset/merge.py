@@ -23,7 +23,7 @@ from lerobot_pnp.dataset.validation import WORK_DIR, read_json, verify_dataset
 from lerobot_pnp.dataset.workdir import DatasetRoot, resume_advice
 from lerobot_pnp.errors import DatasetError
 from lerobot_pnp.outputs import remove_path, write_json_atomic
-from lerobot_pnp.recorded_files import GENERATION_FILE
+from lerobot_pnp.sim.recorded_files import GENERATION_FILE
 
 
 def merge_and_commit(out: DatasetRoot) -> dict:
@@ -31,8 +31,8 @@ def merge_and_commit(out: DatasetRoot) -> dict:
     from lerobot.datasets.aggregate import aggregate_datasets
     from lerobot.datasets.io_utils import load_info, write_info
 
-    from lerobot_pnp.env_config import BaxterPnPEnvConfig
-    from lerobot_pnp.recorded_files import write_recorded
+    from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
+    from lerobot_pnp.sim.recorded_files import write_recorded
     from lerobot_pnp.version import __version__
 
     root, work = out.path, out.work()

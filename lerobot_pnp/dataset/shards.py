@@ -96,7 +96,7 @@ class GenerateShard(PipelineStep):
     def write(self, rank: int, world_size: int) -> dict:
         from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
-        from lerobot_pnp.env_config import BaxterPnPEnvConfig
+        from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
 
         quiet_and_single_threaded()
         start, stop = shard_range(self.num_episodes, world_size, rank)

@@ -41,7 +41,7 @@ from lerobot_pnp.outputs import (
     shown,
 )
 from lerobot_pnp.outputs import LOCK_FILE as LOCK_FILE  # the lock file, named here for the modules that ask here
-from lerobot_pnp.recorded_files import GENERATION_FILE
+from lerobot_pnp.sim.recorded_files import GENERATION_FILE
 
 COMMAND = "lerobot-pnp generate"  # the owner's name in the root's manifest
 TRASH_DIR = ".pnp_work.trash"  # a committed run's work folder, being deleted

@@ -38,8 +38,8 @@ from lerobot_pnp.evaluation.stats import (
     seed_agreement,
     sign_test_p,
 )
-from lerobot_pnp.evaluation.suites import HELD_OUT_AXES
 from lerobot_pnp.outputs import OutputFolder
+from lerobot_pnp.sim.suites import HELD_OUT_AXES
 
 __all__ = ["CompareConfig", "Run", "analyse", "difference_text", "parse_runs", "positional_runs", "run_compare"]
 

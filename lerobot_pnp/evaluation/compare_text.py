@@ -6,7 +6,7 @@ Run names, paths and suite names are the user's text: every one reaches the mark
 
 from __future__ import annotations
 
-from lerobot_pnp.markdown_text import code, text
+from lerobot_pnp.support.markdown_text import code, text
 
 
 def _pts(x: float) -> str:

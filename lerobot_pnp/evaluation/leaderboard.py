@@ -24,9 +24,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from lerobot_pnp.errors import ConfigError, one_line
-from lerobot_pnp.markdown_text import code, text
-from lerobot_pnp.markdown_text import one_line as single_line
 from lerobot_pnp.outputs import OutputError, OutputFolder, write_bytes_atomic
+from lerobot_pnp.support.markdown_text import code, text
+from lerobot_pnp.support.markdown_text import one_line as single_line
 
 ADD_ROW = (
     "lerobot-eval --policy.path <checkpoint> --env.type baxter_pnp --env.task heldout --eval.n_episodes {episodes} "
@@ -103,7 +103,7 @@ def analyse_rows(runs_dir: str | Path, episodes: int = 100) -> tuple[list[tuple[
 def render(runs_dir: str | Path, episodes: int = 100, seed: int = 100_000) -> str:
     """The page for the rows under ``runs_dir`` (the same text for the same files); every suite of every row holds
     ``episodes`` episodes."""
-    from lerobot_pnp.evaluation.suites import HELD_OUT_AXES
+    from lerobot_pnp.sim.suites import HELD_OUT_AXES
 
     rows, result, axes = analyse_rows(runs_dir, episodes)
     table = result["table"]
@@ -163,7 +163,7 @@ def compact_table(runs_dir: str | Path, episodes: int = 100, leave_out: tuple[st
     """(One line per row, strongest first: short name, budget, nominal % with its 95 % interval, held-out % per axis
     with the verdict as ``AXIS_MARK``'s symbol; the short names of the rows in ``leave_out``): the README's table,
     the page's numbers."""
-    from lerobot_pnp.evaluation.suites import HELD_OUT_AXES
+    from lerobot_pnp.sim.suites import HELD_OUT_AXES
 
     rows, result, axes = analyse_rows(runs_dir, episodes)
     nominal = result["table"]["nominal"]

@@ -13,7 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from lerobot_pnp.evaluation.stats import Rate, below_p, paired_comparison
-from lerobot_pnp.evaluation.suites import HELD_OUT_AXES, SUITES, Axis
+from lerobot_pnp.sim.suites import HELD_OUT_AXES, SUITES, Axis
 
 BASELINE = "lookup_table"
 

@@ -48,7 +48,7 @@ _LEGACY_PREFIX = "subtask_nets."
 
 
 class TaskRecord:
-    """How a checkpoint records the task it was trained in, set by ``lerobot_pnp.registration`` (the policy
+    """How a checkpoint records the task it was trained in, set by ``lerobot_pnp.integration.registration`` (the policy
     package knows no env): ``read(dataset_root)`` -> the validated recorded task or None, ``write(task,
     directory)`` writes it into a checkpoint folder."""
 

@@ -9,5 +9,5 @@ on disk and resumable; ``schedule``: its jobs and their pool, ``job``: what one 
 jobs as SLURM jobs, ``slurm``: their options, ``cross_check``: the `lerobot-eval` cross-check), ``figures``,
 ``claims``, ``markdown`` and ``preamble`` (the text; ``preamble``: its opening and Methods section), ``writer`` (``report.md`` and ``summary.json``). Suites, statistics
 and results (pooled rates, paired comparisons, verdicts) and their plots live in ``lerobot_pnp.evaluation``, the
-evaluators in ``lerobot_pnp.closed_loop``.
+evaluators in ``lerobot_pnp.evaluation.closed_loop``.
 """

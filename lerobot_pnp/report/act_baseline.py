@@ -42,7 +42,7 @@ import torch
 
 from lerobot_pnp.dataset.splits import recorded_split
 from lerobot_pnp.errors import DatasetError
-from lerobot_pnp.recorded_task import copy_recorded
+from lerobot_pnp.integration.recorded_task import copy_recorded
 
 # ACT sized to the task: an expert dense episode is ~140-160 steps (7-8 s at 20 fps) with a keyframe reached
 # every ~15-20 steps. A 20-step chunk (1 s) spans about one keyframe; executing 10 of them re-plans every

@@ -66,7 +66,7 @@ def dataset_config(
     """The generator's config of ``generate_dataset`` (a ConfigError for an invalid value, before any file is
     touched)."""
     from lerobot_pnp.dataset import GenerateConfig
-    from lerobot_pnp.env_config import BaxterPnPEnvConfig
+    from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
 
     return GenerateConfig(
         repo_id=f"local/{root.name}",

@@ -67,7 +67,7 @@ def write_lookup_table(cfg: LookupTableCheckpointConfig) -> dict:
     The folder goes through ``lerobot_pnp.outputs``: the checkpoint's files are written all-or-nothing beside
     whatever else the folder holds, and ``--overwrite`` replaces only the files this command recorded there."""
     from lerobot_pnp.dataset.layout import is_dataset
-    from lerobot_pnp.recorded_task import RECORDED_FILE, dataset_task
+    from lerobot_pnp.integration.recorded_task import RECORDED_FILE, dataset_task
     from lerobot_pnp.report.adapters import load_train_episodes
 
     root = Path(cfg.dataset_root).expanduser()
@@ -101,7 +101,7 @@ def write_lookup_table(cfg: LookupTableCheckpointConfig) -> dict:
 
 def _checkpoint_files(policy: LookupTablePolicy, dataset_root: Path) -> dict[str, bytes]:
     """The checkpoint folder's files (name -> bytes): the policy, its identity processors, the dataset's task."""
-    from lerobot_pnp.recorded_task import copy_recorded
+    from lerobot_pnp.integration.recorded_task import copy_recorded
 
     with tempfile.TemporaryDirectory(prefix="lerobot_pnp_lookup_") as tmp:
         policy.save_pretrained(Path(tmp))
@@ -113,7 +113,7 @@ def _checkpoint_files(policy: LookupTablePolicy, dataset_root: Path) -> dict[str
 
 def _is_table_file(name: str) -> bool:
     """A name a lookup-table checkpoint's file has (``_checkpoint_files``)."""
-    from lerobot_pnp.recorded_task import CHECKPOINT_RECORDED_FILE
+    from lerobot_pnp.integration.recorded_task import CHECKPOINT_RECORDED_FILE
 
     return name in ("config.json", "model.safetensors", CHECKPOINT_RECORDED_FILE) or (
         name.startswith("policy_") and name.endswith((".json", ".safetensors"))

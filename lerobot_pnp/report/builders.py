@@ -14,13 +14,13 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from lerobot_pnp.closed_loop import eval_expert, eval_lerobot_policy
 from lerobot_pnp.dagger import RECOVERING_BATCH_SIZE
-from lerobot_pnp.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.evaluation.checkpoints import load_policy
+from lerobot_pnp.evaluation.closed_loop import eval_expert, eval_lerobot_policy
 from lerobot_pnp.report import act_baseline, adapters, training
 from lerobot_pnp.report.recipes import RECOVERING, policy_settings
+from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
 
 if TYPE_CHECKING:
     from lerobot_pnp.report.method_spec import MethodOf, TrainContext

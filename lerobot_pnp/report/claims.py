@@ -16,8 +16,8 @@ from dataclasses import dataclass
 
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.evaluation.results import Pooled, axis_result, axis_verdict
-from lerobot_pnp.evaluation.suites import HELD_OUT_AXES, RECOVERY_BUDGET, SUITES, Axis
 from lerobot_pnp.report.methods import METHODS
+from lerobot_pnp.sim.suites import HELD_OUT_AXES, RECOVERY_BUDGET, SUITES, Axis
 
 BASELINE = "lookup_table"
 FEEDBACK_SUITES = ("nudge_0.03", "nudge_0.05", "obs_noise_0.005")

@@ -14,11 +14,11 @@ import math
 from dataclasses import dataclass, field, fields
 
 from lerobot_pnp.errors import ConfigError
-from lerobot_pnp.evaluation.suites import STUDY_SUITES, get_suites
 from lerobot_pnp.presets import PRESETS as TASK_PRESETS
 from lerobot_pnp.report.episode_rule import EpisodeRule, RuleChanges, resolve_rule
 from lerobot_pnp.report.methods import DATA_EFFICIENCY_METHODS, METHODS, RECOVERING, get_methods
 from lerobot_pnp.report.slurm import StudySlurmOptions, checked
+from lerobot_pnp.sim.suites import STUDY_SUITES, get_suites
 
 
 @dataclass

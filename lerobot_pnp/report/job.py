@@ -14,15 +14,15 @@ from typing import Any
 
 from lerobot_pnp.cache import Stage
 from lerobot_pnp.evaluation.records import records_from_json, records_to_json
-from lerobot_pnp.evaluation.suites import get_suites
+from lerobot_pnp.integration.recorded_task import read_recorded
 from lerobot_pnp.outputs import write_json_atomic
-from lerobot_pnp.recorded_task import read_recorded
 from lerobot_pnp.report import coverage
 from lerobot_pnp.report.config import StudyConfig, SuiteSpec
 from lerobot_pnp.report.layout import StudyLayout
 from lerobot_pnp.report.methods import TrainContext, get_methods, keyed_train, train_stage
 from lerobot_pnp.report.schedule import ALL, TRAINING, Job
 from lerobot_pnp.report.stages import episode_rule, eval_stage, truncated_record
+from lerobot_pnp.sim.suites import get_suites
 
 TRAIN_TIME = "study_train_time.json"  # in a training folder: how long its training took (reported when reused)
 

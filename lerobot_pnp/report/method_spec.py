@@ -8,8 +8,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from lerobot_pnp.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.evaluation.records import EpisodeRecord
+from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
 
 
 @dataclass

@@ -44,7 +44,6 @@ from pathlib import Path
 from lerobot_pnp.cache import Stage
 from lerobot_pnp.dagger import RECOVERING_BATCH_SIZE
 from lerobot_pnp.errors import ConfigError
-from lerobot_pnp.evaluation.suites import RECOVERY_BUDGET
 from lerobot_pnp.report import training
 from lerobot_pnp.report.builders import (
     act_description,
@@ -76,6 +75,7 @@ from lerobot_pnp.report.recipes import (
     retraining,
 )
 from lerobot_pnp.report.recipes import policy_settings as policy_settings
+from lerobot_pnp.sim.suites import RECOVERY_BUDGET
 
 
 def _method(name: str) -> Method:

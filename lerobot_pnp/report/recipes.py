@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 
 from lerobot_pnp.dagger import RECOVERING_RECIPE
 from lerobot_pnp.dagger.config import DEFAULT_ROLLOUT_SUITES, mixture_beta
-from lerobot_pnp.evaluation.suites import RECOVERY_BUDGET
+from lerobot_pnp.sim.suites import RECOVERY_BUDGET
 
 if TYPE_CHECKING:
     from lerobot_pnp.report.method_spec import TrainContext

@@ -27,10 +27,9 @@ from contextlib import ExitStack
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
-from lerobot_pnp.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.errors import ConfigError
+from lerobot_pnp.integration.recorded_task import read_recorded
 from lerobot_pnp.outputs import OutputFolder
-from lerobot_pnp.recorded_task import read_recorded
 from lerobot_pnp.report import coverage, cross_check
 from lerobot_pnp.report.adapters import check_same_demonstrations
 from lerobot_pnp.report.config import StudyConfig, SuiteSpec  # noqa: F401  (SuiteSpec: the CLI's and callers')
@@ -41,6 +40,7 @@ from lerobot_pnp.report.methods import DATA_EFFICIENCY_METHODS, get_methods
 from lerobot_pnp.report.provenance import command, machine
 from lerobot_pnp.report.schedule import Job, job_processes, run_jobs, split_jobs
 from lerobot_pnp.report.stages import dataset_stage
+from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
 
 # The recordings a method can train on besides the keyframe dataset (``Method.data``): what they are and the
 # env-config changes they are generated with (the same seeds, so the same demonstrations).

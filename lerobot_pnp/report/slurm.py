@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 from lerobot_pnp.dataset.generation import SlurmOptions
 from lerobot_pnp.errors import ConfigError
-from lerobot_pnp.slurm_fields import check_slurm_fields
+from lerobot_pnp.support.slurm_fields import check_slurm_fields
 
 EXECUTORS = ("local", "slurm")
 # sbatch --time: minutes, MM:SS, HH:MM:SS, D-HH, D-HH:MM or D-HH:MM:SS

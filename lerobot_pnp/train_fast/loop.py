@@ -23,15 +23,15 @@ import torch
 from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_STATE
 
 from lerobot_pnp.errors import ConfigError
+from lerobot_pnp.integration.registration import register_task_record
 from lerobot_pnp.outputs import OutputFolder
 from lerobot_pnp.policy import PnpLstmPolicy, PnpPixelsConfig
-from lerobot_pnp.progress import log_friendly_tqdm
-from lerobot_pnp.registration import register_task_record
+from lerobot_pnp.support.progress import log_friendly_tqdm
 
 from .config import TrainFastConfig
 from .data import load_keyframe_data
 from .output import CONFIG_FILE, clear_previous_run, run_folder
-from .report import CHUNK_EPISODES, action_names, keyframe_error, write_curve
+from .summary import CHUNK_EPISODES, action_names, keyframe_error, write_curve
 
 logger = logging.getLogger(__name__)
 

@@ -17,9 +17,9 @@ import logging
 import numpy as np
 
 from lerobot_pnp import robot
-from lerobot_pnp.env_config import BaxterPnPEnvConfig, make_env
 from lerobot_pnp.errors import PnPError
-from lerobot_pnp.recorded_task import read_recorded
+from lerobot_pnp.integration.recorded_task import read_recorded
+from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig, make_env
 from lerobot_pnp.viz.keypoints import KeypointTap
 from lerobot_pnp.viz.sampling import Frames, Run, Sampler, run_events
 from lerobot_pnp.viz.scene import SceneModel
@@ -60,9 +60,9 @@ def rollout_with_expert(
     loaded, config: BaxterPnPEnvConfig, seed: int, hz: float, compare_expert: bool, name: str = "rollout_0"
 ) -> Run:
     """Run the policy from ``seed`` (sampled continuously) and, optionally, the expert from the same start."""
-    from lerobot_pnp.closed_loop import run_episode
     from lerobot_pnp.dagger.rollouts import Teacher
     from lerobot_pnp.dataset.episodes import PixelRecorder
+    from lerobot_pnp.evaluation.closed_loop import run_episode
 
     env = PixelRecorder(make_env(config, render_mode=None))
     base = env.unwrapped
@@ -139,7 +139,7 @@ def _label(teacher) -> np.ndarray:
 
 def expert_reference(config: BaxterPnPEnvConfig, seed: int, hz: float) -> dict:
     """The FSM expert's actions and end-effector path from the start state ``seed`` gives."""
-    from lerobot_pnp.expert import run_expert_episode
+    from lerobot_pnp.sim.expert import run_expert_episode
 
     env = make_env(config, render_mode=None)
     physics = env.unwrapped.physics

@@ -22,10 +22,10 @@ import numpy as np
 from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_STATE
 
 from lerobot_pnp import robot
-from lerobot_pnp.env_config import BaxterPnPEnvConfig, make_env
 from lerobot_pnp.errors import DatasetError
 from lerobot_pnp.evaluation.checkpoints import ENV_STATE_WIDTHS
-from lerobot_pnp.recorded_task import read_recorded
+from lerobot_pnp.integration.recorded_task import read_recorded
+from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig, make_env
 from lerobot_pnp.viz.sampling import Frames, Run, Sampler, run_events
 from lerobot_pnp.viz.scene import SceneModel
 

@@ -31,10 +31,10 @@ import numpy as np
 import torch
 
 from lerobot_pnp import robot
-from lerobot_pnp.env_config import BaxterPnPEnvConfig, make_env
 from lerobot_pnp.errors import ConfigError, ExpertFailure, PnPError, UnreachableError
 from lerobot_pnp.evaluation.checkpoints import IncompatiblePolicyError, LoadedPolicy, policy_action
 from lerobot_pnp.evaluation.records import EpisodeRecord
+from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig, make_env
 
 NEW_ROLLOUT_OPTION = "lerobot_new_rollout"  # what lerobot's rollout passes on a genuine reset
 
@@ -87,7 +87,7 @@ def eval_lerobot_policy(
     from lerobot.envs.factory import make_env_pre_post_processors
     from lerobot.scripts.lerobot_eval import eval_policy
 
-    from lerobot_pnp.progress import quiet_rollout_bars
+    from lerobot_pnp.support.progress import quiet_rollout_bars
 
     if not batch_size >= 1:
         raise ConfigError(f"eval batch_size must be >= 1 (sub-envs evaluated at a time), got {batch_size!r}")
@@ -122,7 +122,7 @@ def eval_lerobot_policy(
 
 def eval_expert(env_cfg: BaxterPnPEnvConfig, n_episodes: int, start_seed: int) -> list[EpisodeRecord]:
     """The scripted expert on seeds ``start_seed ..`` (its own loop; same env config, same seeds)."""
-    from lerobot_pnp.expert import failure_cause, run_expert_episode
+    from lerobot_pnp.sim.expert import failure_cause, run_expert_episode
 
     env = make_env(env_cfg, render_mode=None)
     records = []

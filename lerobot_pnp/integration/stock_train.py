@@ -37,7 +37,7 @@ import sys
 from collections.abc import Callable
 
 from lerobot_pnp.errors import ConfigError
-from lerobot_pnp.stock_checkpoints import TRAIN_MODULE, dataset_root, run_config_is_ours
+from lerobot_pnp.integration.stock_checkpoints import TRAIN_MODULE, dataset_root, run_config_is_ours
 
 FACTORY_MODULE = "lerobot.datasets.factory"
 
@@ -80,7 +80,7 @@ def _prepared(original):
 def check_recorded_task(cfg) -> None:
     """The task the run's dataset records, validated before anything is loaded (a ``ConfigError`` naming the
     file): every checkpoint copies it, so an invalid one would otherwise stop the run at its first checkpoint."""
-    from lerobot_pnp.recorded_task import dataset_task
+    from lerobot_pnp.integration.recorded_task import dataset_task
 
     root = dataset_root(cfg)
     if root is not None:

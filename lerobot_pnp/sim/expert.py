@@ -17,9 +17,9 @@ import numpy as np
 
 from lerobot_pnp import robot
 from lerobot_pnp.errors import ConfigError, ExpertFailure, UnreachableError
-from lerobot_pnp.interpolation import joint_trajectory
 from lerobot_pnp.robot import Phase
-from lerobot_pnp.task import grasp_yaw
+from lerobot_pnp.sim.interpolation import joint_trajectory
+from lerobot_pnp.sim.task import grasp_yaw
 
 
 @dataclass

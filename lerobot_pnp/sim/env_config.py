@@ -33,9 +33,7 @@ from lerobot.envs.configs import EnvConfig
 from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_IMAGES, OBS_STATE
 
 from lerobot_pnp import robot
-from lerobot_pnp.env_validation import validate
 from lerobot_pnp.errors import ConfigError, shown
-from lerobot_pnp.mujoco_gl import default_mujoco_gl
 from lerobot_pnp.presets import (
     ENV_TYPE,
     GYM_ID,
@@ -47,7 +45,9 @@ from lerobot_pnp.presets import (
     PRESETS,
     TASK_FIELDS,
 )
-from lerobot_pnp.recorded_files import check_record, find_recorded
+from lerobot_pnp.sim.env_validation import validate
+from lerobot_pnp.sim.mujoco_gl import default_mujoco_gl
+from lerobot_pnp.sim.recorded_files import check_record, find_recorded
 
 MAX_EPISODE_LENGTH = 100_000  # env steps: every episode's arrays are held in memory (recorder, datasets)
 KEYFRAME_FPS = robot.KEYFRAME_FPS
@@ -170,7 +170,7 @@ class BaxterPnPEnvConfig(EnvConfig):
                 type=FeatureType.VISUAL, shape=(self.image_height, self.image_width, 3)
             )
             self.features_map[f"pixels/{cam}"] = f"{OBS_IMAGES}.{cam}"
-        from lerobot_pnp.evaluation.stock_suites import check_task
+        from lerobot_pnp.sim.stock_suites import check_task
 
         check_task(self)  # --env.task naming suites: every name known, every suite applicable to this task
 
@@ -258,7 +258,7 @@ class BaxterPnPEnvConfig(EnvConfig):
             )
             use_async_envs = False
         default_mujoco_gl()  # before this process or its env workers import MuJoCo
-        from lerobot_pnp.evaluation.stock_suites import create_suite_envs
+        from lerobot_pnp.sim.stock_suites import create_suite_envs
 
         suites = create_suite_envs(self, n_envs, use_async_envs)  # --env.task naming suites: one entry each
         return suites if suites is not None else super().create_envs(n_envs, use_async_envs=use_async_envs)

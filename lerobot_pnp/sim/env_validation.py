@@ -10,9 +10,10 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from lerobot_pnp import disturbances, robot
+from lerobot_pnp import robot
 from lerobot_pnp.errors import ConfigError, shown
 from lerobot_pnp.presets import CAMERAS, CONTROL_MODES
+from lerobot_pnp.sim import disturbances
 
 KEYFRAME_FPS = robot.KEYFRAME_FPS
 BOX_PAIRS = (

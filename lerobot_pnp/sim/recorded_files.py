@@ -109,7 +109,9 @@ def find_recorded(source: str | Path) -> tuple[dict, Path] | None:
             dataset = read_json(train_cfg).get("dataset") or {}
             if dataset.get("root") and (Path(dataset["root"]) / RECORDED_FILE).is_file():
                 path = Path(dataset["root"]) / RECORDED_FILE
-                logging.getLogger("lerobot_pnp.recorded_task").warning(  # the logger its readers have always used
+                logging.getLogger(
+                    "lerobot_pnp.integration.recorded_task"
+                ).warning(  # the logger its readers have always used
                     "%s records no task: using the task its dataset %s holds now", train_cfg.parent, path.parent.parent
                 )
                 return read_json(path), path

@@ -29,7 +29,7 @@ import logging
 import sys
 from collections.abc import Callable
 
-from lerobot_pnp.mujoco_gl import default_mujoco_gl
+from lerobot_pnp.sim.mujoco_gl import default_mujoco_gl
 
 ENV_CONFIGS = "lerobot.envs.configs"  # LeRobot's EnvConfig registry
 POLICY_CONFIGS = "lerobot.configs"  # LeRobot's PreTrainedConfig registry (the package: every name bound)
@@ -44,15 +44,15 @@ def register_gym() -> None:
     from lerobot_pnp.presets import GYM_ID
 
     if GYM_ID not in gym.registry:
-        gym.register(id=GYM_ID, entry_point="lerobot_pnp.env:BaxterPnPEnv")
+        gym.register(id=GYM_ID, entry_point="lerobot_pnp.sim.env:BaxterPnPEnv")
 
 
 # ---------------------------------------------------------------------------------------------- configs
 def register_env_config() -> None:
     """``--env.type=baxter_pnp``: importing ``env_config`` registers it; inside a stock script the task source
     its command line names becomes the default of every preset-less env config; LeRobot's ``--help`` as ours."""
-    from lerobot_pnp.cli_help import annotate_stock_help
-    from lerobot_pnp.env_config import BaxterPnPEnvConfig
+    from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
+    from lerobot_pnp.support.cli_help import annotate_stock_help
 
     annotate_stock_help(BaxterPnPEnvConfig)
     hand_over_command_line()
@@ -62,10 +62,10 @@ def register_policy_config() -> None:
     """``--policy.type=pnp_lstm`` / ``pnp_pixels`` / ``pnp_lookup_table`` / ``--policy.path``: importing the
     configuration modules registers them (LeRobot finds each policy and its processors from its module's name when
     it builds them)."""
-    from lerobot_pnp.cli_help import annotate_stock_help
     from lerobot_pnp.policy.configuration_pnp_lookup_table import PnpLookupTableConfig
     from lerobot_pnp.policy.configuration_pnp_lstm import PnpLstmConfig
     from lerobot_pnp.policy.configuration_pnp_pixels import PnpPixelsConfig
+    from lerobot_pnp.support.cli_help import annotate_stock_help
 
     annotate_stock_help(PnpLstmConfig)
     annotate_stock_help(PnpPixelsConfig)
@@ -74,8 +74,8 @@ def register_policy_config() -> None:
 
 def register_task_record() -> None:
     """A pnp_lstm checkpoint records the task of its training dataset (the policy package knows no env)."""
+    from lerobot_pnp.integration.recorded_task import dataset_task, write_checkpoint_task
     from lerobot_pnp.policy.modeling_pnp_lstm import TaskRecord
-    from lerobot_pnp.recorded_task import dataset_task, write_checkpoint_task
 
     TaskRecord.read, TaskRecord.write = dataset_task, write_checkpoint_task
 
@@ -83,8 +83,8 @@ def register_task_record() -> None:
 def hand_over_command_line() -> None:
     """Inside a stock ``lerobot-*`` script, the task source its command line names (``stock_cli``) becomes the
     default of every preset-less env config: LeRobot's parser hands the env config none of its sibling fields."""
-    from lerobot_pnp.env_config import BaxterPnPEnvConfig
-    from lerobot_pnp.stock_cli import stock_script, task_source_from_argv
+    from lerobot_pnp.integration.stock_cli import stock_script, task_source_from_argv
+    from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
 
     if stock_script() is not None:
         BaxterPnPEnvConfig.command_line_source = task_source_from_argv()
@@ -94,14 +94,14 @@ def hand_over_command_line() -> None:
 def install_stock_hooks() -> None:
     """In a stock ``lerobot-*`` script whose command line is ours: the one-line error hook, and the hooks of the
     script it is (each a no-op in the others)."""
-    from lerobot_pnp.stock_cli import run_is_ours, stock_script
+    from lerobot_pnp.integration.stock_cli import run_is_ours, stock_script
 
     if stock_script() is None or not run_is_ours():
         return
-    from lerobot_pnp.stock_checkpoints import install_stock_checkpoint_hook
-    from lerobot_pnp.stock_errors import install_cli_excepthook
-    from lerobot_pnp.stock_eval import install_stock_eval_hooks
-    from lerobot_pnp.stock_train import install_stock_train_hooks
+    from lerobot_pnp.integration.stock_checkpoints import install_stock_checkpoint_hook
+    from lerobot_pnp.integration.stock_errors import install_cli_excepthook
+    from lerobot_pnp.integration.stock_eval import install_stock_eval_hooks
+    from lerobot_pnp.integration.stock_train import install_stock_train_hooks
 
     install_cli_excepthook()
     install_stock_checkpoint_hook()  # every checkpoint of the run records its task

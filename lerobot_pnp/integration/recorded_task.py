@@ -16,7 +16,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-from lerobot_pnp.recorded_files import (
+from lerobot_pnp.sim.recorded_files import (
     CHECKPOINT_RECORDED_FILE,
     RECORDED_FILE,
     check_record,
@@ -33,7 +33,7 @@ def check_recorded(data: Any, path: str | Path) -> dict:
 
 def _config_class():
     """``BaxterPnPEnvConfig`` (imported when a record is checked: importing this module stays cheap)."""
-    from lerobot_pnp.env_config import BaxterPnPEnvConfig
+    from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
 
     return BaxterPnPEnvConfig
 

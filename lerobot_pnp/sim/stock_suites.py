@@ -41,7 +41,7 @@ AXIS_PREFIX = "heldout_"
 
 def _study_suites(preset: str) -> list[str]:
     """The suite names a study preset evaluates, sweep groups expanded (``suites.STUDY_SUITES``)."""
-    from lerobot_pnp.evaluation.suites import STUDY_SUITES, get_suites
+    from lerobot_pnp.sim.suites import STUDY_SUITES, get_suites
 
     return [s.name for name in STUDY_SUITES[preset] for s in get_suites([name])]
 
@@ -54,14 +54,14 @@ ALIASES = {
 
 
 def _axes() -> dict[str, list[str]]:
-    from lerobot_pnp.evaluation.suites import HELD_OUT_AXES
+    from lerobot_pnp.sim.suites import HELD_OUT_AXES
 
     return {f"{AXIS_PREFIX}{a.name}": list(a.in_distribution + a.held_out) for a in HELD_OUT_AXES}
 
 
 def valid_names() -> list[str]:
     """Every name ``--env.task`` accepts besides the default: suites, sweep groups, axes, aliases."""
-    from lerobot_pnp.evaluation.suites import SUITES
+    from lerobot_pnp.sim.suites import SUITES
 
     groups = sorted({s.group for s in SUITES.values() if s.group})
     return [*SUITES, *groups, *_axes(), *ALIASES]
@@ -69,7 +69,7 @@ def valid_names() -> list[str]:
 
 def suite_names(task: str | None) -> list[str] | None:
     """The suites ``--env.task`` names, in order, each once; None for the default (the config's one task)."""
-    from lerobot_pnp.evaluation.suites import SUITES, get_suites
+    from lerobot_pnp.sim.suites import SUITES, get_suites
 
     if task is None or task == GYM_TASK:
         return None
@@ -95,7 +95,7 @@ def suite_names(task: str | None) -> list[str] | None:
 def suite_configs(cfg: Any) -> dict[str, Any] | None:
     """``{suite: env config}`` for the suites ``cfg.task`` names (None: the default task): each suite's changes on
     top of ``cfg`` as resolved (the recorded task and the flags), exactly as the study applies them."""
-    from lerobot_pnp.evaluation.suites import SUITES
+    from lerobot_pnp.sim.suites import SUITES
 
     names = suite_names(cfg.task)
     if names is None:

@@ -8,7 +8,7 @@ it in a stock script whose run is ours.
 from __future__ import annotations
 
 from lerobot_pnp.errors import PnPError, one_line
-from lerobot_pnp.stock_cli import dataset_roots_from_argv, stock_script
+from lerobot_pnp.integration.stock_cli import dataset_roots_from_argv, stock_script
 
 DEBUG_ENV = "LEROBOT_PNP_DEBUG"  # set (to anything): the hook leaves the traceback
 

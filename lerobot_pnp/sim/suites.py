@@ -23,9 +23,9 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from lerobot_pnp.disturbances import KINDS
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.presets import FULL_TASK, PAPER_TASK
+from lerobot_pnp.sim.disturbances import KINDS
 
 RECOVERY_BUDGET = 20  # keyframe steps: two full pick-and-place attempts
 EDGE_WIDTH = 0.03  # m: width of the inside strip and of the outside ring

@@ -40,8 +40,8 @@ def record_task(checkpoint_dir: Path, cfg) -> Path | None:
     """Write the task of training run ``cfg`` into ``checkpoint_dir/pretrained_model`` (None: not our task)."""
     from lerobot.utils.constants import PRETRAINED_MODEL_DIR
 
+    from lerobot_pnp.integration.recorded_task import CHECKPOINT_RECORDED_FILE, dataset_task, write_checkpoint_task
     from lerobot_pnp.presets import ENV_TYPE
-    from lerobot_pnp.recorded_task import CHECKPOINT_RECORDED_FILE, dataset_task, write_checkpoint_task
 
     directory = checkpoint_dir / PRETRAINED_MODEL_DIR
     if not directory.is_dir() or (directory / CHECKPOINT_RECORDED_FILE).is_file():
@@ -70,9 +70,9 @@ def dataset_root(cfg) -> Path | None:
 def run_config_is_ours(cfg) -> bool:
     """Whether training run ``cfg`` trains our policy, evaluates in our env, or reads a dataset that records our
     task (what the hooks check before they act)."""
+    from lerobot_pnp.integration.recorded_task import RECORDED_FILE
+    from lerobot_pnp.integration.stock_cli import POLICY_TYPES
     from lerobot_pnp.presets import ENV_TYPE
-    from lerobot_pnp.recorded_task import RECORDED_FILE
-    from lerobot_pnp.stock_cli import POLICY_TYPES
 
     if getattr(getattr(cfg, "policy", None), "type", None) in POLICY_TYPES:
         return True

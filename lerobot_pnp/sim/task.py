@@ -13,10 +13,10 @@ import math
 import numpy as np
 
 from lerobot_pnp import robot
-from lerobot_pnp.disturbances import Disturbances
 from lerobot_pnp.errors import ConfigError, ResetOptionError, UnreachableError
-from lerobot_pnp.physics import BaxterPhysics
 from lerobot_pnp.robot import Phase
+from lerobot_pnp.sim.disturbances import Disturbances
+from lerobot_pnp.sim.physics import BaxterPhysics
 
 RESET_OPTIONS = ("arm_qpos", "object_pos", "object_yaw")
 _START_TRIES = 20

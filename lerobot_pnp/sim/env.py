@@ -12,10 +12,10 @@ import numpy as np
 from gymnasium import spaces
 
 from lerobot_pnp import robot
-from lerobot_pnp.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.errors import ConfigError
-from lerobot_pnp.physics import BaxterPhysics
-from lerobot_pnp.task import PickPlaceTask
+from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
+from lerobot_pnp.sim.physics import BaxterPhysics
+from lerobot_pnp.sim.task import PickPlaceTask
 
 
 class BaxterPnPEnv(gym.Env):

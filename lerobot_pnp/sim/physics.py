@@ -15,14 +15,14 @@ import numpy as np
 
 from lerobot_pnp import robot
 from lerobot_pnp.errors import PhysicsError
-from lerobot_pnp.interpolation import joint_trajectory
-from lerobot_pnp.mujoco_gl import default_mujoco_gl
+from lerobot_pnp.sim.interpolation import joint_trajectory
+from lerobot_pnp.sim.mujoco_gl import default_mujoco_gl
 
 default_mujoco_gl()  # MuJoCo reads MUJOCO_GL once, when imported: headless EGL on Linux unless the user chose
 
 import mujoco  # noqa: E402
 
-from lerobot_pnp.ik import ArmIK  # noqa: E402  (imports MuJoCo too)
+from lerobot_pnp.sim.ik import ArmIK  # noqa: E402  (imports MuJoCo too)
 
 CONTROL_DT = 0.01  # interpolator update period in keyframe mode (100 Hz)
 _FINGER_JOINTS = ("l_gripper_l_finger_joint", "l_gripper_r_finger_joint")

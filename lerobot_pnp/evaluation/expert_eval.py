@@ -22,10 +22,10 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from lerobot_pnp.env_config import BaxterPnPEnvConfig, make_env
 from lerobot_pnp.errors import ConfigError, ExpertFailure, UnreachableError
-from lerobot_pnp.expert import failure_cause, run_expert_episode
 from lerobot_pnp.outputs import OutputFolder, read_record
+from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig, make_env
+from lerobot_pnp.sim.expert import failure_cause, run_expert_episode
 
 COMMAND = "lerobot-pnp expert"  # its name in an output folder's manifest
 EVAL_INFO = "eval_info.json"
@@ -51,7 +51,7 @@ class ExpertEvalConfig:
 def evaluate_expert(cfg: ExpertEvalConfig) -> dict:
     """The expert on ``cfg.env``'s task, or on each suite ``cfg.env.task`` names; ``eval_info.json`` with
     ``output_dir``."""
-    from lerobot_pnp.evaluation.stock_suites import suite_configs
+    from lerobot_pnp.sim.stock_suites import suite_configs
 
     suites = suite_configs(cfg.env)  # the names checked before any episode runs
     if cfg.output_dir is not None:  # an eval_info.json of the user's there is refused before any episode runs
@@ -84,7 +84,7 @@ def _written_before_the_manifest(folder: OutputFolder) -> bool:
 
 
 def _evaluate_suites(cfg: ExpertEvalConfig, suites: dict[str, BaxterPnPEnvConfig]) -> tuple[dict, dict]:
-    from lerobot_pnp.closed_loop import eval_expert
+    from lerobot_pnp.evaluation.closed_loop import eval_expert
     from lerobot_pnp.evaluation.records import summarize
 
     groups, start = {}, time.perf_counter()
