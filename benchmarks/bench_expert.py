@@ -1,7 +1,7 @@
 """The scripted expert on every task suite: success over seeded episodes, failures by cause and phase.
 
 Targets: >= 99.5 % on `paper`, on `full` and on each perturbation alone (1000 episodes each); >= 99 % on
-every suite of the held-out-disturbance protocol (``evaluation.suites.HELD_OUT_AXES``, on the `full` training task;
+every suite of the held-out-disturbance protocol (``sim.suites.HELD_OUT_AXES``, on the `full` training task;
 >= 200 episodes each).
 
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_expert.py --episodes 1000 --out outputs/bench_expert.json

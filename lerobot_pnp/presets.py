@@ -79,7 +79,7 @@ NARROW_FULL_DISTURBANCES: dict[str, Any] = {
     and not k.endswith("_prob")
 }
 # `full`: everything on (a benchmark that a lookup table cannot pass; the expert recovers from all of it). Its
-# perturbations are the training condition of the held-out-disturbance protocol (evaluation/suites.py): each at any
+# perturbations are the training condition of the held-out-disturbance protocol (sim/suites.py): each at any
 # moment of the first half of its window, landing anywhere reachable; held-out suites go beyond it.
 FULL_TASK: dict[str, Any] = {
     **PAPER_TASK,

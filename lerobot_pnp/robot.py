@@ -88,6 +88,12 @@ class Phase(IntEnum):
         return self // N_PHASES_PER_SUBTASK
 
 
+def phase_name(index: int, unknown: str = "unknown") -> str:
+    """The name of FSM phase ``index`` (``Phase.label``); ``unknown`` for -1 or any other index outside ``Phase``."""
+    index = int(index)
+    return Phase(index).label if 0 <= index < len(Phase) else unknown
+
+
 KEYFRAME_FPS = 1  # nominal frame rate of a keyframe stream (dataset and env): one FSM state per frame
 
 # Scene facts (Baxter base frame = MuJoCo world frame; provenance in docs/baxter.md).

@@ -257,7 +257,7 @@ def presets_table(base: str) -> str:
 
 
 def suite_catalogue(base: str) -> str:
-    """Every suite of ``evaluation/suites.py``, grouped as the studies use them, with what it changes."""
+    """Every suite of ``sim/suites.py``, grouped as the studies use them, with what it changes."""
     from lerobot_pnp.presets import FULL_TASK
     from lerobot_pnp.sim.suites import HELD_OUT_AXES, SUITES
 

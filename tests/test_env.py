@@ -1,5 +1,8 @@
 """The MuJoCo scene and the gymnasium env: kinematics, spaces, determinism, config errors, LeRobot config."""
 
+import importlib
+import re
+
 import gymnasium as gym
 import mujoco
 import numpy as np
@@ -116,8 +119,12 @@ def test_straight_path_keeps_the_gripper_on_the_segment(model):
 
 def test_invalid_actions_raise(keyframe_env):
     keyframe_env.reset(seed=0)
-    with pytest.raises(ValueError, match="NaN"):
+    with pytest.raises(ValueError, match="NaN") as err:
         keyframe_env.step(np.full(8, np.nan, dtype=np.float32))
+    # the message points to a checkpoint loader that exists
+    loader = re.search(r"lerobot_pnp\.([\w.]+)\.(\w+)\)", str(err.value))
+    assert loader, str(err.value)
+    assert callable(getattr(importlib.import_module(f"lerobot_pnp.{loader.group(1)}"), loader.group(2)))
     with pytest.raises(ValueError, match="shape"):
         keyframe_env.step(np.zeros(5, dtype=np.float32))
 

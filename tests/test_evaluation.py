@@ -6,11 +6,12 @@ from __future__ import annotations
 import json
 import math
 
+import numpy as np
 import pytest
 
 from lerobot_pnp import robot
 from lerobot_pnp.errors import ConfigError
-from lerobot_pnp.evaluation.records import EpisodeRecord, phase_name, summarize
+from lerobot_pnp.evaluation.records import EpisodeRecord, summarize
 from lerobot_pnp.evaluation.stats import Rate, paired_comparison, sign_test_p, wilson_interval
 from lerobot_pnp.sim.suites import SUITES, Suite
 
@@ -126,8 +127,9 @@ def test_record_from_final_info():
     assert EpisodeRecord.from_info(1, {}, 3, (0.0, 0.0)).failure_cause == "truncated"
     ok = EpisodeRecord.from_info(2, {"is_success": True, "failure_cause": "x"}, 4, (0.5, 0.0))
     assert ok.success and ok.failure_cause == "" and ok.furthest_phase == -1
-    assert phase_name(-1) == "unknown" and phase_name(len(robot.PHASE_NAMES)) == "unknown"
-    assert phase_name(0) == robot.PHASE_NAMES[0]
+    assert robot.phase_name(-1) == "unknown" and robot.phase_name(len(robot.PHASE_NAMES)) == "unknown"
+    assert robot.phase_name(0) == robot.PHASE_NAMES[0]
+    assert robot.phase_name(np.int64(3)) == robot.PHASE_NAMES[3]
     counts = summarize([fail, ok, EpisodeRecord.from_info(3, {}, 3, (0.0, 0.0))])
     assert counts == {"n": 3, "successes": 1, "by_cause": {"dropped": 1, "truncated": 1},
                       "by_phase": {robot.PHASE_NAMES[6]: 1, "unknown": 1}}  # fmt: skip

@@ -637,3 +637,11 @@ def test_events_and_camera_changes(policy_dir, tmp_path):
     events = _rows(chunks, "/rollout_0/events", "frame_index")
     assert events["frame_index"][0] == 1 and "nudge" in str(events["TextLog:text"][0])
     assert "/rollout_0/cameras/overhead" in paths
+
+
+def test_phase_labels_name_the_phase_or_its_index():
+    from lerobot_pnp.viz.sampling import phase_name
+
+    assert phase_name(np.int64(0)) == robot.PHASE_NAMES[0]
+    assert phase_name(len(robot.PHASE_NAMES)) == f"phase {len(robot.PHASE_NAMES)}"
+    assert phase_name(-1) == "phase -1"

@@ -1,7 +1,7 @@
 """Measure the scripted expert: success rate over seeded episodes and failures grouped by cause.
 
 On the default task it runs ``n_episodes`` seeds of ``cfg.env``. With ``--env.task`` naming evaluation suites (the
-names stock ``lerobot-eval`` takes: ``heldout``, an axis, suites; ``evaluation.stock_suites``) it runs every suite
+names stock ``lerobot-eval`` takes: ``heldout``, an axis, suites; ``sim.stock_suites``) it runs every suite
 as ``lerobot-eval`` does: each suite's env config is ``Suite.env_configs`` of the resolved task, and episode ``i``
 of every suite is seed ``seed + i``. Each suite runs through the study's own expert evaluator
 (``closed_loop.eval_expert``), so a suite's outcomes are the study's. With ``output_dir`` it writes an

@@ -11,11 +11,6 @@ from dataclasses import asdict, dataclass
 from lerobot_pnp import robot
 
 
-def phase_name(index: int) -> str:
-    """The name of FSM phase ``index`` (``robot.Phase``); ``"unknown"`` for -1 or any other index."""
-    return robot.Phase(index).label if 0 <= index < len(robot.Phase) else "unknown"
-
-
 @dataclass
 class EpisodeRecord:
     """What one evaluation episode ended with (one line of the per-episode table)."""
@@ -53,7 +48,7 @@ def summarize(records: list[EpisodeRecord]) -> dict:
     by_phase: dict[str, int] = {}
     for r in fails:
         by_cause[r.failure_cause] = by_cause.get(r.failure_cause, 0) + 1
-        name = phase_name(r.furthest_phase)
+        name = robot.phase_name(r.furthest_phase)
         by_phase[name] = by_phase.get(name, 0) + 1
     return {"n": len(records), "successes": len(records) - len(fails), "by_cause": by_cause, "by_phase": by_phase}
 

@@ -7,7 +7,8 @@ open-loop lookup table), ``adapters`` (the only calls into the dataset generator
 ``config`` (``StudyConfig`` and its presets), ``layout`` (every path of a study), ``run`` (the stages, cached
 on disk and resumable; ``schedule``: its jobs and their pool, ``job``: what one job does, ``cluster``: the same
 jobs as SLURM jobs, ``slurm``: their options, ``cross_check``: the `lerobot-eval` cross-check), ``figures``,
-``claims``, ``markdown`` and ``preamble`` (the text; ``preamble``: its opening and Methods section), ``writer`` (``report.md`` and ``summary.json``). Suites, statistics
-and results (pooled rates, paired comparisons, verdicts) and their plots live in ``lerobot_pnp.evaluation``, the
-evaluators in ``lerobot_pnp.evaluation.closed_loop``.
+``claims``, ``markdown`` and ``preamble`` (the text; ``preamble``: its opening and Methods section), ``writer``
+(``report.md`` and ``summary.json``). The suites live in ``lerobot_pnp.sim.suites``; statistics and results
+(pooled rates, paired comparisons, verdicts) and their plots in ``lerobot_pnp.evaluation``, the evaluators in
+``lerobot_pnp.evaluation.closed_loop``.
 """

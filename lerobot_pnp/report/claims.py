@@ -1,7 +1,7 @@
 """What the numbers say about the paper's claims: generated from the measurements, never hard-coded.
 
 Each claim declares the methods and suites it reads (``Claim``), and ``check_claims`` verifies at import that
-every name is a method of ``methods.METHODS`` and a suite (or a group) of ``evaluation.suites.SUITES``: a renamed
+every name is a method of ``methods.METHODS`` and a suite (or a group) of ``sim.suites.SUITES``: a renamed
 method or suite is an ImportError in CI, not a claim that silently vanishes from the report. A claim whose
 inputs were not evaluated renders nothing (the quick preset evaluates two methods on two suites).
 
@@ -292,9 +292,7 @@ def check_claims(claims=CLAIMS) -> None:
                 raise ConfigError(f"claim {c.name!r} names the unknown method {name!r}; valid: {sorted(METHODS)}")
         for name in c.suites:
             if name not in SUITES and name not in groups:
-                raise ConfigError(
-                    f"claim {c.name!r} names the unknown suite {name!r} (not in evaluation.suites.SUITES)"
-                )
+                raise ConfigError(f"claim {c.name!r} names the unknown suite {name!r} (not in sim.suites.SUITES)")
         for name in c.optional:
             if name not in METHODS and name not in SUITES:
                 raise ConfigError(f"claim {c.name!r} names {name!r} as optional: neither a method nor a suite")

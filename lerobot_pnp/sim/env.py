@@ -98,7 +98,7 @@ class BaxterPnPEnv(gym.Env):
         if not np.all(np.isfinite(action)):
             raise ConfigError(
                 f"action contains NaN/inf: {action.tolist()} (from a policy: check its checkpoint's weights and "
-                "normalisation stats, e.g. with lerobot_pnp.rollout.load_policy)"
+                "normalisation stats, e.g. with lerobot_pnp.evaluation.checkpoints.load_policy)"
             )
         q_target = np.clip(action[: robot.N_JOINTS], robot.JOINT_LOWER, robot.JOINT_UPPER)
         grip = float(np.clip(action[-1], 0.0, 1.0))

@@ -18,8 +18,8 @@ The train/test split is read from the dataset's ``meta/info.json`` ``splits`` (`
 (``lerobot_pnp.dataset.splits.train_test``).
 
 Modules: ``config`` (the validated config), ``data`` (load, check, split), ``loop`` (training and
-checkpoints), ``output`` (the output folder: held for the run; ``--overwrite`` replaces what a training run wrote there), ``report``
-(held-out keyframe error, loss curve).
+checkpoints), ``output`` (the output folder: held for the run; ``--overwrite`` replaces what a training run wrote
+there), ``summary`` (held-out keyframe error, loss curve).
 
 Library use::
 

@@ -123,4 +123,5 @@ class Sampler:
 
 
 def phase_name(p: int) -> str:
-    return robot.Phase(int(p)).label if 0 <= int(p) < len(robot.Phase) else f"phase {int(p)}"
+    """The viewer's label of FSM phase ``p``: its name, or ``phase <p>`` for an index outside ``robot.Phase``."""
+    return robot.phase_name(p, unknown=f"phase {int(p)}")
