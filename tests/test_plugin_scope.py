@@ -60,6 +60,8 @@ LIGHT = {
     "lerobot_pnp.integration.stock_cli",
 }
 LIGHT |= {"lerobot_pnp.sim.recorded_files", "lerobot_pnp.errors", "lerobot_pnp.version", "lerobot_pnp.sim.mujoco_gl"}
+# the packages holding them, whose __init__ imports nothing
+LIGHT |= {"lerobot_pnp.integration", "lerobot_pnp.sim"}
 
 # After discovery, what lerobot-train / lerobot-eval do later in the calibrate order: LeRobot's config modules
 # imported after the plugin, our configs parsed, the policy class asked for (its modeling loads then).
