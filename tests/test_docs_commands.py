@@ -223,6 +223,18 @@ def stock_chooser(flags: dict[str, str | None]):
     return choose
 
 
+def _rooted(args: list[str]) -> list[str]:
+    """``args`` with the value of ``--config_path`` made absolute: the documentation runs from the repository's
+    root."""
+    out = list(args)
+    for i, arg in enumerate(out):
+        if arg.startswith("--config_path="):
+            out[i] = f"--config_path={ROOT / arg.split('=', 1)[1]}"
+        elif arg == "--config_path" and i + 1 < len(out):
+            out[i + 1] = str(ROOT / out[i + 1])
+    return out
+
+
 def unknown_flags(command: Command) -> list[str]:
     """What is wrong with one documented command (run from the repository's root): an unknown sub-command, an
     unknown flag, a missing config file; empty when nothing is."""
@@ -238,7 +250,7 @@ def unknown_flags(command: Command) -> list[str]:
         if not args or args[0] not in COMMANDS:
             return [f"no sub-command {args[0] if args else ''!r}; valid: {sorted(COMMANDS)}"]
         try:  # the class the command parses into (train: by its policy type), as lerobot-pnp picks it
-            cls, _, rest = command_config(args[0], args[1:])
+            cls, _, rest = command_config(args[0], _rooted(args[1:]))
         except PnPError as err:
             return [str(err)]
         flags = {k.replace("-", "_"): v for k, v in flags_of(rest).items()}
@@ -255,18 +267,11 @@ def unknown_flags(command: Command) -> list[str]:
 # ---------------------------------------------------------------------------------------------- tests
 @pytest.fixture(scope="module")
 def at_root():
-    """Registered configs, and the repository's root as the working folder (config paths are relative to it)."""
-    import os
-
+    """Every config registered: ours, and LeRobot's policies (ACT, Diffusion ...)."""
     from lerobot_pnp.registration import register_all
 
     register_all()
-    import lerobot.policies  # noqa: F401  (registers LeRobot's policy configs: act, diffusion, ...)
-
-    before = os.getcwd()
-    os.chdir(ROOT)
-    yield
-    os.chdir(before)
+    import lerobot.policies  # noqa: F401
 
 
 def test_the_documentation_shows_commands_of_each_kind():
