@@ -25,7 +25,7 @@ from tqdm import tqdm
 from lerobot_pnp.env_config import BaxterPnPEnvConfig, make_env
 from lerobot_pnp.errors import ConfigError, ExpertFailure, UnreachableError
 from lerobot_pnp.expert import failure_cause, run_expert_episode
-from lerobot_pnp.outputs import OutputFolder
+from lerobot_pnp.outputs import OutputFolder, read_record
 
 COMMAND = "lerobot-pnp expert"  # its name in an output folder's manifest
 EVAL_INFO = "eval_info.json"
@@ -74,13 +74,10 @@ def evaluate_expert(cfg: ExpertEvalConfig) -> dict:
 def _written_before_the_manifest(folder: OutputFolder) -> bool:
     """Whether the folder's ``eval_info.json`` is one this command wrote before manifests existed: nothing is
     recorded there, and every task of the file has the failure causes only this command writes."""
-    path = folder.path / EVAL_INFO
-    if folder.owners or path.is_symlink() or not path.is_file():
+    info = read_record(folder.path / EVAL_INFO)
+    if folder.owners or not isinstance(info, dict):
         return False
-    try:
-        tasks = json.loads(path.read_text()).get("per_task")
-    except (OSError, ValueError, AttributeError):
-        return False
+    tasks = info.get("per_task")
     if not (isinstance(tasks, list) and tasks):
         return False
     return all(isinstance(t, dict) and "failure_causes" in (t.get("metrics") or {}) for t in tasks)

@@ -80,6 +80,18 @@ def write_json_atomic(path: Path, data: Any, indent: int = 1) -> None:
     write_bytes_atomic(path, json.dumps(data, indent=indent, default=str).encode())
 
 
+def read_record(path: Path) -> Any:
+    """The JSON in ``path``, or None when it is a link, not a plain file, or not readable JSON: how a command
+    reads a record it may have written, which proves a folder from before the manifest is its own."""
+    path = Path(path)
+    if path.is_symlink() or not path.is_file():
+        return None
+    try:
+        return json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+
+
 def remove_path(path: Path) -> None:
     """Delete a file or folder, if present; a symbolic link is unlinked, never followed."""
     path = Path(path)

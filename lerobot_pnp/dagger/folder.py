@@ -15,7 +15,7 @@ import re
 from pathlib import Path
 
 from lerobot_pnp.evaluation.stats import Rate
-from lerobot_pnp.outputs import OutputFolder
+from lerobot_pnp.outputs import OutputFolder, read_record
 
 COMMAND = "lerobot-pnp dagger"
 ROUND = re.compile(r"round_(\d{2,})")
@@ -34,12 +34,7 @@ def round_name(rnd: int) -> str:
 
 def _stage_of(path: Path) -> str | None:
     """The ``stage`` part of the record at ``path`` (never read through a link); None when it is not one."""
-    if path.is_symlink() or not path.is_file():
-        return None
-    try:
-        data = json.loads(path.read_text())
-    except (OSError, ValueError):
-        return None
+    data = read_record(path)
     parts = data.get("parts") if isinstance(data, dict) else None
     return parts.get("stage") if isinstance(parts, dict) else None
 
@@ -50,12 +45,7 @@ def _recorded(entry: Path, records: tuple[tuple[str, str], ...]) -> bool:
 
 def _is_table(path: Path) -> bool:
     """A ``table.json``/``summary.json`` as ``write_table``/``run_dagger`` write them."""
-    if path.is_symlink() or not path.is_file():
-        return False
-    try:
-        data = json.loads(path.read_text())
-    except (OSError, ValueError):
-        return False
+    data = read_record(path)
     if path.name == SUMMARY_FILE:
         return isinstance(data, dict) and {"final_checkpoint", "timings_s", "table"} <= set(data)
     return isinstance(data, list) and all(isinstance(row, dict) and "policy" in row for row in data)

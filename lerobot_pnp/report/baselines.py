@@ -13,7 +13,6 @@ run; here one dataset read and one folder.
 
 from __future__ import annotations
 
-import json
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,7 +20,7 @@ from pathlib import Path
 from lerobot.processor import PolicyProcessorPipeline
 
 from lerobot_pnp.errors import ConfigError, DatasetError
-from lerobot_pnp.outputs import OutputFolder
+from lerobot_pnp.outputs import OutputFolder, read_record
 from lerobot_pnp.policy.configuration_pnp_lookup_table import PnpLookupTableConfig
 from lerobot_pnp.policy.modeling_pnp_lookup_table import PnpLookupTablePolicy, table_config
 from lerobot_pnp.policy.processor_pnp_lookup_table import make_pnp_lookup_table_pre_post_processors
@@ -124,13 +123,8 @@ def _is_table_file(name: str) -> bool:
 def _legacy_table(folder: OutputFolder) -> list[str]:
     """The files of a lookup table written before the manifest (its ``config.json`` says ``pnp_lookup_table``,
     nothing is recorded yet); a user's file beside them is not among them."""
-    config = folder.path / "config.json"
-    if folder.owners or config.is_symlink() or not config.is_file():
-        return []
-    try:
-        ours = json.loads(config.read_text()).get("type") == "pnp_lookup_table"
-    except (OSError, ValueError, AttributeError):
-        ours = False
+    config = read_record(folder.path / "config.json")
+    ours = not folder.owners and isinstance(config, dict) and config.get("type") == "pnp_lookup_table"
     return [n for n in folder.foreign() if _is_table_file(n) and (folder.path / n).is_file()] if ours else []
 
 

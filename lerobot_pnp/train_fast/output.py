@@ -10,12 +10,19 @@ nothing recorded) the entries with a training run's names count as the run's.
 
 from __future__ import annotations
 
-import json
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from lerobot_pnp.outputs import HOUSEKEEPING, NEW_SUFFIX, TMP_SUFFIX, OutputError, OutputFolder, remove_path
+from lerobot_pnp.outputs import (
+    HOUSEKEEPING,
+    NEW_SUFFIX,
+    TMP_SUFFIX,
+    OutputError,
+    OutputFolder,
+    read_record,
+    remove_path,
+)
 
 COMMAND = "lerobot-pnp train"
 CONFIG_FILE = "train_fast_config.json"
@@ -44,12 +51,7 @@ def legacy_run(folder: OutputFolder) -> list[str]:
 def _is_run_config(path: Path) -> bool:
     """Whether ``path`` is a config file a training run wrote: a plain file holding a mapping with the keys
     every ``TrainFastConfig`` has."""
-    if path.is_symlink() or not path.is_file():
-        return False
-    try:
-        data = json.loads(path.read_text())
-    except (OSError, ValueError):
-        return False
+    data = read_record(path)
     return isinstance(data, dict) and {"dataset_repo_id", "policy", "output_dir"} <= set(data)
 
 
