@@ -11,7 +11,8 @@ would read it (``\\`` continuations joined, ``;``, ``&&`` and ``|`` separating c
   with ``--env.*`` of the env type and ``--policy.*`` of the policy type the command line or its config file names
   (our env config ``baxter_pnp`` when none is named; with no policy type, e.g. ``--policy.path``, a field of any of
   the policies the documentation uses);
-- every ``--config_path FILE`` is a file of this repository.
+- every ``--config_path FILE``, and any other value naming a shipped config (``configs/*.json``), is a file of
+  this repository.
 
 What is not checked, and why: commands in ```text blocks (they are ``--help`` output, generated from the code by
 ``scripts/docs_tables.py`` and checked by tests/test_docs_tables.py); commands in inline code (prose, often a
@@ -246,6 +247,10 @@ def unknown_flags(command: Command) -> list[str]:
     config_path = flags.get("config_path")
     if "config_path" in flags and not (config_path and (ROOT / config_path).is_file()):
         return [f"--config_path {config_path}: no such file in the repository"]
+    shipped = [a.split("=", 1)[-1] for a in args if re.fullmatch(r"(--[\w.]+=)?configs/\S+\.(json|ya?ml)", a)]
+    missing = [f"{path}: no such file in the repository" for path in shipped if not (ROOT / path).is_file()]
+    if missing:  # another flag naming a shipped config (report --alongside configs/...)
+        return missing
     if name == "lerobot-pnp":
         if not args or args[0] not in COMMANDS:
             return [f"no sub-command {args[0] if args else ''!r}; valid: {sorted(COMMANDS)}"]
@@ -295,6 +300,7 @@ def test_every_documented_command_exists_as_written(at_root):
         ("lerobot-train --policy.type act --policy.chunk_size 8 --policy.hidden_size 8", ["--policy.hidden_size"]),
         ("lerobot-train --config_path configs/train_act_images.json --policy.hidden_size 8", ["--policy.hidden_size"]),
         ("lerobot-train --config_path configs/no_such.json", ["--config_path configs/no_such.json: no such file in the repository"]),
+        ("lerobot-pnp report --config_path configs/report_full.json --alongside configs/no_such.json", ["configs/no_such.json: no such file in the repository"]),
         ("lerobot-pnp viz --policy.path p --device cuda --n_rollouts 2", []),
         ("lerobot-train --policy.type pnp_lstm --policy.hidden_size 8 --dataset.root d --rename_map.a b", []),
     ],
