@@ -1,7 +1,7 @@
 # Two entry points do all the set-up on a fresh machine (see README):
 #   make demo   the end-to-end job: generate expert data, train the LSTM planner, evaluate it closed loop; beside
 #               it the recovering planner on the full task, on a recovery suite and two held-out ones
-#   make test   ruff, the test suite and the strict documentation build (what CI runs)
+#   make test   ruff, the import layers (import-linter), the test suite and the strict documentation build (what CI runs)
 #   make study  the whole study behind docs/results/: the paper task and the held-out-disturbance protocol
 #               on the full task (every method, 3 training seeds; resumable; its measured cost: README)
 #   make docs   the documentation site into site/
@@ -51,6 +51,7 @@ study: $(STAMP)
 test: $(STAMP)
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/ruff format --check .
+	$(VENV)/bin/lint-imports  # the layers of pyproject.toml: no module imports a layer above its own
 	$(VENV)/bin/python -m pytest -q -n 2 --dist loadfile --no-loadscope-reorder -m ""  # every test, the slow end-to-end ones too; both cores; a file on one worker, long files first (tests/conftest.py)
 	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict --quiet  # a page off the nav, a broken link or anchor fails
 
@@ -59,4 +60,4 @@ docs: $(STAMP)
 	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict
 
 clean:
-	rm -rf $(VENV) outputs build site *.egg-info
+	rm -rf $(VENV) outputs build site *.egg-info .import_linter_cache

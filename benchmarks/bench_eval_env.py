@@ -2,7 +2,7 @@
 
 Each case re-runs one stored evaluation of a study folder (a method's checkpoint of one training seed on one
 suite, its first ``--episodes`` episodes from the study's eval seed, the study's batch of 50 envs) with
-stock ``eval_policy``, the same call the study makes (``evaluation.episodes``); the expert runs its own loop.
+stock ``eval_policy``, the same call the study makes (``closed_loop``); the expert runs its own loop.
 Every case runs in a fresh process, alternating trees (new, old, new, old, ...), so drift on a shared machine
 hits both. It prints, per case and in total, the wall time of each tree and their ratio, and checks that both
 trees reproduce the stored records episode for episode (a speed-up that changed an outcome would make every
@@ -43,7 +43,7 @@ import torch
 torch.set_num_threads(1)
 from lerobot_pnp.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.evaluation.checkpoints import load_policy
-from lerobot_pnp.evaluation.episodes import eval_expert, eval_lerobot_policy
+from lerobot_pnp.closed_loop import eval_expert, eval_lerobot_policy
 from lerobot_pnp.evaluation.suites import get_suites
 from lerobot_pnp.recorded_task import read_recorded
 from lerobot_pnp.report import act_baseline

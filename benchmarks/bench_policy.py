@@ -4,7 +4,7 @@
 
 a. Time to target (fast path): ``train_fast`` on the keyframe dataset with a checkpoint every
    ``--ckpt_every`` epochs; each checkpoint is rolled out closed loop in-process with
-   ``lerobot_pnp.evaluation.episodes.run_episode`` (the same pipeline as ``lerobot-eval``: preprocess_observation
+   ``lerobot_pnp.closed_loop.run_episode`` (the same pipeline as ``lerobot-eval``: preprocess_observation
    -> pre-processor -> select_action -> post-processor -> env.step) on ``--curve_episodes`` unseen seeds
    (100000 + i; the dataset uses seeds < 20000). "Wall time to target" = from calling ``train_fast`` (dataset
    load included) to the checkpoint file of the first checkpoint whose success >= ``--target`` %; the

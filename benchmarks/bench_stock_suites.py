@@ -104,9 +104,9 @@ def run_stock_no_videos(ckpt: Path, task: str, n: int, batch: int) -> float:
 
 def run_study(ckpt: Path, task: str, n: int, batch: int) -> tuple[dict[str, float], dict[str, list[bool]]]:
     """The study's evaluator on each suite (``_checkpoint_eval``): its wall time and outcomes per suite."""
+    from lerobot_pnp.closed_loop import eval_lerobot_policy
     from lerobot_pnp.env_config import BaxterPnPEnvConfig
     from lerobot_pnp.evaluation.checkpoints import load_policy
-    from lerobot_pnp.evaluation.episodes import eval_lerobot_policy
     from lerobot_pnp.evaluation.stock_suites import suite_configs
 
     times, outcomes = {}, {}

@@ -175,9 +175,9 @@ def pose_error(ckpt: Path, root: Path) -> dict:
 def failures(ckpt: Path, n: int) -> dict:
     """The last checkpoint's nominal episodes (the seeds of step 3) through ``lerobot-eval``'s own ``eval_policy``
     in this process, which keeps each episode's final info: failures by cause and by furthest FSM phase."""
+    from lerobot_pnp.closed_loop import eval_lerobot_policy
     from lerobot_pnp.env_config import BaxterPnPEnvConfig
     from lerobot_pnp.evaluation.checkpoints import load_policy
-    from lerobot_pnp.evaluation.episodes import eval_lerobot_policy
     from lerobot_pnp.evaluation.records import summarize
     from lerobot_pnp.recorded_task import read_recorded
 

@@ -30,8 +30,8 @@ def _env(env_args: dict):
 
 def rollout_success(ckpt: Path, n_episodes: int, env_args: dict | None = None, seed: int = EVAL_SEED) -> dict:
     """Closed-loop success (%) of a checkpoint over seeds seed .. seed + n - 1 (in-process rollouts)."""
+    from lerobot_pnp.closed_loop import run_episode
     from lerobot_pnp.evaluation.checkpoints import load_policy
-    from lerobot_pnp.evaluation.episodes import run_episode
 
     loaded = load_policy(ckpt)
     env = _env(env_args or {})

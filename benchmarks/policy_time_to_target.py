@@ -64,7 +64,7 @@ def bench_time_to_target(args, dataset, work: Path) -> dict:
                     continue
             reached = point
     out = {
-        "eval_method": f"in-process evaluation.episodes.run_episode on {args.curve_episodes} unseen seeds "
+        "eval_method": f"in-process closed_loop.run_episode on {args.curve_episodes} unseen seeds "
         f"{EVAL_SEED}..{EVAL_SEED + args.curve_episodes - 1}",
         "epochs": args.epochs,
         "ckpt_every_epochs": args.ckpt_every,

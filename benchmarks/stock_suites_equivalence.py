@@ -55,8 +55,8 @@ def main() -> None:
     from lerobot.envs.factory import make_env_pre_post_processors
     from lerobot.scripts.lerobot_eval import eval_policy_all
 
+    from lerobot_pnp.closed_loop import eval_lerobot_policy
     from lerobot_pnp.env_config import BaxterPnPEnvConfig
-    from lerobot_pnp.evaluation.episodes import eval_lerobot_policy
     from lerobot_pnp.evaluation.stock_suites import suite_configs
     from lerobot_pnp.registration import register_all
     from lerobot_pnp.report.baselines import identity_processors

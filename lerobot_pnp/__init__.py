@@ -7,7 +7,6 @@ register with their modules; LeRobot's plugin discovery runs ``registration.regi
 """
 
 from lerobot_pnp.registration import register_gym
-
-__version__ = "0.1.0"
+from lerobot_pnp.version import __version__ as __version__  # the one place it is set: version.py
 
 register_gym()

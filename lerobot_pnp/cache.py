@@ -22,6 +22,7 @@ from typing import Any
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.outputs import remove_path as remove  # noqa: F401  (the name its callers import)
 from lerobot_pnp.outputs import write_json_atomic
+from lerobot_pnp.version import __version__
 
 STAGE_FILE = "stage.json"  # the record of a stage kept in a folder
 # Record fields naming an output of the stage, relative to the record's folder (a study training's artefact, a
@@ -67,13 +68,11 @@ def code_versions() -> dict[str, str]:
     """The versions of the code a stage's result depends on (this package and LeRobot)."""
     import importlib.metadata as md
 
-    import lerobot_pnp
-
     try:
         lerobot = md.version("lerobot")
     except md.PackageNotFoundError:  # pragma: no cover - lerobot is a dependency
         lerobot = "?"
-    return {"lerobot_pnp": lerobot_pnp.__version__, "lerobot": lerobot}
+    return {"lerobot_pnp": __version__, "lerobot": lerobot}
 
 
 def digest_files(root: Path, patterns: tuple[str, ...]) -> str:

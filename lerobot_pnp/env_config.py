@@ -18,7 +18,7 @@ Task fields default to ``None``, which means "not set here". They are resolved o
 The observation setup (``cameras``, ``image_height``, ``image_width``, ``render_effects``) and the control mode
 follow the same rule, so ``lerobot-eval --policy.path=...`` of a policy trained on camera images renders the same
 cameras the same way.
-A generated dataset records the resolved config (``recorded_task.write_recorded``).
+A generated dataset records the resolved config (``recorded_files.write_recorded``).
 """
 
 from __future__ import annotations
@@ -35,6 +35,7 @@ from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_IMAGES, OBS_STATE
 from lerobot_pnp import robot
 from lerobot_pnp.env_validation import validate
 from lerobot_pnp.errors import ConfigError, shown
+from lerobot_pnp.mujoco_gl import default_mujoco_gl
 from lerobot_pnp.presets import (
     ENV_TYPE,
     GYM_ID,
@@ -46,8 +47,7 @@ from lerobot_pnp.presets import (
     PRESETS,
     TASK_FIELDS,
 )
-from lerobot_pnp.recorded_task import read_recorded
-from lerobot_pnp.registration import default_mujoco_gl
+from lerobot_pnp.recorded_files import check_record, find_recorded
 
 MAX_EPISODE_LENGTH = 100_000  # env steps: every episode's arrays are held in memory (recorder, datasets)
 KEYFRAME_FPS = robot.KEYFRAME_FPS
@@ -181,8 +181,9 @@ class BaxterPnPEnvConfig(EnvConfig):
         recorded: dict = {}
         if self.preset is None:
             source = self.task_source or self.command_line_source
-            if source:
-                recorded = read_recorded(source) or {}
+            found = find_recorded(source) if source else None
+            if found is not None:  # the record, checked by the rule of every reader (recorded_task)
+                recorded = check_record(*found, BaxterPnPEnvConfig)
         if recorded:
             # A recorded task is complete for the fields that existed when it was recorded; a field added since
             # had no effect then, which is its paper value (every paper value means "feature off").

@@ -4,7 +4,7 @@ On the default task it runs ``n_episodes`` seeds of ``cfg.env``. With ``--env.ta
 names stock ``lerobot-eval`` takes: ``heldout``, an axis, suites; ``evaluation.stock_suites``) it runs every suite
 as ``lerobot-eval`` does: each suite's env config is ``Suite.env_configs`` of the resolved task, and episode ``i``
 of every suite is seed ``seed + i``. Each suite runs through the study's own expert evaluator
-(``evaluation.episodes.eval_expert``), so a suite's outcomes are the study's. With ``output_dir`` it writes an
+(``closed_loop.eval_expert``), so a suite's outcomes are the study's. With ``output_dir`` it writes an
 ``eval_info.json`` in ``lerobot-eval``'s layout (``per_task`` with per-episode successes, plus their seeds and
 failure causes; ``per_group``; ``overall``), which ``lerobot-pnp compare`` and the leaderboard read like any
 ``lerobot-eval`` output (written through ``lerobot_pnp.outputs``: atomically, and only over a file this command
@@ -84,7 +84,7 @@ def _written_before_the_manifest(folder: OutputFolder) -> bool:
 
 
 def _evaluate_suites(cfg: ExpertEvalConfig, suites: dict[str, BaxterPnPEnvConfig]) -> tuple[dict, dict]:
-    from lerobot_pnp.evaluation.episodes import eval_expert
+    from lerobot_pnp.closed_loop import eval_expert
     from lerobot_pnp.evaluation.records import summarize
 
     groups, start = {}, time.perf_counter()

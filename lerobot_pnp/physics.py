@@ -16,7 +16,7 @@ import numpy as np
 from lerobot_pnp import robot
 from lerobot_pnp.errors import PhysicsError
 from lerobot_pnp.interpolation import joint_trajectory
-from lerobot_pnp.registration import default_mujoco_gl
+from lerobot_pnp.mujoco_gl import default_mujoco_gl
 
 default_mujoco_gl()  # MuJoCo reads MUJOCO_GL once, when imported: headless EGL on Linux unless the user chose
 

@@ -12,7 +12,7 @@ LeRobot's plugin discovery imports the shim ``lerobot_policy_pnp_lstm`` (by its 
   modeling, datasets and the viewer load where they are used;
 - the task record of ``pnp_lstm`` checkpoints, when its modeling module is imported;
 - inside a stock ``lerobot-*`` script whose command line is ours (``stock_cli.run_is_ours``: our env, our policy,
-  one of our datasets or checkpoints), the one-line error hook (``errors.install_cli_excepthook``;
+  one of our datasets or checkpoints), the one-line error hook (``stock_errors.install_cli_excepthook``;
   ``LEROBOT_PNP_DEBUG=1`` keeps the traceback) and the hooks of ``lerobot-train`` (``stock_train``,
   ``stock_checkpoints``) and ``lerobot-eval`` (``stock_eval``); each hook also checks that the run it sees is ours.
 
@@ -26,9 +26,10 @@ from __future__ import annotations
 import functools
 import importlib.abc
 import logging
-import os
 import sys
 from collections.abc import Callable
+
+from lerobot_pnp.mujoco_gl import default_mujoco_gl
 
 ENV_CONFIGS = "lerobot.envs.configs"  # LeRobot's EnvConfig registry
 POLICY_CONFIGS = "lerobot.configs"  # LeRobot's PreTrainedConfig registry (the package: every name bound)
@@ -44,14 +45,6 @@ def register_gym() -> None:
 
     if GYM_ID not in gym.registry:
         gym.register(id=GYM_ID, entry_point="lerobot_pnp.env:BaxterPnPEnv")
-
-
-def default_mujoco_gl() -> None:
-    """Headless EGL rendering for our simulator, set before MuJoCo is imported: only on Linux (MuJoCo refuses
-    ``egl`` elsewhere), never over a value the user set, and not once MuJoCo is loaded (it reads the variable
-    when imported, so setting it later would only mislead child processes)."""
-    if sys.platform.startswith("linux") and "MUJOCO_GL" not in os.environ and "mujoco" not in sys.modules:
-        os.environ["MUJOCO_GL"] = "egl"
 
 
 # ---------------------------------------------------------------------------------------------- configs
@@ -105,8 +98,8 @@ def install_stock_hooks() -> None:
 
     if stock_script() is None or not run_is_ours():
         return
-    from lerobot_pnp.errors import install_cli_excepthook
     from lerobot_pnp.stock_checkpoints import install_stock_checkpoint_hook
+    from lerobot_pnp.stock_errors import install_cli_excepthook
     from lerobot_pnp.stock_eval import install_stock_eval_hooks
     from lerobot_pnp.stock_train import install_stock_train_hooks
 

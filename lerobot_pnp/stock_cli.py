@@ -18,7 +18,7 @@ import sys
 from pathlib import Path
 
 from lerobot_pnp.presets import ENV_TYPE
-from lerobot_pnp.recorded_task import CHECKPOINT_RECORDED_FILE, RECORDED_FILE
+from lerobot_pnp.recorded_files import CHECKPOINT_RECORDED_FILE, RECORDED_FILE
 
 # the policy types our configuration modules register (they load LeRobot's configs)
 POLICY_TYPES = ("pnp_lstm", "pnp_pixels")

@@ -8,7 +8,7 @@ strict loader (``evaluation.checkpoints``) and say in one line what is wrong. He
 ``lerobot_eval`` module are wrapped the same way: for a run on our env, the policy's features are checked against
 the env first (``check_policy_features``: its camera inputs rendered by the env at the size it was trained on,
 before a rollout starts), and a failure to load is a ``PolicyLoadError`` naming the checkpoint
-(printed as one line by ``errors.install_cli_excepthook``). Any other env's run calls LeRobot's functions as
+(printed as one line by ``stock_errors.install_cli_excepthook``). Any other env's run calls LeRobot's functions as
 they are.
 """
 

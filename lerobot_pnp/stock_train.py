@@ -25,7 +25,7 @@ with ``max_num_shards=cfg.num_workers``, and the stream reads ``min(parquet file
 with ``--num_workers 0`` it has none, yields nothing, and the first ``next(dl_iter)`` of the training loop ends
 in a bare ``StopIteration`` (or accelerate's "Batch does not contain any data") once the dataset and policy are
 built. The cause is LeRobot's, so its loading is not changed: ``check_stream`` raises a ``ConfigError``
-(printed as one line by ``errors.install_cli_excepthook``) naming the fix when a stream it returns has no
+(printed as one line by ``stock_errors.install_cli_excepthook``) naming the fix when a stream it returns has no
 shard. It reads the stream, not the flags, so it stays silent once LeRobot gives such a stream a shard.
 """
 

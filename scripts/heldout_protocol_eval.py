@@ -23,11 +23,11 @@ from pathlib import Path
 import protocol_runs  # scripts/: the protocol runs on disk
 
 from lerobot_pnp.cache import CHECKPOINT_FILES, code_versions, digest_files, key_of
+from lerobot_pnp.closed_loop import eval_lerobot_policy
 from lerobot_pnp.dagger.config import RECOVERING_RECIPE
 from lerobot_pnp.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.evaluation.checkpoints import load_policy
-from lerobot_pnp.evaluation.episodes import eval_lerobot_policy
 from lerobot_pnp.evaluation.records import summarize
 from lerobot_pnp.evaluation.stats import wilson_interval
 from lerobot_pnp.evaluation.suites import HELD_OUT_AXES, SUITES

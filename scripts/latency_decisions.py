@@ -31,9 +31,9 @@ import numpy as np
 import protocol_runs  # scripts/: the protocol runs on disk
 import torch
 
+from lerobot_pnp.closed_loop import run_episode
 from lerobot_pnp.env_config import BaxterPnPEnvConfig, make_env
 from lerobot_pnp.evaluation.checkpoints import load_policy
-from lerobot_pnp.evaluation.episodes import run_episode
 from lerobot_pnp.evaluation.stats import Rate
 from lerobot_pnp.evaluation.suites import SUITES
 from lerobot_pnp.policy import observation_gate

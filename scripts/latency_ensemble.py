@@ -17,9 +17,9 @@ import argparse
 import protocol_runs  # scripts/: the protocol runs on disk
 import torch
 
+from lerobot_pnp.closed_loop import eval_lerobot_policy
 from lerobot_pnp.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.evaluation.checkpoints import load_policy
-from lerobot_pnp.evaluation.episodes import eval_lerobot_policy
 from lerobot_pnp.evaluation.stats import Rate
 from lerobot_pnp.evaluation.suites import SUITES
 from lerobot_pnp.policy.recovering import RecoveringPlanner

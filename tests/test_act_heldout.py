@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from lerobot_pnp.closed_loop import EpisodeRecorder
 from lerobot_pnp.env_config import BaxterPnPEnvConfig, make_env
-from lerobot_pnp.evaluation.episodes import EpisodeRecorder
 
 
 def test_recorder_does_not_simulate_the_autoreset_episode_after_a_recorded_one():

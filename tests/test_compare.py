@@ -14,12 +14,12 @@ import pytest
 
 from lerobot_pnp import cli
 from lerobot_pnp.errors import ConfigError
+from lerobot_pnp.evaluation import results as study
 from lerobot_pnp.evaluation.compare import CompareConfig, run_compare
 from lerobot_pnp.evaluation.eval_info import read_eval_info
 from lerobot_pnp.evaluation.records import EpisodeRecord
 from lerobot_pnp.evaluation.stats import Rate, chi2_sf, paired_difference_interval, seed_agreement, wilson_interval
 from lerobot_pnp.evaluation.suites import HELD_OUT_AXES
-from lerobot_pnp.report import results as study
 
 AXIS = next(a for a in HELD_OUT_AXES if a.name == "latency")
 SUITES = ("nominal", *AXIS.in_distribution, *AXIS.held_out)
@@ -278,7 +278,7 @@ def test_an_input_over_the_size_limit_is_refused_before_it_is_read(tmp_path):
 def test_the_three_outputs_are_one_set(tmp_path, monkeypatch, capsys):
     """A figure that cannot be drawn changes nothing; a crash while the set is written leaves the previous set."""
     from lerobot_pnp import outputs
-    from lerobot_pnp.report import plots
+    from lerobot_pnp.evaluation import plots
 
     out = tmp_path / "out"
     first = [_bad(tmp_path, "a", eval_info(OUTCOMES))]

@@ -183,7 +183,8 @@ def test_bad_reset_options_raise(keyframe_env, options, message):
 
 
 def test_task_is_settable_from_the_env_config_and_recorded(tmp_path):
-    from lerobot_pnp.recorded_task import read_recorded, write_recorded
+    from lerobot_pnp.recorded_files import write_recorded
+    from lerobot_pnp.recorded_task import read_recorded
 
     cfg = BaxterPnPEnvConfig(
         object_low=(0.5, 0.2), object_high=(0.6, 0.3), place_low=(0.65, -0.1), place_high=(0.65, -0.1)
@@ -210,7 +211,7 @@ def test_task_is_settable_from_the_env_config_and_recorded(tmp_path):
 def test_a_config_never_reads_the_command_line_only_the_stock_script_boundary_does(tmp_path, monkeypatch):
     import sys
 
-    from lerobot_pnp.recorded_task import write_recorded
+    from lerobot_pnp.recorded_files import write_recorded
     from lerobot_pnp.registration import hand_over_command_line
 
     write_recorded(BaxterPnPEnvConfig(preset="full"), tmp_path / "full")

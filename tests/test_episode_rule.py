@@ -165,7 +165,7 @@ def test_a_truncated_fixed_record_is_exactly_a_fresh_adaptive_evaluation(tmp_pat
 
 def test_a_method_stopped_early_is_compared_with_the_lookup_table_on_the_seeds_both_ran():
     from lerobot_pnp.evaluation.records import EpisodeRecord
-    from lerobot_pnp.report.results import compare
+    from lerobot_pnp.evaluation.results import compare
 
     def runs(outcomes):
         return [

@@ -20,7 +20,7 @@ from clis import run
 
 from lerobot_pnp.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.env_validation import MAX_IMAGE_SIDE, MIN_IMAGE_HEIGHT, MIN_IMAGE_WIDTH
-from lerobot_pnp.recorded_task import write_recorded
+from lerobot_pnp.recorded_files import write_recorded
 from lerobot_pnp.registration import hand_over_command_line
 
 REPO = Path(__file__).resolve().parents[1]

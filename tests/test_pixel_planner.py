@@ -14,7 +14,7 @@ import pytest
 
 from lerobot_pnp.env_config import BaxterPnPEnvConfig, make_env
 from lerobot_pnp.errors import ConfigError
-from lerobot_pnp.recorded_task import RECORDED_FILE, write_recorded
+from lerobot_pnp.recorded_files import RECORDED_FILE, write_recorded
 
 
 # ---------------------------------------------------------------------------------------------- render settings

@@ -21,7 +21,7 @@ import pytest
 
 from lerobot_pnp.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.errors import ConfigError
-from lerobot_pnp.recorded_task import RECORDED_FILE, write_recorded
+from lerobot_pnp.recorded_files import RECORDED_FILE, write_recorded
 
 BIN = Path(sys.executable).parent
 PLAIN_ENV = {k: v for k, v in os.environ.items() if k != "MUJOCO_GL"}  # as a user without our defaults
@@ -54,7 +54,7 @@ def _discovery(argv: list[str], then: str = "") -> dict:
 
 
 LIGHT = {"lerobot_pnp", "lerobot_pnp.registration", "lerobot_pnp.presets", "lerobot_pnp.stock_cli"}
-LIGHT |= {"lerobot_pnp.recorded_task", "lerobot_pnp.errors"}
+LIGHT |= {"lerobot_pnp.recorded_files", "lerobot_pnp.errors", "lerobot_pnp.version", "lerobot_pnp.mujoco_gl"}
 
 # After discovery, what lerobot-train / lerobot-eval do later in the calibrate order: LeRobot's config modules
 # imported after the plugin, our configs parsed, the policy class asked for (its modeling loads then).
@@ -122,7 +122,7 @@ def test_hooks_only_in_a_lerobot_run_on_our_env_policy_or_data(argv, ours, tmp_p
 
 
 def test_mujoco_gl_default_only_on_linux_and_never_over_the_user(monkeypatch):
-    from lerobot_pnp.registration import default_mujoco_gl
+    from lerobot_pnp.mujoco_gl import default_mujoco_gl
 
     monkeypatch.delitem(sys.modules, "mujoco", raising=False)
     monkeypatch.delenv("MUJOCO_GL", raising=False)
@@ -142,8 +142,8 @@ def test_an_unknown_field_in_a_recorded_task_is_refused_by_every_reader(tmp_path
     copy), viz's (replay and rollouts): one message naming the field and the version that cannot read it."""
     import types
 
-    from lerobot_pnp import __version__
     from lerobot_pnp.recorded_task import copy_recorded, dataset_task, read_recorded
+    from lerobot_pnp.version import __version__
     from lerobot_pnp.viz.rollouts import rollout_config
     from lerobot_pnp.viz.sources import replay_config
 

@@ -92,7 +92,7 @@ def test_lookup_table_rejects_a_task_with_other_observations():
 # ---------------------------------------------------------------------------------------------- evaluation
 def test_recorder_agrees_with_eval_policy_and_explains_failures():
     """A policy that never moves fails every episode; the records carry seeds, causes and start positions."""
-    from lerobot_pnp.evaluation.episodes import eval_lerobot_policy
+    from lerobot_pnp.closed_loop import eval_lerobot_policy
     from lerobot_pnp.report.baselines import identity_processors
 
     class Still(LookupTablePolicy):

@@ -7,9 +7,9 @@ import pytest
 
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.evaluation.records import EpisodeRecord
+from lerobot_pnp.evaluation.results import build_comparisons, build_table, evaluated_suites
 from lerobot_pnp.report import claims
 from lerobot_pnp.report.methods import get_methods
-from lerobot_pnp.report.results import build_comparisons, build_table, evaluated_suites
 
 SEED = 1000  # the training seed of the learned methods
 
@@ -242,7 +242,7 @@ def test_held_out_axes_pool_each_side_and_need_every_suite():
     assert "`heldout_latency_2` 30.0% [" in row and "`heldout_latency_jitter` 50.0% [" in row
     assert row.endswith("| does not generalise: a held-out suite below 90 % |")
     assert "**Verdict rule**" in "\n".join(lines)
-    from lerobot_pnp.report.results import VERDICTS
+    from lerobot_pnp.evaluation.results import VERDICTS
 
     assert set(markdown.VERDICT_TEXT) == set(VERDICTS)  # every verdict code has its text
     partial = {k: v for k, v in rates.items() if k[1] != "heldout_latency_jitter"}  # one held-out suite missing
@@ -258,8 +258,8 @@ def test_held_out_axes_pool_each_side_and_need_every_suite():
     ],
 )
 def test_generalises_along_an_axis(held, verdict, text):
+    from lerobot_pnp.evaluation.results import axis_result
     from lerobot_pnp.evaluation.suites import HELD_OUT_AXES
-    from lerobot_pnp.report.results import axis_result
 
     rates = {**LATENCY, ("recovering", "heldout_latency_2"): (held[0], 100)}
     rates[("recovering", "heldout_latency_jitter")] = (held[1], 100)

@@ -10,9 +10,9 @@ import pytest
 
 from lerobot_pnp.cache import Stage, code_versions
 from lerobot_pnp.errors import ConfigError
-from lerobot_pnp.evaluation.suites import HELD_OUT_AXES
+from lerobot_pnp.evaluation.suites import HELD_OUT_AXES, PROTOCOL_SUITES
 from lerobot_pnp.report import methods
-from lerobot_pnp.report.config import PROTOCOL_SUITES, StudyConfig, SuiteSpec
+from lerobot_pnp.report.config import StudyConfig, SuiteSpec
 from lerobot_pnp.report.stages import dataset_parts
 
 
@@ -170,7 +170,7 @@ def test_the_paper_study_trains_the_recipe_with_its_changes(tmp_path, monkeypatc
     from pathlib import Path
 
     from lerobot_pnp import dagger
-    from lerobot_pnp.report import builders, preamble, training
+    from lerobot_pnp.report import preamble, training
     from lerobot_pnp.report.job import train_context
     from lerobot_pnp.report.layout import StudyLayout
     from lerobot_pnp.report.schedule import Job
@@ -195,9 +195,10 @@ def test_the_paper_study_trains_the_recipe_with_its_changes(tmp_path, monkeypatc
     seen, round0 = {}, tmp_path / "round0"
     round0.mkdir()
     (round0 / "config.json").write_text("{}")  # the DAgger config checks it is a checkpoint folder
-    monkeypatch.setattr(training, "keyed_train", lambda m, c: (round0, False))
+    monkeypatch.setattr(training, "keyed_train", lambda m, c, method_of: (round0, False))
     monkeypatch.setattr(dagger, "run_dagger", lambda cfg: seen.setdefault("cfg", cfg) and {"final_checkpoint": "x"})
-    assert builders.dagger_train(replace(ctx, train_dir=tmp_path / "recovering_dagger" / "1000")) == Path("x")
+    dagger_method = methods.METHODS["recovering_dagger"]
+    assert dagger_method.train(replace(ctx, train_dir=tmp_path / "recovering_dagger" / "1000")) == Path("x")
     assert seen["cfg"].policy.num_layers == 1
 
     lines = preamble._recipe_changes_line(paper, methods.get_methods(["clocked_lstm", "recovering"]))

@@ -5,8 +5,8 @@ from __future__ import annotations
 import matplotlib.colors as mcolors
 import pytest
 
+from lerobot_pnp.evaluation import plots
 from lerobot_pnp.evaluation.stats import Rate
-from lerobot_pnp.report import plots
 
 
 @pytest.mark.parametrize("n", [3, 10, 11, 20])
@@ -126,7 +126,7 @@ def test_a_long_command_footer_is_broken_into_lines_that_fit_the_figure():
     """A compare command's run paths hold no space: its footer is still broken into lines inside the figure."""
     import matplotlib.pyplot as plt
 
-    from lerobot_pnp.report.plots import FOOTER_PT, footer_lines
+    from lerobot_pnp.evaluation.plots import FOOTER_PT, footer_lines
 
     command = "lerobot-pnp compare camera=" + ",".join(f"docs/results/protocol/camera_seed{s}" for s in range(6))
     fig = plt.figure(figsize=(6.4, 4.8), dpi=110)

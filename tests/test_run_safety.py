@@ -169,8 +169,8 @@ def test_viz_save_to_an_unwritable_place_fails_before_any_rollout(tmp_path, monk
 
 @pytest.mark.parametrize("batch", [0, -3])
 def test_an_eval_batch_below_one_is_refused(batch):
+    from lerobot_pnp.closed_loop import eval_lerobot_policy
     from lerobot_pnp.env_config import BaxterPnPEnvConfig
-    from lerobot_pnp.evaluation.episodes import eval_lerobot_policy
     from lerobot_pnp.report.config import StudyConfig
 
     with pytest.raises(ConfigError, match=f"eval_batch_size must be an integer >= 1.*got {batch}"):

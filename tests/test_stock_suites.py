@@ -43,7 +43,7 @@ def test_stock_eval_of_suites_equals_the_study_evaluator_episode_by_episode(look
     from lerobot.envs.factory import make_env_pre_post_processors
     from lerobot.scripts.lerobot_eval import eval_policy_all
 
-    from lerobot_pnp.evaluation.episodes import eval_lerobot_policy
+    from lerobot_pnp.closed_loop import eval_lerobot_policy
     from lerobot_pnp.evaluation.suites import SUITES as CATALOGUE
     from lerobot_pnp.report.baselines import identity_processors
 
@@ -72,8 +72,7 @@ def test_stock_eval_of_suites_equals_the_study_evaluator_episode_by_episode(look
 
 
 def test_names_aliases_axes_and_the_default():
-    from lerobot_pnp.evaluation.suites import HELD_OUT_AXES
-    from lerobot_pnp.report.config import PROTOCOL_SUITES
+    from lerobot_pnp.evaluation.suites import HELD_OUT_AXES, PROTOCOL_SUITES
 
     assert suite_names(None) is None and suite_names("BaxterPnP-v0") is None
     heldout = suite_names("heldout")

@@ -21,7 +21,7 @@ import pytest
 from lerobot_pnp import robot
 from lerobot_pnp.env_config import BaxterPnPEnvConfig, make_env
 from lerobot_pnp.errors import ConfigError, DatasetError, PnPError, PolicyError
-from lerobot_pnp.recorded_task import RECORDED_FILE, write_recorded
+from lerobot_pnp.recorded_files import RECORDED_FILE, write_recorded
 
 REPO_ID = "test/viz_keyframe"
 SEEDS = (0, 1)
@@ -410,8 +410,8 @@ def test_rollout_task_from_task_source(policy_dir, custom_dataset, tmp_path):
 def test_run_episode_is_deterministic(policy_dir, capsys):
     """evaluation.episodes.run_episode follows LeRobot's eval pipeline; the same seed gives the same episode.
     Loading prints nothing (LeRobot's per-load "Loading weights" line would flood a study's log)."""
+    from lerobot_pnp.closed_loop import run_episode
     from lerobot_pnp.evaluation.checkpoints import load_policy
-    from lerobot_pnp.evaluation.episodes import run_episode
 
     capsys.readouterr()
     loaded = load_policy(policy_dir)

@@ -183,7 +183,7 @@ def follows(action: np.ndarray, label: np.ndarray) -> bool:
 
 def evaluate(policy: LoadedPolicy, base_cfg, suite: str, seeds: list[int], progress=None) -> dict:
     """Success of ``policy`` on ``suite`` over ``seeds`` (one env, seeded resets), with failures by cause."""
-    from lerobot_pnp.evaluation.episodes import evaluate_serial
+    from lerobot_pnp.closed_loop import evaluate_serial
     from lerobot_pnp.evaluation.records import summarize
 
     counts = summarize(evaluate_serial(policy, SUITES[suite].env_configs(base_cfg)[0], seeds, progress))

@@ -111,7 +111,7 @@ def _commit(tmp: Path, root: Path, env_cfg, splits: dict | None) -> Path:
     """Finish a dataset written in ``tmp`` (the split, the recorded env config) and move it to ``root``."""
     from lerobot.datasets.io_utils import load_info, write_info
 
-    from lerobot_pnp.recorded_task import write_recorded
+    from lerobot_pnp.recorded_files import write_recorded
 
     if splits is not None:
         info = load_info(tmp)

@@ -1,8 +1,8 @@
 """Where a dataset folder keeps what describes it, and the one reader of its JSON files.
 
 The paths are LeRobot's (``meta/info.json``, LeRobot's ``INFO_PATH``) and ours (``meta/baxter_pnp_env.json``,
-``recorded_task.RECORDED_FILE``, and the generation record ``meta/pnp_generate.json``); every module asks here
-instead of joining the path itself.
+``recorded_files.RECORDED_FILE``, and the generation record ``meta/pnp_generate.json``,
+``recorded_files.GENERATION_FILE``); every module asks here instead of joining the path itself.
 """
 
 from __future__ import annotations
@@ -11,9 +11,9 @@ import json
 from pathlib import Path
 
 from lerobot_pnp.errors import DatasetError
+from lerobot_pnp.recorded_files import RECORDED_FILE
 
 INFO_FILE = "meta/info.json"  # LeRobot's INFO_PATH: the dataset's metadata, with its "splits"
-GENERATION_FILE = "meta/pnp_generate.json"  # how the data was made (the env config is in baxter_pnp_env.json)
 
 
 def read_json(path: Path, what: str) -> dict:
@@ -42,6 +42,4 @@ def is_dataset(root: str | Path) -> bool:
 
 def recorded_task_path(root: str | Path) -> Path:
     """The task a dataset was recorded in (``meta/baxter_pnp_env.json``, written by ``write_recorded``)."""
-    from lerobot_pnp.recorded_task import RECORDED_FILE
-
     return Path(root) / RECORDED_FILE

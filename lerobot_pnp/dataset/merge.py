@@ -16,13 +16,14 @@ from pathlib import Path
 from datatrove.pipeline.base import PipelineStep
 
 from lerobot_pnp import robot
-from lerobot_pnp.dataset.layout import GENERATION_FILE, is_dataset
+from lerobot_pnp.dataset.layout import is_dataset
 from lerobot_pnp.dataset.shards import SHARD_FILE, read_shard_record, shard_dir
 from lerobot_pnp.dataset.splits import split_of
 from lerobot_pnp.dataset.validation import WORK_DIR, read_json, verify_dataset
 from lerobot_pnp.dataset.workdir import DatasetRoot, resume_advice
 from lerobot_pnp.errors import DatasetError
 from lerobot_pnp.outputs import remove_path, write_json_atomic
+from lerobot_pnp.recorded_files import GENERATION_FILE
 
 
 def merge_and_commit(out: DatasetRoot) -> dict:
@@ -30,9 +31,9 @@ def merge_and_commit(out: DatasetRoot) -> dict:
     from lerobot.datasets.aggregate import aggregate_datasets
     from lerobot.datasets.io_utils import load_info, write_info
 
-    from lerobot_pnp import __version__
     from lerobot_pnp.env_config import BaxterPnPEnvConfig
-    from lerobot_pnp.recorded_task import write_recorded
+    from lerobot_pnp.recorded_files import write_recorded
+    from lerobot_pnp.version import __version__
 
     root, work = out.path, out.work()
     run = read_json(work / "run.json", "generation settings")

@@ -28,7 +28,7 @@ import os
 import time
 from pathlib import Path
 
-from lerobot_pnp.dataset.layout import GENERATION_FILE, is_dataset, read_json, recorded_task_path
+from lerobot_pnp.dataset.layout import is_dataset, read_json, recorded_task_path
 from lerobot_pnp.dataset.validation import WORK_DIR
 from lerobot_pnp.errors import DatasetError
 from lerobot_pnp.outputs import (
@@ -41,6 +41,7 @@ from lerobot_pnp.outputs import (
     shown,
 )
 from lerobot_pnp.outputs import LOCK_FILE as LOCK_FILE  # the lock file, named here for the modules that ask here
+from lerobot_pnp.recorded_files import GENERATION_FILE
 
 COMMAND = "lerobot-pnp generate"  # the owner's name in the root's manifest
 TRASH_DIR = ".pnp_work.trash"  # a committed run's work folder, being deleted

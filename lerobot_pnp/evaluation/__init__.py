@@ -7,9 +7,12 @@ One of each concept, so a name means one thing everywhere:
 * ``stats``: the one Wilson interval (``Rate``), the sign test and paired comparisons;
 * ``records``: ``EpisodeRecord`` (what one evaluation episode ended with) and its counts / JSON;
 * ``checkpoints``: the one strict checkpoint loader (``load_policy``) and its feature / value checks;
-* ``episodes``: the evaluators: one seeded episode of a loaded policy (``run_episode``, the viewer's and
-  DAgger's), the serial evaluator built on it, and stock LeRobot ``eval_policy`` with per-episode records (the
-  study's).
+* ``results``: the study's pooled rates, paired comparisons and held-out axis verdicts; ``plots``: their figures;
+* ``compare`` and ``leaderboard``: the same over stock ``eval_info.json`` files.
+
+The evaluators (one seeded episode of a loaded policy, ``run_episode``, the viewer's and DAgger's; the serial
+evaluator built on it; stock LeRobot ``eval_policy`` with per-episode records, the study's) run the simulator:
+they are ``lerobot_pnp.closed_loop``, above the env config, which checks ``--env.task`` against ``suites``.
 
 Modules are imported by name (``from lerobot_pnp.evaluation.suites import SUITES``): this ``__init__`` imports
 nothing, so a caller of one module loads only what that module needs (the catalogue needs no gymnasium wrapper

@@ -7,7 +7,7 @@ scene through cameras, images ``observation.images.<camera>`` only of the env's 
 that its weights and normalisation stats are finite; it raises ``IncompatiblePolicyError`` /
 ``PolicyLoadError`` (one line) otherwise. With ``env_cfg`` the policy is built the way ``lerobot-eval`` builds
 it (``make_policy(cfg, env_cfg=...)``: the study's path); without, from the checkpoint alone (the viewer's and
-DAgger's path). ``policy_action`` is one step of it; ``lerobot_pnp.evaluation.episodes`` runs it for whole episodes.
+DAgger's path). ``policy_action`` is one step of it; ``lerobot_pnp.closed_loop`` runs it for whole episodes.
 """
 
 from __future__ import annotations

@@ -99,7 +99,7 @@ def paired(arrays: dict, a: str, b: str, suite_a: str, suite_b: str, pairs: list
     """``a`` on ``suite_a`` minus ``b`` on ``suite_b`` on the same episodes: the study's per-seed comparisons
     (``stats.PairedComparison`` with its exact McNemar p, summed up as a ``results.Comparison``) and the pooled
     pairs' difference with its 95 % interval."""
-    from lerobot_pnp.report.results import Comparison
+    from lerobot_pnp.evaluation.results import Comparison
 
     comps, cells = [], [0, 0, 0, 0]  # both succeed, a only, b only, neither
     for ka, kb in pairs:
@@ -161,7 +161,7 @@ def _control_arm(runs: list[Run], arrays: dict, control: str | None) -> dict:
 
 def _pooled(per_path: list[Outcomes], suite: str):
     """The training seeds' rates on ``suite`` and their sum (``results.Pooled``, as ``results.pooled`` counts)."""
-    from lerobot_pnp.report.results import Pooled
+    from lerobot_pnp.evaluation.results import Pooled
 
     per = [Rate(int(sum(np.count_nonzero(v) for v in o[suite].values())), sum(len(v) for v in o[suite].values()))
            for o in per_path if suite in o]  # fmt: skip
@@ -170,7 +170,7 @@ def _pooled(per_path: list[Outcomes], suite: str):
 
 def analyse(runs: list[Run], cfg: CompareConfig) -> dict:
     """Every number of the comparison (rates, control arm, pairs of runs, held-out axes) as plain data."""
-    from lerobot_pnp.report.results import axis_result
+    from lerobot_pnp.evaluation.results import axis_result
 
     arrays = {r.name: _arrays(r) for r in runs}
     suites = list(dict.fromkeys(s for r in runs for s in r.suites[0]))
@@ -197,7 +197,7 @@ def _plot(result: dict, cfg: CompareConfig) -> bytes:
     import matplotlib
     import matplotlib.pyplot as plt
 
-    from lerobot_pnp.report.plots import rate_bars
+    from lerobot_pnp.evaluation.plots import rate_bars
 
     rates = {r.name: {s: cells[r.name].rate for s, cells in result["table"].items() if r.name in cells}
              for r in result["runs"]}  # fmt: skip
@@ -218,12 +218,12 @@ def _plot(result: dict, cfg: CompareConfig) -> bytes:
 def run_compare(cfg: CompareConfig) -> dict:
     """Read, check and compare the runs; write compare.md/.json/.png to ``output_dir`` as one set; print the
     markdown. Every input is checked and every file rendered before anything is written."""
-    from lerobot_pnp.report.claims import _axis_verdict
+    from lerobot_pnp.evaluation.results import axis_verdict
 
     if not 0 < cfg.alpha < 1 or not 0 <= cfg.margin < 1:
         raise ConfigError(f"compare: alpha must be in (0, 1) and margin in [0, 1), got {cfg.alpha}, {cfg.margin}")
     result = analyse(parse_runs(cfg.runs, cfg.suites), cfg)
-    text = markdown(result, cfg, _axis_verdict)
+    text = markdown(result, cfg, axis_verdict)
     written: list[str] = []
     if cfg.output_dir is not None:
         files = {"compare.md": text.encode(), "compare.json": json.dumps(to_json(result, cfg), indent=2).encode(),

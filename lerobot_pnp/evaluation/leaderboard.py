@@ -184,7 +184,7 @@ def compact_table(runs_dir: str | Path, episodes: int = 100, leave_out: tuple[st
 def readme_block(root: Path, docs: str, leave_out: tuple[str, ...] = ()) -> str:
     """The README's leaderboard: ``compact_table`` of the default rows under ``root``, its legend (links relative
     to ``docs``, the docs folder seen from the page) and the commands that add a row."""
-    from lerobot_pnp.report.results import TARGET
+    from lerobot_pnp.evaluation.results import TARGET
 
     cfg = LeaderboardConfig()
     table, left_out = compact_table(root / cfg.runs_dir, cfg.episodes, leave_out)

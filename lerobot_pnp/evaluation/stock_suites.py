@@ -40,11 +40,10 @@ AXIS_PREFIX = "heldout_"
 
 
 def _study_suites(preset: str) -> list[str]:
-    """The suite names a study preset evaluates, sweep groups expanded (``report.config.PRESETS``)."""
-    from lerobot_pnp.evaluation.suites import get_suites
-    from lerobot_pnp.report.config import PRESETS
+    """The suite names a study preset evaluates, sweep groups expanded (``suites.STUDY_SUITES``)."""
+    from lerobot_pnp.evaluation.suites import STUDY_SUITES, get_suites
 
-    return [s.name for spec in PRESETS[preset]["suites"] for s in get_suites([spec.name])]
+    return [s.name for name in STUDY_SUITES[preset] for s in get_suites([name])]
 
 
 # alias -> (what it is, its suites); the study's presets are the one list of what each study evaluates

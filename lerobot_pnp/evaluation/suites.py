@@ -24,7 +24,6 @@ from dataclasses import dataclass
 from typing import Any
 
 from lerobot_pnp.disturbances import KINDS
-from lerobot_pnp.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.presets import FULL_TASK, PAPER_TASK
 
@@ -49,8 +48,9 @@ class Suite:
         k = len(self.parts)
         return [n_episodes // k + (1 if i < n_episodes % k else 0) for i in range(k)]
 
-    def env_configs(self, base: BaxterPnPEnvConfig) -> list[BaxterPnPEnvConfig]:
-        """The env config of each part: ``base`` (the training task) with this suite's changes."""
+    def env_configs(self, base: Any) -> list[Any]:
+        """The env config of each part: ``base`` (the training task, a ``BaxterPnPEnvConfig``) with this suite's
+        changes. The catalogue imports no env config: the env config checks ``--env.task``'s names against it."""
         out = []
         for changes in self.parts:
             try:  # with_changes lets the episode length follow a changed keyframe budget
@@ -306,6 +306,18 @@ HELD_OUT_AXES: tuple[Axis, ...] = (
     ),
     Axis("combination", "kinds of disturbance in one episode", ("train_mixture",), ("heldout_all_at_once",)),
 )
+
+
+# Every suite of the held-out protocol's axes, each once, in axis order
+PROTOCOL_SUITES = tuple(dict.fromkeys(n for axis in HELD_OUT_AXES for n in axis.in_distribution + axis.held_out))
+# What each study evaluates (suites or sweep groups): the held-out protocol's (``heldout``) and the paper study's
+# (``full``); the study's presets (``report.config.PRESETS``) give each its episodes, ``--env.task=heldout`` /
+# ``paper`` runs them in stock lerobot-eval (``stock_suites.ALIASES``)
+STUDY_SUITES: dict[str, tuple[str, ...]] = {
+    "heldout": ("nominal", *PROTOCOL_SUITES),
+    "full": ("nominal", "slack", "edge_strip", "outside_ring", "nudge", "obs_noise", "latency", "grasp_miss", "drop",
+             "displace", "random_yaw", "random_place"),
+}  # fmt: skip
 
 
 SUITES: dict[str, Suite] = _catalogue()

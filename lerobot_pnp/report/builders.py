@@ -14,16 +14,16 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from lerobot_pnp.closed_loop import eval_expert, eval_lerobot_policy
 from lerobot_pnp.dagger import RECOVERING_BATCH_SIZE
 from lerobot_pnp.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.evaluation.checkpoints import load_policy
-from lerobot_pnp.evaluation.episodes import eval_expert, eval_lerobot_policy
 from lerobot_pnp.report import act_baseline, adapters, training
 from lerobot_pnp.report.recipes import RECOVERING, policy_settings
 
 if TYPE_CHECKING:
-    from lerobot_pnp.report.methods import TrainContext
+    from lerobot_pnp.report.method_spec import MethodOf, TrainContext
 
 
 def no_training(ctx: TrainContext) -> None:
@@ -72,24 +72,24 @@ def checkpoint_eval(artifact, ctx, env_cfg, n, start_seed, batch_size):
     return eval_lerobot_policy(lp.policy, lp.preprocessor, lp.postprocessor, env_cfg, n, start_seed, batch_size)
 
 
-def dagger_train(ctx: TrainContext, name: str = "recovering_dagger") -> Path:
+def dagger_train(ctx: TrainContext, name: str = "recovering_dagger", *, method_of: MethodOf) -> Path:
     """One round of ``lerobot_pnp.dagger`` on top of the ``recovering`` run of the same seed (trained first if
     missing), as the method's ``schedule`` sets it: DAgger's mixture under the recovery suites, or DART's noisy
-    expert demonstrations of the undisturbed task."""
+    expert demonstrations of the undisturbed task. ``method_of``: the catalogue's method of a name."""
     from lerobot_pnp.dagger import DaggerConfig, run_dagger
     from lerobot_pnp.dagger.dart import DartNoise
     from lerobot_pnp.policy import PnpLstmConfig
-    from lerobot_pnp.report.methods import METHODS
 
     if ctx.n_demos is not None:
         raise ConfigError(f"method {name!r} has no data-efficiency variant")
-    method = METHODS[name]
+    method = method_of(name)
     schedule = copy.deepcopy(method.schedule)
     if "dart" in schedule:
         schedule["dart"] = DartNoise(**schedule["dart"])
     # a study with fewer epochs (--epochs) warm-starts for at most as many: never dearer than a retraining
     schedule["warm_start_epochs"] = min(schedule["warm_start_epochs"], ctx.epochs)
-    round0, _ = training.keyed_train(METHODS[method.continues], training.continued(ctx, method.continues))
+    continued = training.continued(ctx, method.continues)
+    round0, _ = training.keyed_train(method_of(method.continues), continued, method_of)
     summary = run_dagger(
         DaggerConfig(
             **schedule,
@@ -108,11 +108,11 @@ def dagger_train(ctx: TrainContext, name: str = "recovering_dagger") -> Path:
     return Path(summary["final_checkpoint"])
 
 
-def dart_train(ctx: TrainContext) -> Path:
+def dart_train(ctx: TrainContext, *, method_of: MethodOf) -> Path:
     """DART (Laskey et al., 2017) at DAgger's budget: one round of ``DAGGER_ROLLOUTS`` expert demonstrations of
     the undisturbed task with Gaussian noise on the joint targets the expert executes, each frame labelled with
     its clean command; no disturbance is ever in the data."""
-    return dagger_train(ctx, "recovering_dart")
+    return dagger_train(ctx, "recovering_dart", method_of=method_of)
 
 
 def observe_phase(env_cfg: BaxterPnPEnvConfig, ctx: TrainContext) -> BaxterPnPEnvConfig:

@@ -15,9 +15,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from lerobot_pnp.errors import ConfigError
+from lerobot_pnp.evaluation.results import Pooled, axis_result, axis_verdict
 from lerobot_pnp.evaluation.suites import HELD_OUT_AXES, RECOVERY_BUDGET, SUITES, Axis
 from lerobot_pnp.report.methods import METHODS
-from lerobot_pnp.report.results import TARGET, AxisResult, Pooled, axis_result
 
 BASELINE = "lookup_table"
 FEEDBACK_SUITES = ("nudge_0.03", "nudge_0.05", "obs_noise_0.005")
@@ -224,18 +224,6 @@ def _round_adds(method: str, what: str) -> Callable[[dict, dict], list[str]]:
 AXIS_OTHERS = ("memoryless_mlp", "phase_told_mlp", "act", BASELINE, "expert")
 
 
-def _axis_verdict(r: AxisResult) -> str:
-    if r.verdict == "generalises":
-        return f"holds (every held-out suite >= {100 * TARGET:.0f} %, not below in distribution: p {r.p_below:.2g})"
-    if r.verdict == "degrades":
-        return (
-            f"only partly: every held-out suite >= {100 * TARGET:.0f} %, but below in distribution (p {r.p_below:.2g})"
-        )
-    if r.verdict == "fails":
-        return "does not hold: " + ", ".join(f"`{s}` {r.held_out[s]}" for s in r.below_target)
-    return f"no verdict: below {100 * TARGET:.0f} % in distribution already"
-
-
 def _generalises_along(axis: Axis) -> Callable[[dict, dict], list[str]]:
     """The verdict line of one held-out axis: the recovering planner's, then the other methods' evaluated."""
 
@@ -246,11 +234,11 @@ def _generalises_along(axis: Axis) -> Callable[[dict, dict], list[str]]:
         held = ", ".join(f"`{s}`" for s in axis.held_out)
         lines = [
             f"- *Recovery generalises along {axis.name}* ({axis.description}; held out: {held}): recovering LSTM "
-            f"{rec.outside} held out vs {rec.inside} in distribution -> {_axis_verdict(rec)}."
+            f"{rec.outside} held out vs {rec.inside} in distribution -> {axis_verdict(rec)}."
         ]
         others = [r for r in (axis_result(axis, m, table) for m in AXIS_OTHERS) if r is not None]
         if others:
-            each = (f"{METHODS[o.method].label} {o.outside} held out -> {_axis_verdict(o)}" for o in others)
+            each = (f"{METHODS[o.method].label} {o.outside} held out -> {axis_verdict(o)}" for o in others)
             lines.append("  Others on this axis: " + "; ".join(each) + ".")
         return lines
 

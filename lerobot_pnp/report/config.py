@@ -14,7 +14,7 @@ import math
 from dataclasses import dataclass, field, fields
 
 from lerobot_pnp.errors import ConfigError
-from lerobot_pnp.evaluation.suites import HELD_OUT_AXES, get_suites
+from lerobot_pnp.evaluation.suites import STUDY_SUITES, get_suites
 from lerobot_pnp.presets import PRESETS as TASK_PRESETS
 from lerobot_pnp.report.episode_rule import EpisodeRule, RuleChanges, resolve_rule
 from lerobot_pnp.report.methods import DATA_EFFICIENCY_METHODS, METHODS, RECOVERING, get_methods
@@ -26,9 +26,6 @@ class SuiteSpec:
     name: str  # a suite of suites.SUITES, or a sweep group ("nudge")
     n_episodes: int = 200
 
-
-# Every suite of the held-out protocol's axes, each once, in axis order
-PROTOCOL_SUITES = tuple(dict.fromkeys(n for axis in HELD_OUT_AXES for n in axis.in_distribution + axis.held_out))
 
 # Episode counts: the 95 % Wilson half-width is <= 4.4 pts at n = 500, <= 7 pts at n = 200 and <= 10 pts at
 # n = 100 (worst case, p = 0.5); near 0 or 100 % it is far smaller (n = 100, 98 %: [93.0, 99.4]). A learned
@@ -82,20 +79,7 @@ PRESETS: dict[str, dict] = {
             "recovering_dart",
             "act",
         ],
-        "suites": [
-            SuiteSpec("nominal", 300),
-            SuiteSpec("slack", 100),
-            SuiteSpec("edge_strip", 100),
-            SuiteSpec("outside_ring", 100),
-            SuiteSpec("nudge", 100),
-            SuiteSpec("obs_noise", 100),
-            SuiteSpec("latency", 100),
-            SuiteSpec("grasp_miss", 100),
-            SuiteSpec("drop", 100),
-            SuiteSpec("displace", 100),
-            SuiteSpec("random_yaw", 100),
-            SuiteSpec("random_place", 100),
-        ],
+        "suites": [SuiteSpec(name, 300 if name == "nominal" else 100) for name in STUDY_SUITES["full"]],
         "data_efficiency": [10, 30, 100, 300, 1120],  # 1120 = the whole training split
         "cli_check_episodes": 200,
         # the recipe's second LSTM layer carries two steps of latency on `full`; on the paper task, where no
@@ -121,10 +105,7 @@ PRESETS: dict[str, dict] = {
         "epochs": 300,
         "train_seeds": [1000, 1001, 1002],
         "methods": ["expert", "lookup_table", "recovering", "memoryless_mlp", "act"],
-        "suites": [
-            SuiteSpec("nominal", 200),
-            *(SuiteSpec(s, 200) for s in PROTOCOL_SUITES),
-        ],
+        "suites": [SuiteSpec(name, 200) for name in STUDY_SUITES["heldout"]],
         "data_efficiency": [],
         "cli_check_episodes": 100,
         "split_over_seeds": True,

@@ -17,7 +17,7 @@ import json
 from dataclasses import asdict, dataclass
 
 from lerobot_pnp.cache import Stage, canonical
-from lerobot_pnp.report.results import is_main
+from lerobot_pnp.evaluation.results import is_main
 
 REASONS = {
     "missing": "never evaluated",

@@ -7,11 +7,12 @@ suites each reads, for ``make_figures`` to name what was left out).
 from __future__ import annotations
 
 from lerobot_pnp import robot
+from lerobot_pnp.evaluation import plots
+from lerobot_pnp.evaluation.results import TARGET, main_records, pooled
 from lerobot_pnp.evaluation.stats import Rate
 from lerobot_pnp.evaluation.suites import HELD_OUT_AXES, SUITES
-from lerobot_pnp.report import adapters, coverage, plots
+from lerobot_pnp.report import adapters, coverage
 from lerobot_pnp.report.methods import DATA_EFFICIENCY_METHODS
-from lerobot_pnp.report.results import TARGET, main_records, pooled
 
 RECOVERY_FIGURE_SUITES = ("nominal", "slack", "nudge_0.05", "grasp_miss", "drop", "displace")
 HEATMAP_SUITES = ("nominal", "nudge_0.03")

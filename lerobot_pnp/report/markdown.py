@@ -9,12 +9,12 @@ from __future__ import annotations
 
 from lerobot_pnp.env_config import DENSE_FPS, DENSE_SECONDS_PER_KEYFRAME, dense_episode_length
 from lerobot_pnp.evaluation.records import summarize
+from lerobot_pnp.evaluation.results import ALPHA, TARGET, Pooled, held_out_axes, main_records
 from lerobot_pnp.evaluation.suites import RECOVERY_BUDGET, SUITES
 from lerobot_pnp.presets import FULL_TASK, PAPER_TASK
 from lerobot_pnp.report import coverage
 from lerobot_pnp.report.claims import render_claims
 from lerobot_pnp.report.preamble import header
-from lerobot_pnp.report.results import ALPHA, TARGET, Pooled, held_out_axes, main_records
 
 
 def render(layout, cfg, methods, results, suite_names, table, comparisons, figures, summary, covered=((), {})) -> str:

@@ -31,21 +31,21 @@ A method may train on some task presets only (``Method.tasks``): the clocked pla
 demonstrations (the paper's task), so a study on the ``full`` task refuses them up front (``StudyConfig``).
 
 The parts live beside this catalogue: ``recipes`` (the recovering recipe, the DAgger and DART schedules,
-``policy_settings``), ``builders`` (how each method is trained and evaluated) and ``training`` (a training's key,
-and the keyed training that reuses one on disk).
+``policy_settings``), ``builders`` (how each method is trained and evaluated), ``training`` (a training's key,
+and the keyed training that reuses one on disk) and ``method_spec`` (``Method``, ``TrainContext``). A training
+that continues another method's run finds that method through the catalogue's lookup, handed down to it.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import dataclass, field
+import functools
 from pathlib import Path
 
+from lerobot_pnp.cache import Stage
 from lerobot_pnp.dagger import RECOVERING_BATCH_SIZE
-from lerobot_pnp.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.errors import ConfigError
-from lerobot_pnp.evaluation.records import EpisodeRecord
 from lerobot_pnp.evaluation.suites import RECOVERY_BUDGET
+from lerobot_pnp.report import training
 from lerobot_pnp.report.builders import (
     act_description,
     act_env,
@@ -59,6 +59,8 @@ from lerobot_pnp.report.builders import (
     observe_phase,
     pnp_lstm_trainer,
 )
+from lerobot_pnp.report.method_spec import Method
+from lerobot_pnp.report.method_spec import TrainContext as TrainContext
 from lerobot_pnp.report.recipes import (
     DAGGER_ROLLOUTS,
     DAGGER_ROUNDS,
@@ -74,58 +76,21 @@ from lerobot_pnp.report.recipes import (
     retraining,
 )
 from lerobot_pnp.report.recipes import policy_settings as policy_settings
-from lerobot_pnp.report.training import keyed_train as keyed_train
-from lerobot_pnp.report.training import train_stage as train_stage
 
 
-@dataclass
-class TrainContext:
-    """Where a method finds its data and puts its training output."""
-
-    dataset_root: Path
-    train_dir: Path  # this method + training seed
-    seed: int
-    epochs: int
-    n_demos: int | None = None  # keep only the first n training episodes (data efficiency); None = all
-    dense_root: Path | None = None  # the dense recording of the same demonstrations (methods with data="dense")
-    act_steps: int | None = None  # ACT's training steps (None = act_baseline.ActBudget's default)
-    data_keys: dict[str, str] = field(default_factory=dict)  # recording -> its dataset's stage key
-    task_budget: int | None = None  # keyframe budget of the task recorded with the data (None: not known)
-    # the study's changes to the recovering recipe (``StudyConfig.recipe_changes``), for every method that takes it
-    recipe_changes: dict = field(default_factory=dict)
+def _method(name: str) -> Method:
+    """The catalogue's method ``name``: what the catalogue hands to the trainings that continue another method."""
+    return METHODS[name]
 
 
-@dataclass(frozen=True)
-class Method:
-    """A compared method: ``train`` builds its artefact (None if nothing to train), ``evaluate`` runs it."""
+def train_stage(method: Method, ctx: TrainContext) -> Stage:
+    """The key of ``method``'s training (``training.train_stage``, the run it continues from this catalogue)."""
+    return training.train_stage(method, ctx, _method)
 
-    name: str
-    label: str
-    description: str
-    learned: bool  # trained with several seeds
-    train: Callable[[TrainContext], Path | None]
-    evaluate: Callable[[Path | None, TrainContext, BaxterPnPEnvConfig, int, int, int], list[EpisodeRecord]]
-    policy_overrides: dict = field(default_factory=dict)
-    # the recording it trains on (the study generates each one needed, all of the same demonstrations):
-    # keyframe | dense (control rate, ACT) | phase (keyframe with the phase one-hot observed)
-    data: str = "keyframe"
-    # the env config it runs a suite's config in (ACT: the same task in dense control mode); None = unchanged
-    adapt_env: Callable[[BaxterPnPEnvConfig, TrainContext], BaxterPnPEnvConfig] | None = None
-    suites: tuple[str, ...] | None = None  # evaluated only on these suites (cost); None = every suite
-    # a method whose run of the same training seed this one starts from (the study runs that job first)
-    continues: str | None = None
-    # the task presets (presets.PRESETS) whose demonstrations it can train on, and why only those; None = any
-    tasks: tuple[str, ...] | None = None
-    tasks_why: str = ""
-    # episodes per training batch when the method's recipe sets one (the recovering planners: the recipe's);
-    # None = the study's default (adapters.BATCH_SIZE), which is then not part of the training key
-    batch_size: int | None = None
-    # the settings of its training procedure outside the policy config (the DAgger round's mixture, noise and
-    # rollouts: ``dagger.DaggerConfig`` fields), part of its training key; empty = none
-    schedule: dict = field(default_factory=dict)
 
-    def env_config(self, env_cfg: BaxterPnPEnvConfig, ctx: TrainContext) -> BaxterPnPEnvConfig:
-        return env_cfg if self.adapt_env is None else self.adapt_env(env_cfg, ctx)
+def keyed_train(method: Method, ctx: TrainContext) -> tuple[Path | None, bool]:
+    """``method``'s training unless one of the same key is on disk (``training.keyed_train``)."""
+    return training.keyed_train(method, ctx, _method)
 
 
 CLOCKED_WHY = (
@@ -206,7 +171,7 @@ METHODS: dict[str, Method] = {
             f"labelled by the expert, aggregated with the demonstrations and earlier rounds, each round "
             f"{retraining(DAGGER_SCHEDULE)} (extra interactive data: what the teacher adds)",
             True,
-            dagger_train,
+            functools.partial(dagger_train, method_of=_method),
             checkpoint_eval,
             RECOVERING,
             continues="recovering",
@@ -224,7 +189,7 @@ METHODS: dict[str, Method] = {
             f"it executes, labelled with its clean commands, aggregated with the demonstrations, {retraining(DART_SCHEDULE)} "
             "(no disturbance in its data)",
             True,
-            dart_train,
+            functools.partial(dart_train, method_of=_method),
             checkpoint_eval,
             RECOVERING,
             continues="recovering",

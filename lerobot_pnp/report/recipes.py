@@ -15,7 +15,7 @@ from lerobot_pnp.dagger.config import DEFAULT_ROLLOUT_SUITES, mixture_beta
 from lerobot_pnp.evaluation.suites import RECOVERY_BUDGET
 
 if TYPE_CHECKING:
-    from lerobot_pnp.report.methods import TrainContext
+    from lerobot_pnp.report.method_spec import TrainContext
 
 # The recovering planner's recipe; its training windows hold the longest episode of the study (a recovery
 # suite's budget + the final state: DAgger's rollouts are that long).

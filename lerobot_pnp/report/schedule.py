@@ -17,7 +17,7 @@ ALL, TRAINING = "*", "training"
 
 # what every training or evaluation job imports, loaded once by the pool's fork server (no MuJoCo: its GL backend
 # is chosen where an env is built)
-JOB_IMPORTS = ("lerobot_pnp.train_fast", "lerobot_pnp.evaluation.episodes", "lerobot.policies.factory")
+JOB_IMPORTS = ("lerobot_pnp.train_fast", "lerobot_pnp.closed_loop", "lerobot.policies.factory")
 
 
 @dataclass(frozen=True)

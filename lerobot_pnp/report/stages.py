@@ -172,6 +172,6 @@ def truncated_record(stage: Stage, rule, n_episodes: int, cfg) -> dict | None:
 
 def share_of_time(episodes: list[dict], keep: int) -> float:
     """The share of an evaluation's wall time its first ``keep`` episodes took, estimated by their simulated
-    steps (a batch costs the sum of its episodes' lengths: ``episodes.EpisodeRecorder``)."""
+    steps (a batch costs the sum of its episodes' lengths: ``closed_loop.EpisodeRecorder``)."""
     total = sum(e["steps"] for e in episodes)
     return sum(e["steps"] for e in episodes[:keep]) / total if total else keep / max(1, len(episodes))

@@ -13,7 +13,7 @@ from lerobot_pnp.outputs import remove_path as remove
 from lerobot_pnp.report.recipes import SCHEDULE_BEFORE_KEYED, policy_acts, policy_settings
 
 if TYPE_CHECKING:
-    from lerobot_pnp.report.methods import Method, TrainContext
+    from lerobot_pnp.report.method_spec import Method, MethodOf, TrainContext
 
 
 def continued(ctx: TrainContext, base: str) -> TrainContext:
@@ -21,11 +21,10 @@ def continued(ctx: TrainContext, base: str) -> TrainContext:
     return replace(ctx, train_dir=ctx.train_dir.parent.parent / base / ctx.train_dir.name)
 
 
-def train_stage(method: Method, ctx: TrainContext) -> Stage:
+def train_stage(method: Method, ctx: TrainContext, method_of: MethodOf) -> Stage:
     """The key of a learned method's training: the method (its policy settings), the key of the recording
-    it trains on, seed, epochs, demonstrations, ACT's steps, the run it continues, the code versions."""
-    from lerobot_pnp.report.methods import METHODS
-
+    it trains on, seed, epochs, demonstrations, ACT's steps, the run it continues (``method_of``: the catalogue's
+    method of that name), the code versions."""
     parts = {
         "stage": "train",
         "method": method.name,
@@ -37,7 +36,7 @@ def train_stage(method: Method, ctx: TrainContext) -> Stage:
         # the loss curve's resolution (an output of the training): one held-out loss per whole-split epoch
         **({"heldout_every": "whole_split_epoch"} if ctx.n_demos is not None and method.data != "dense" else {}),
         "act_steps": ctx.act_steps if method.data == "dense" else None,
-        "continues": train_stage(METHODS[method.continues], continued(ctx, method.continues)).key
+        "continues": train_stage(method_of(method.continues), continued(ctx, method.continues), method_of).key
         if method.continues
         else None,
         "versions": code_versions(),
@@ -50,14 +49,14 @@ def train_stage(method: Method, ctx: TrainContext) -> Stage:
     return Stage(ctx.train_dir / STAGE_FILE, parts, added={"schedule": before} if before else None)
 
 
-def keyed_train(method: Method, ctx: TrainContext) -> tuple[Path | None, bool]:
+def keyed_train(method: Method, ctx: TrainContext, method_of: MethodOf) -> tuple[Path | None, bool]:
     """``method.train(ctx)`` unless a training of the same key is on disk: (artefact, trained now).
 
     A training folder without a matching record (another key, or killed midway) is deleted and trained
     again: what is in it is never trusted by its existence alone."""
     if not method.learned:
         return method.train(ctx), False
-    stage = train_stage(method, ctx)
+    stage = train_stage(method, ctx, method_of)
     if stage.done(f"training {method.name} {ctx.train_dir.name}"):
         return ctx.train_dir / stage.stored()["artifact"], False
     stage.invalidate()

@@ -10,10 +10,10 @@ import json
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
+from lerobot_pnp.evaluation.results import build_comparisons, build_table, evaluated_suites, held_out_axes
 from lerobot_pnp.outputs import write_bytes_atomic, write_json_atomic
 from lerobot_pnp.report import figures, markdown
 from lerobot_pnp.report.layout import StudyLayout
-from lerobot_pnp.report.results import build_comparisons, build_table, evaluated_suites, held_out_axes
 
 HEADLINE_SUITES = ("nominal", "nudge_0.03")
 

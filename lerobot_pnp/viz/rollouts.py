@@ -60,9 +60,9 @@ def rollout_with_expert(
     loaded, config: BaxterPnPEnvConfig, seed: int, hz: float, compare_expert: bool, name: str = "rollout_0"
 ) -> Run:
     """Run the policy from ``seed`` (sampled continuously) and, optionally, the expert from the same start."""
+    from lerobot_pnp.closed_loop import run_episode
     from lerobot_pnp.dagger.rollouts import Teacher
     from lerobot_pnp.dataset.episodes import PixelRecorder
-    from lerobot_pnp.evaluation.episodes import run_episode
 
     env = PixelRecorder(make_env(config, render_mode=None))
     base = env.unwrapped

@@ -168,6 +168,19 @@ def axis_result(axis: Axis, method: str, table: dict[str, dict[str, Pooled]]) ->
     return AxisResult(axis, method, inside, outside, held, p, verdict)
 
 
+def axis_verdict(r: AxisResult) -> str:
+    """The verdict on one axis as a phrase (the report's claims and ``lerobot-pnp compare`` state it)."""
+    if r.verdict == "generalises":
+        return f"holds (every held-out suite >= {100 * TARGET:.0f} %, not below in distribution: p {r.p_below:.2g})"
+    if r.verdict == "degrades":
+        return (
+            f"only partly: every held-out suite >= {100 * TARGET:.0f} %, but below in distribution (p {r.p_below:.2g})"
+        )
+    if r.verdict == "fails":
+        return "does not hold: " + ", ".join(f"`{s}` {r.held_out[s]}" for s in r.below_target)
+    return f"no verdict: below {100 * TARGET:.0f} % in distribution already"
+
+
 def held_out_axes(table: dict[str, dict[str, Pooled]], methods) -> list[AxisResult]:
     """Per axis of ``HELD_OUT_AXES`` (in order), each method (in order) that has every suite of the axis."""
     found = (axis_result(axis, m.name, table) for axis in HELD_OUT_AXES for m in methods)
