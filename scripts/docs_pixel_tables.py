@@ -178,7 +178,7 @@ def heldout_table(base: str) -> str:
     for (axis, row), result in axes.items():
         if row == "pnp_pixels":
             inside, outside = _pct(result.inside.rate), _pct(result.outside.rate)
-            lines.append(f"| {axis} | {inside} % | {outside} % | {result.verdict} |")
+            lines.append(f"| {axis} | {inside} % | {outside} % | {result.judged.phrase()} |")
     return "\n".join(lines)
 
 

@@ -43,7 +43,6 @@ PAPER_METHODS = {
 PAPER_SUITES = ("nominal", "outside_ring", "nudge_0.03", "nudge_0.05", "obs_noise_0.01", "latency", "random_yaw",
                 "grasp_miss", "drop", "displace")  # fmt: skip
 HELDOUT_METHODS = ("recovering", "expert", "memoryless_mlp", "act", "lookup_table")
-VERDICT_SHORT = {"generalises": "**generalises**", "degrades": "**only partly**", "fails": "**does not**"}
 
 
 def _json(rel: str) -> dict:
@@ -102,8 +101,26 @@ def paper_table(base: str) -> str:
     )
 
 
+def _judged(entry: dict):
+    """The verdict of the shipped rule (``verdicts.axis_verdict``) on a summary's counts: one rule on every page,
+    whichever rule the study that wrote the summary applied."""
+    from lerobot_pnp.evaluation.stats import Rate
+    from lerobot_pnp.evaluation.verdicts import axis_verdict
+
+    def rate(cell: dict) -> Rate:
+        return Rate(cell["successes"], cell["n"])
+
+    return axis_verdict(rate(entry["in_distribution"]), rate(entry["held_out"]))
+
+
 def _verdict(entry: dict) -> str:
-    return VERDICT_SHORT.get(entry["verdict"], "no verdict")
+    judged = _judged(entry)
+    return f"**{judged.text}**" if judged.code != "no_verdict" else judged.text
+
+
+def _difference(judged) -> str:
+    lo, hi = judged.interval
+    return f"{100 * judged.difference:+.1f} points [{100 * lo:+.1f}, {100 * hi:+.1f}]"
 
 
 def heldout_verdicts(base: str) -> str:
@@ -118,7 +135,7 @@ def heldout_verdicts(base: str) -> str:
         low_name, low = min(e["held_out_suites"].items(), key=lambda kv: kv[1]["rate"])
         lines.append(
             f"| {axis.name} ({axis.description}) | {_cell(e['in_distribution'])} | {_cell(e['held_out'])} | "
-            f"`{low_name}` {_cell(low, False)} | {_verdict(e)} (p {e['p_below']:.2g}) |"
+            f"`{low_name}` {_cell(low, False)} | {_verdict(e)} ({_difference(_judged(e))}) |"
         )
     others = []
     for m in HELDOUT_METHODS[1:]:

@@ -87,7 +87,9 @@ def test_compare_reproduces_the_studys_pooled_rates_paired_tests_and_axis_verdic
     axes = {(a["axis"], a["method"]): a for a in out["held_out_axes"]}
     for m in results:
         assert axes[(AXIS.name, m)] == json.loads(json.dumps(study.axis_result(AXIS, m, table).to_json()))
-    assert axes[(AXIS.name, "recovering")]["verdict"] == "generalises"
+    assert (
+        axes[(AXIS.name, "recovering")]["verdict"] == "undecided"
+    )  # -2.5 points [-6.8, +3.4]: too few episodes to decide
     two_methods = pairs[("memoryless_mlp", "recovering", "nominal")]  # two seeds each: paired seed by seed
     assert two_methods["n"] == 2 * N and len(two_methods["study"]["per_seed"]) == 2
     control = out["control"]["recovering"]["train_latency"]  # beside nominal on the same seeds and training seeds

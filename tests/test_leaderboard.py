@@ -43,8 +43,14 @@ def test_rows_verdicts_and_the_command_to_add_one(tmp_path):
     assert cli.main([*args, "--check=true"]) == 2 and not out.exists()  # no page yet
     assert cli.main(args) == 0 and cli.main([*args, "--check=true"]) == 0
     page = out.read_text()
-    assert "| `a_good` | method a_good | - | 100.0% [72.2, 100.0] | 100.0 -> 100.0: generalises |" in page
-    assert "| `b_weak` | method b_weak | - | 30.0% [10.8, 60.3] | 30.0 -> 30.0: no_recovery |" in page
+    # 10 episodes a suite cannot show 5 points: the rule says so, and its interval
+    assert (
+        "| `a_good` | method a_good | - | 100.0% [72.2, 100.0] | 100.0 -> 100.0: undecided (+0.0 [-16.1, +16.1]) |"
+        in page
+    )
+    assert (
+        "| `b_weak` | method b_weak | - | 30.0% [10.8, 60.3] | 30.0 -> 30.0: no verdict (+0.0 [-26.8, +26.8]) |" in page
+    )
     assert "--env.task heldout --eval.n_episodes 10" in page and "lerobot-pnp leaderboard --runs_dir" in page
     assert page.count("| heldout_") == 11 and "- `b_weak`: `lerobot-eval ... b_weak`" in page
 
@@ -75,7 +81,7 @@ def test_a_row_may_carry_a_short_name_and_its_budget_and_nothing_else(tmp_path):
     table, left_out = compact_table(tmp_path / "runs", episodes=10, leave_out=("b_floor",))
     assert left_out == ["b_floor"] and "b_floor" not in table  # no short name: the row's folder stands in
     assert table.splitlines()[2].replace("\N{NO-BREAK SPACE}", " ") == (
-        "| A | 10 demos, no training | 100 [72.2, 100] | 100 ✓ | 100 ✓ | 100 ✓ | 100 ✓ | 100 ✓ |"
+        "| A | 10 demos, no training | 100 [72.2, 100] | 100 ? | 100 ? | 100 ? | 100 ? | 100 ? |"
     )
     meta_file.write_text(json.dumps({**meta, "budgets": "typo"}))
     with pytest.raises(ConfigError, match="unknown key 'budgets'; valid: .*'budget'"):

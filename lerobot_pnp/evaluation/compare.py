@@ -38,6 +38,7 @@ from lerobot_pnp.evaluation.stats import (
     seed_agreement,
     sign_test_p,
 )
+from lerobot_pnp.evaluation.verdicts import MARGIN
 from lerobot_pnp.outputs import OutputFolder
 from lerobot_pnp.sim.suites import HELD_OUT_AXES
 
@@ -59,7 +60,7 @@ class CompareConfig:
     runs: list[str] = field(default_factory=list)
     output_dir: str | None = None  # compare.md, compare.json and compare.png are written here (none: print only)
     alpha: float = 0.05  # significance level of the paired tests (every training seed's p below it)
-    margin: float = 0.05  # a difference whose 95 % interval lies within +-margin "held"; wider: "underpowered"
+    margin: float = MARGIN  # a difference whose 95 % interval lies within +-margin "held"; wider: "underpowered"
     control: str | None = None  # the suite each other suite is set beside (same seeds); none: nominal, if held
     suites: str | None = None  # only these suites, comma-separated (every run must hold them); none: all suites
 
@@ -218,12 +219,10 @@ def _plot(result: dict, cfg: CompareConfig) -> bytes:
 def run_compare(cfg: CompareConfig) -> dict:
     """Read, check and compare the runs; write compare.md/.json/.png to ``output_dir`` as one set; print the
     markdown. Every input is checked and every file rendered before anything is written."""
-    from lerobot_pnp.evaluation.results import axis_verdict
-
     if not 0 < cfg.alpha < 1 or not 0 <= cfg.margin < 1:
         raise ConfigError(f"compare: alpha must be in (0, 1) and margin in [0, 1), got {cfg.alpha}, {cfg.margin}")
     result = analyse(parse_runs(cfg.runs, cfg.suites), cfg)
-    text = markdown(result, cfg, axis_verdict)
+    text = markdown(result, cfg)
     written: list[str] = []
     if cfg.output_dir is not None:
         files = {"compare.md": text.encode(), "compare.json": json.dumps(to_json(result, cfg), indent=2).encode(),

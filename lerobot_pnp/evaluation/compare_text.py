@@ -6,6 +6,7 @@ Run names, paths and suite names are the user's text: every one reaches the mark
 
 from __future__ import annotations
 
+from lerobot_pnp.evaluation.results import axis_phrase
 from lerobot_pnp.support.markdown_text import code, text
 
 
@@ -58,9 +59,9 @@ def _row(cells: list[str]) -> str:
     return "| " + " | ".join(cells) + " |"
 
 
-def markdown(result: dict, cfg, axis_text) -> str:
-    """The comparison as markdown: rates per suite, the control arm, pairs of runs, held-out axes
-    (``axis_text``: the study's words for an axis verdict)."""
+def markdown(result: dict, cfg) -> str:
+    """The comparison as markdown: rates per suite, the control arm, pairs of runs, held-out axes (the
+    verdict of the one rule, ``verdicts.axis_verdict``, with its difference)."""
     table, names = result["table"], [r.name for r in result["runs"]]
     lines = [*_intro(result, cfg), "", "## Success per suite", ""]
     lines += [_row(["suite", "n", *map(text, names)]), "|---|---|" + "---|" * len(names)]
@@ -88,7 +89,7 @@ def markdown(result: dict, cfg, axis_text) -> str:
         lines += ["| axis | run | in distribution | held out | verdict |", "|---|---|---|---|---|"]
         for a in result["axes"]:
             lines.append(_row([a.axis.name, text(a.method), str(a.inside), str(a.outside),
-                               f"{a.verdict}: {axis_text(a)}"]))  # fmt: skip
+                               axis_phrase(a)]))  # fmt: skip
     return "\n".join(lines) + "\n"
 
 

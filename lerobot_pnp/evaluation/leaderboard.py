@@ -24,6 +24,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from lerobot_pnp.errors import ConfigError, one_line
+from lerobot_pnp.evaluation.verdicts import MARGIN, MARK, TARGET
 from lerobot_pnp.outputs import OutputError, OutputFolder, write_bytes_atomic
 from lerobot_pnp.support.markdown_text import code, text
 from lerobot_pnp.support.markdown_text import one_line as single_line
@@ -151,7 +152,6 @@ def render(runs_dir: str | Path, episodes: int = 100, seed: int = 100_000) -> st
     return "\n".join(lines) + "\n"
 
 
-AXIS_MARK = {"generalises": "✓", "degrades": "≈", "fails": "✗", "no_recovery": "○"}
 NBSP = "\N{NO-BREAK SPACE}"  # inside a compact table's cell, so a narrow column does not split it
 
 
@@ -161,7 +161,7 @@ def _pct(x: float) -> str:
 
 def compact_table(runs_dir: str | Path, episodes: int = 100, leave_out: tuple[str, ...] = ()) -> tuple[str, list[str]]:
     """(One line per row, strongest first: short name, budget, nominal % with its 95 % interval, held-out % per axis
-    with the verdict as ``AXIS_MARK``'s symbol; the short names of the rows in ``leave_out``): the README's table,
+    with the verdict as ``verdicts.MARK``'s symbol; the short names of the rows in ``leave_out``): the README's table,
     the page's numbers."""
     from lerobot_pnp.sim.suites import HELD_OUT_AXES
 
@@ -176,7 +176,7 @@ def compact_table(runs_dir: str | Path, episodes: int = 100, leave_out: tuple[st
         rate = nominal[n].rate
         lo, hi = rate.interval
         cells = [f"{_pct(rate.rate)}{NBSP}[{_pct(lo)},{NBSP}{_pct(hi)}]"]
-        cells += [f"{_pct(a.outside.rate)}{NBSP}{AXIS_MARK[a.verdict]}" if a else "-" for a in held[n]]
+        cells += [f"{_pct(a.outside.rate)}{NBSP}{MARK[a.verdict]}" if a else "-" for a in held[n]]
         lines.append(f"| {text(meta.get('name', n))} | {text(meta.get('budget', '-'))} | " + " | ".join(cells) + " |")
     return "\n".join(lines), [m.get("name", n) for n, m in rows if n in leave_out]
 
@@ -184,15 +184,15 @@ def compact_table(runs_dir: str | Path, episodes: int = 100, leave_out: tuple[st
 def readme_block(root: Path, docs: str, leave_out: tuple[str, ...] = ()) -> str:
     """The README's leaderboard: ``compact_table`` of the default rows under ``root``, its legend (links relative
     to ``docs``, the docs folder seen from the page) and the commands that add a row."""
-    from lerobot_pnp.evaluation.results import TARGET
-
     cfg = LeaderboardConfig()
     table, left_out = compact_table(root / cfg.runs_dir, cfg.episodes, leave_out)
     heldout, page = (posixpath.normpath(docs + rel) for rel in ("benchmark/heldout.md", Path(cfg.output).name))
     legend = (
         f"Success %: on `nominal` with its 95 % interval, and per axis of [the held-out protocol]({heldout}) "
-        "the held-out rate with the verdict: ✓ generalises, ≈ only partly, ✗ does not, ○ no verdict (below "
-        f"{100 * TARGET:.0f} % in distribution already). Budget: data, training, seeds and training time on 2 CPU "
+        f"the held-out rate with the verdict: {MARK['generalises']} generalises, {MARK['does_not_generalise']} does "
+        f"not generalise, {MARK['undecided']} undecided (held out minus in distribution against a margin of "
+        f"{100 * MARGIN:.0f} points, 95 %), {MARK['no_verdict']} no verdict (below {100 * TARGET:.0f} % in "
+        "distribution). Budget: data, training, seeds and training time on 2 CPU "
         'cores, CPU time where measured, else wall time ("(study)": the study\'s training wall time). One '
         f"stock `lerobot-eval --env.task heldout` per row, {cfg.episodes} episodes per suite from seed {cfg.seed:,}; "
         "ACT counts latency in 20 fps steps, not keyframes. "
@@ -208,7 +208,7 @@ def readme_block(root: Path, docs: str, leave_out: tuple[str, ...] = ()) -> str:
 def _axis_cell(result) -> str:
     if result is None:
         return "-"
-    return f"{100 * result.inside.rate:.1f} -> {100 * result.outside.rate:.1f}: {result.verdict}"
+    return f"{100 * result.inside.rate:.1f} -> {100 * result.outside.rate:.1f}: {result.judged.short()}"
 
 
 def _inputs(runs_dir: str | Path) -> set[Path]:

@@ -5,14 +5,15 @@
 learned method pools its training seeds (each seed evaluated on the same eval seeds); comparisons with the
 lookup table are paired (exact McNemar per training seed; the largest p-value over seeds is reported, so
 "beats" means "beats with every training seed"). Per axis of the held-out protocol (``HELD_OUT_AXES``): each
-side pooled over its suites, a one-sided exact test between them, and a verdict code (``axis_result``).
+side pooled over its suites and the verdict of the one rule, ``verdicts.axis_verdict`` (``axis_result``).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-from lerobot_pnp.evaluation.stats import Rate, below_p, paired_comparison
+from lerobot_pnp.evaluation.stats import Rate, paired_comparison
+from lerobot_pnp.evaluation.verdicts import MARGIN, Verdict, axis_verdict
 from lerobot_pnp.sim.suites import HELD_OUT_AXES, SUITES, Axis
 
 BASELINE = "lookup_table"
@@ -105,31 +106,22 @@ def build_comparisons(results, methods, suite_names) -> dict[str, dict[str, Comp
     return comparisons
 
 
-# The held-out protocol's verdict rule (stated in report.md): recovery generalises along an axis when the method
-# recovers in distribution (pooled >= TARGET), reaches TARGET on every held-out suite (point estimates, the
-# issue's target) and its pooled held-out rate is not below the in-distribution one beyond chance
-# (one-sided exact test, p >= ALPHA).
-TARGET = 0.9
-ALPHA = 0.05
-VERDICTS = ("generalises", "degrades", "fails", "no_recovery")  # their text: markdown.VERDICT_TEXT
-
-
 @dataclass(frozen=True)
 class AxisResult:
     """A method on one disturbance axis of ``HELD_OUT_AXES``: each side pooled over its suites (and training
-    seeds), each held-out suite's own rate, the one-sided test of held out < in distribution, the verdict."""
+    seeds), each held-out suite's own rate, and the verdict of the one rule (``verdicts.axis_verdict``)."""
 
     axis: Axis
     method: str
     inside: Rate
     outside: Rate
     held_out: dict[str, Rate]  # per held-out suite
-    p_below: float
-    verdict: str  # one of VERDICTS
+    judged: Verdict
 
     @property
-    def below_target(self) -> list[str]:
-        return [s for s, r in self.held_out.items() if r.rate < TARGET]
+    def verdict(self) -> str:
+        """The verdict's code, one of ``verdicts.VERDICTS``."""
+        return self.judged.code
 
     def to_json(self) -> dict:
         """``summary.json``'s ``held_out_axes`` entry."""
@@ -139,7 +131,9 @@ class AxisResult:
 
         return {"axis": self.axis.name, "method": self.method, "in_distribution": cell(self.inside),
                 "held_out": cell(self.outside), "held_out_suites": {s: cell(r) for s, r in self.held_out.items()},
-                "p_below": self.p_below, "verdict": self.verdict}  # fmt: skip
+                "difference": self.judged.difference, "difference_interval": list(self.judged.interval),
+                "margin": MARGIN, "verdict": self.verdict,
+                "episodes_to_decide": self.judged.episodes_to_decide}  # fmt: skip
 
 
 def _sum(rates: list[Rate]) -> Rate:
@@ -155,30 +149,12 @@ def axis_result(axis: Axis, method: str, table: dict[str, dict[str, Pooled]]) ->
     inside = _sum([cells[s].rate for s in axis.in_distribution])
     held = {s: cells[s].rate for s in axis.held_out}
     outside = _sum(list(held.values()))
-    p = below_p(inside, outside)
-    verdict = (
-        "no_recovery"
-        if inside.rate < TARGET
-        else "fails"
-        if any(r.rate < TARGET for r in held.values())
-        else "degrades"
-        if p < ALPHA
-        else "generalises"
-    )
-    return AxisResult(axis, method, inside, outside, held, p, verdict)
+    return AxisResult(axis, method, inside, outside, held, axis_verdict(inside, outside))
 
 
-def axis_verdict(r: AxisResult) -> str:
+def axis_phrase(r: AxisResult) -> str:
     """The verdict on one axis as a phrase (the report's claims and ``lerobot-pnp compare`` state it)."""
-    if r.verdict == "generalises":
-        return f"holds (every held-out suite >= {100 * TARGET:.0f} %, not below in distribution: p {r.p_below:.2g})"
-    if r.verdict == "degrades":
-        return (
-            f"only partly: every held-out suite >= {100 * TARGET:.0f} %, but below in distribution (p {r.p_below:.2g})"
-        )
-    if r.verdict == "fails":
-        return "does not hold: " + ", ".join(f"`{s}` {r.held_out[s]}" for s in r.below_target)
-    return f"no verdict: below {100 * TARGET:.0f} % in distribution already"
+    return r.judged.phrase()
 
 
 def held_out_axes(table: dict[str, dict[str, Pooled]], methods) -> list[AxisResult]:

@@ -15,7 +15,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from lerobot_pnp.errors import ConfigError
-from lerobot_pnp.evaluation.results import Pooled, axis_result, axis_verdict
+from lerobot_pnp.evaluation.results import Pooled, axis_phrase, axis_result
 from lerobot_pnp.report.methods import METHODS
 from lerobot_pnp.sim.suites import HELD_OUT_AXES, RECOVERY_BUDGET, SUITES, Axis
 
@@ -234,11 +234,11 @@ def _generalises_along(axis: Axis) -> Callable[[dict, dict], list[str]]:
         held = ", ".join(f"`{s}`" for s in axis.held_out)
         lines = [
             f"- *Recovery generalises along {axis.name}* ({axis.description}; held out: {held}): recovering LSTM "
-            f"{rec.outside} held out vs {rec.inside} in distribution -> {axis_verdict(rec)}."
+            f"{rec.outside} held out vs {rec.inside} in distribution -> {axis_phrase(rec)}."
         ]
         others = [r for r in (axis_result(axis, m, table) for m in AXIS_OTHERS) if r is not None]
         if others:
-            each = (f"{METHODS[o.method].label} {o.outside} held out -> {axis_verdict(o)}" for o in others)
+            each = (f"{METHODS[o.method].label} {o.outside} held out -> {axis_phrase(o)}" for o in others)
             lines.append("  Others on this axis: " + "; ".join(each) + ".")
         return lines
 

@@ -8,8 +8,9 @@ from __future__ import annotations
 
 from lerobot_pnp import robot
 from lerobot_pnp.evaluation import plots
-from lerobot_pnp.evaluation.results import TARGET, main_records, pooled
+from lerobot_pnp.evaluation.results import main_records, pooled
 from lerobot_pnp.evaluation.stats import Rate
+from lerobot_pnp.evaluation.verdicts import TARGET
 from lerobot_pnp.report import adapters, coverage
 from lerobot_pnp.report.methods import DATA_EFFICIENCY_METHODS
 from lerobot_pnp.sim.suites import HELD_OUT_AXES, SUITES

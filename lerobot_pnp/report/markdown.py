@@ -8,7 +8,8 @@ and ``results.build_comparisons``, so ``summary.json`` and ``report.md`` state t
 from __future__ import annotations
 
 from lerobot_pnp.evaluation.records import summarize
-from lerobot_pnp.evaluation.results import ALPHA, TARGET, Pooled, held_out_axes, main_records
+from lerobot_pnp.evaluation.results import Pooled, held_out_axes, main_records
+from lerobot_pnp.evaluation.verdicts import MARGIN, TARGET, Verdict
 from lerobot_pnp.presets import FULL_TASK, PAPER_TASK
 from lerobot_pnp.report import coverage
 from lerobot_pnp.report.claims import render_claims
@@ -144,12 +145,15 @@ def _failure_table(methods, results, suite_names) -> list[str]:
     return [*lines, ""]
 
 
-VERDICT_TEXT = {  # results.VERDICTS
-    "generalises": "generalises",
-    "degrades": f"every held-out suite >= {100 * TARGET:.0f} %, but significantly below in distribution",
-    "fails": f"does not generalise: a held-out suite below {100 * TARGET:.0f} %",
-    "no_recovery": f"below {100 * TARGET:.0f} % in distribution already: nothing to generalise",
-}
+def _difference(v: Verdict) -> str:
+    lo, hi = v.interval
+    return f"{100 * v.difference:+.1f} [{100 * lo:+.1f}, {100 * hi:+.1f}]"
+
+
+def _verdict_cell(v: Verdict) -> str:
+    if v.code == "undecided" and v.episodes_to_decide:
+        return f"{v.text} (about {v.episodes_to_decide} episodes a side would decide it)"
+    return v.text
 
 
 def _held_out_section(table, methods) -> list[str]:
@@ -164,11 +168,12 @@ def _held_out_section(table, methods) -> list[str]:
         "",
         "Trained on the training conditions (the recorded task's distributions); each axis' held-out suites go "
         "beyond them on that axis only. Each side pools every episode of its suites over all training seeds "
-        "(95 % Wilson). p: one-sided exact (Fisher) test that the held-out rate is below the in-distribution "
-        f"one by chance (different suites: not paired). **Verdict rule**: recovery generalises along an axis "
-        f"when the method gets >= {100 * TARGET:.0f} % in distribution, >= {100 * TARGET:.0f} % on every "
-        f"held-out suite (point estimates) and p >= {ALPHA:g}; 'significantly below' when every held-out suite "
-        f"reaches {100 * TARGET:.0f} % but p < {ALPHA:g}.",
+        "(95 % Wilson). Difference: held out minus in distribution, with its 95 % interval (Newcombe, the two "
+        f"sides are different suites: not paired). **Verdict rule** (non-inferiority, margin {100 * MARGIN:.0f} "
+        f"points): with >= {100 * TARGET:.0f} % in distribution, recovery generalises along an axis when the "
+        f"interval's lower bound lies above -{100 * MARGIN:.0f} points, does not generalise when its upper bound "
+        f"lies below -{100 * MARGIN:.0f}, and is undecided otherwise (with the episodes a side that would decide "
+        f"it); below {100 * TARGET:.0f} % in distribution there is no verdict.",
         "",
     ]
     for axis in dict.fromkeys(r.axis for r in rows):
@@ -178,14 +183,14 @@ def _held_out_section(table, methods) -> list[str]:
             f"In distribution: {', '.join(f'`{s}`' for s in axis.in_distribution)}; held out: "
             f"{', '.join(f'`{s}`' for s in axis.held_out)}.",
             "",
-            "| method | in distribution | held out | per held-out suite | p | verdict |",
+            "| method | in distribution | held out | per held-out suite | difference [95 %] | verdict |",
             "|---|---|---|---|---|---|",
         ]
         for r in (r for r in rows if r.axis == axis):
             each = "<br>".join(f"`{s}` {v} n={v.n}" for s, v in r.held_out.items())
             lines.append(
                 f"| {labels[r.method]} | {r.inside} n={r.inside.n} | {r.outside} n={r.outside.n} | {each} | "
-                f"{r.p_below:.2g} | {VERDICT_TEXT[r.verdict]} |"
+                f"{_difference(r.judged)} | {_verdict_cell(r.judged)} |"
             )
         lines.append("")
     return lines
