@@ -25,6 +25,8 @@ import sys
 from pathlib import Path
 from unittest import mock
 
+from lerobot_pnp.evaluation.verdicts import summary_verdict
+
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "docs" / "results"
 BLOCK = re.compile(r"(<!-- begin generated: ([\w-]+) -->\n)(.*?)(<!-- end generated: \2 -->)", re.S)
@@ -101,26 +103,11 @@ def paper_table(base: str) -> str:
     )
 
 
-def _judged(entry: dict):
-    """The verdict of the shipped rule (``verdicts.axis_verdict``) on a summary's counts: one rule on every page,
-    whichever rule the study that wrote the summary applied."""
-    from lerobot_pnp.evaluation.stats import Rate
-    from lerobot_pnp.evaluation.verdicts import axis_verdict
-
-    def rate(cell: dict) -> Rate:
-        return Rate(cell["successes"], cell["n"])
-
-    return axis_verdict(rate(entry["in_distribution"]), rate(entry["held_out"]))
-
-
-def _verdict(entry: dict) -> str:
-    judged = _judged(entry)
-    return f"**{judged.text}**" if judged.code != "no_verdict" else judged.text
-
-
-def _difference(judged) -> str:
-    lo, hi = judged.interval
-    return f"{100 * judged.difference:+.1f} points [{100 * lo:+.1f}, {100 * hi:+.1f}]"
+def _verdict(entry: dict, difference: bool = False) -> str:
+    v = summary_verdict(entry)
+    text = f"**{v.text}**" if v.code != "no_verdict" else v.text
+    lo, hi = v.interval
+    return f"{text} ({100 * v.difference:+.1f} points [{100 * lo:+.1f}, {100 * hi:+.1f}])" if difference else text
 
 
 def heldout_verdicts(base: str) -> str:
@@ -135,7 +122,7 @@ def heldout_verdicts(base: str) -> str:
         low_name, low = min(e["held_out_suites"].items(), key=lambda kv: kv[1]["rate"])
         lines.append(
             f"| {axis.name} ({axis.description}) | {_cell(e['in_distribution'])} | {_cell(e['held_out'])} | "
-            f"`{low_name}` {_cell(low, False)} | {_verdict(e)} ({_difference(_judged(e))}) |"
+            f"`{low_name}` {_cell(low, False)} | {_verdict(e, difference=True)} |"
         )
     others = []
     for m in HELDOUT_METHODS[1:]:

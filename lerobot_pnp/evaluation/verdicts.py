@@ -123,3 +123,10 @@ def axis_verdict(inside: Rate, outside: Rate, margin: float = MARGIN, target: fl
     if call == "below":
         return Verdict("does_not_generalise", diff, (lo, hi))
     return Verdict("undecided", diff, (lo, hi), episodes_to_decide(inside, outside, margin))
+
+
+def summary_verdict(entry: dict) -> Verdict:
+    """The rule's verdict on a ``summary.json`` ``held_out_axes`` entry, from its counts: one rule on every page,
+    whichever rule the study that wrote the summary applied."""
+    inside, outside = entry["in_distribution"], entry["held_out"]
+    return axis_verdict(Rate(inside["successes"], inside["n"]), Rate(outside["successes"], outside["n"]))
