@@ -90,7 +90,7 @@ def run_stock_no_videos(ckpt: Path, task: str, n: int, batch: int) -> float:
     from lerobot_pnp.evaluation.checkpoints import load_policy
     from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
 
-    cfg = BaxterPnPEnvConfig(task_source=str(ckpt), task=task)
+    cfg = BaxterPnPEnvConfig.from_source(str(ckpt), task=task)
     t = time.perf_counter()
     loaded = load_policy(ckpt, env_cfg=cfg)
     envs = cfg.create_envs(n_envs=batch)
@@ -110,7 +110,7 @@ def run_study(ckpt: Path, task: str, n: int, batch: int) -> tuple[dict[str, floa
     from lerobot_pnp.sim.stock_suites import suite_configs
 
     times, outcomes = {}, {}
-    for suite, env_cfg in suite_configs(BaxterPnPEnvConfig(task_source=str(ckpt), task=task)).items():
+    for suite, env_cfg in suite_configs(BaxterPnPEnvConfig.from_source(str(ckpt), task=task)).items():
         t = time.perf_counter()
         lp = load_policy(ckpt, env_cfg=env_cfg)
         records = eval_lerobot_policy(lp.policy, lp.preprocessor, lp.postprocessor, env_cfg, n, SEED, batch)

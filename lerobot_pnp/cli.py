@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import errno
 import importlib
+import itertools
 import json
 import signal
 import sys
@@ -161,10 +162,30 @@ def parse_config(config_cls: type, config_path: str | None, args: list[str]):
     ``--config_path`` file, then the flags (``cli_config``). Raises draccus's errors for a value it rejects."""
     import draccus
 
+    from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
+
     args = normalize_args(config_cls, args)
+    records = BaxterPnPEnvConfig.read_edge_records({s: s for s in env_task_sources(config_path, args)})
     with tempfile.TemporaryDirectory(prefix="lerobot_pnp_cfg_") as tmp:
         layered = layered_config_file(config_cls, config_path, args, tmp)
-        return draccus.parse(config_class=config_cls, config_path=layered, args=args)
+        with BaxterPnPEnvConfig.reading_edge_records(records):  # the edge: records read here, not by the configs
+            return draccus.parse(config_class=config_cls, config_path=layered, args=args)
+
+
+def env_task_sources(config_path: str | None, args: list[str]) -> list[str]:
+    """The ``task_source`` values of the env configs a command line names (``--env.task_source`` flags, the
+    ``env`` section of its ``--config_path`` file)."""
+    sources = [
+        a.split("=", 1)[1] for a in args if a.startswith("--") and a.split("=", 1)[0].endswith("env.task_source")
+    ]
+    sources += [b for a, b in itertools.pairwise(args) if a.startswith("--") and a.endswith("env.task_source")]
+    try:
+        env = json.loads(Path(config_path).read_text()).get("env") if config_path else None
+    except (OSError, ValueError, AttributeError):
+        env = None
+    if isinstance(env, dict) and isinstance(env.get("task_source"), str):
+        sources.append(env["task_source"])
+    return [s for s in sources if s]
 
 
 def config_of(name: str, args: list[str]):

@@ -89,7 +89,7 @@ else:
     eval_seed = int(overrides.pop("eval_seed", 10_000_000))  # the first eval seed (the study's: 100000)
     env_changes = {k.removeprefix("env."): v for k, v in overrides.items() if k.startswith("env.")}
     try:
-        base = BaxterPnPEnvConfig(task_source=str(root), **env_changes)
+        base = BaxterPnPEnvConfig.from_source(str(root), **env_changes)
     except (TypeError, ConfigError) as e:  # an unknown or invalid task field: one line, not a traceback
         sys.exit(f"heldout_protocol_eval.py: env overrides {env_changes}: {e}")
     result_file = out / (

@@ -86,7 +86,7 @@ class Counting:
 
 
 def run(checkpoint: Path, latency: int, seeds: list[int], oracle: bool) -> dict[int, dict]:
-    cfg = SUITES["heldout_latency_2"].env_configs(BaxterPnPEnvConfig(task_source=str(protocol_runs.TASK_ROOT)))[0]
+    cfg = SUITES["heldout_latency_2"].env_configs(BaxterPnPEnvConfig.from_source(str(protocol_runs.TASK_ROOT)))[0]
     cfg.obs_latency = latency
     loaded = load_policy(checkpoint, env_cfg=cfg)
     env = make_env(cfg, render_mode=None)

@@ -51,7 +51,7 @@ def main() -> None:
     runs = args.runs.split(",")
     checkpoints = [protocol_runs.checkpoint(r) for r in runs]
     for suite in args.suites.split(","):
-        cfg = SUITES[suite].env_configs(BaxterPnPEnvConfig(task_source=str(protocol_runs.TASK_ROOT)))[0]
+        cfg = SUITES[suite].env_configs(BaxterPnPEnvConfig.from_source(str(protocol_runs.TASK_ROOT)))[0]
         loaded = [load_policy(c, env_cfg=cfg) for c in checkpoints]
         host = loaded[0]
         host.policy.model.step = averaged([lp.policy.model for lp in loaded])

@@ -34,7 +34,7 @@ def test_heldout_suites_of_a_dense_checkpoint_are_the_studys_act_suites(dense_ch
     budget's too), the nudge's step and size, every perturbation."""
     monkeypatch.setattr(act_baseline, "dense_nudge_step", lambda root: NUDGE_STEP)
     stock = suite_configs(
-        BaxterPnPEnvConfig(task_source=str(dense_checkpoint), task="heldout", nudge_at_step=NUDGE_STEP)
+        BaxterPnPEnvConfig.from_source(str(dense_checkpoint), task="heldout", nudge_at_step=NUDGE_STEP)
     )
     keyframe = BaxterPnPEnvConfig(preset="full")
     assert list(stock) == suite_names("heldout") and len(stock) == 18
@@ -53,4 +53,4 @@ def test_a_suite_nudged_by_the_dense_task_itself_needs_the_nudge_step(dense_chec
     """On `full` every suite nudges (the task does, not only the nudge suites): without ``--env.nudge_at_step``
     the push would come at dense step 1, before the arm moves, not the study's suite; one line, not a silent run."""
     with pytest.raises(ConfigError, match=r"nudges the object at env step 1.*--env.nudge_at_step"):
-        BaxterPnPEnvConfig(task_source=str(dense_checkpoint), task=task)
+        BaxterPnPEnvConfig.from_source(str(dense_checkpoint), task=task)

@@ -201,17 +201,17 @@ def test_task_is_settable_from_the_env_config_and_recorded(tmp_path):
     assert 0.5 <= obs["environment_state"][0] <= 0.6 and 0.2 <= obs["environment_state"][1] <= 0.3
     np.testing.assert_allclose(env.unwrapped.physics.place_target(), (0.65, -0.1))
     write_recorded(cfg, tmp_path)
-    again = BaxterPnPEnvConfig(task_source=str(tmp_path))
+    again = BaxterPnPEnvConfig.from_source(str(tmp_path))
     assert again.to_dict() == cfg.to_dict()
     assert read_recorded(tmp_path)["place_low"] == [0.65, -0.1]
     # a preset named explicitly wins over the recorded task; explicit fields win over both
-    assert BaxterPnPEnvConfig(task_source=str(tmp_path), preset="paper").place_low == PAPER_TASK["place_low"]
-    assert BaxterPnPEnvConfig(task_source=str(tmp_path), nudge_max=0.01).place_low == (0.65, -0.1)
+    assert BaxterPnPEnvConfig.from_source(str(tmp_path), preset="paper").place_low == PAPER_TASK["place_low"]
+    assert BaxterPnPEnvConfig.from_source(str(tmp_path), nudge_max=0.01).place_low == (0.65, -0.1)
     # a keyframe policy/dataset run in dense control would fail silently: the contradiction is an error
     with pytest.raises(ConfigError, match="contradicts the recorded task"):
-        BaxterPnPEnvConfig(task_source=str(tmp_path), control_mode="dense")
+        BaxterPnPEnvConfig.from_source(str(tmp_path), control_mode="dense")
     write_recorded(BaxterPnPEnvConfig(control_mode="dense"), tmp_path)
-    dense = BaxterPnPEnvConfig(task_source=str(tmp_path))
+    dense = BaxterPnPEnvConfig.from_source(str(tmp_path))
     assert dense.control_mode == "dense" and dense.fps == 20
 
 
@@ -222,14 +222,14 @@ def test_a_config_never_reads_the_command_line_only_the_stock_script_boundary_do
     from lerobot_pnp.sim.recorded_files import write_recorded
 
     write_recorded(BaxterPnPEnvConfig(preset="full"), tmp_path / "full")
-    monkeypatch.setattr(BaxterPnPEnvConfig, "command_line_source", None)  # restored after the test
+    monkeypatch.setattr(BaxterPnPEnvConfig, "edge_records", {})  # restored after the test
     # a bogus root on the command line of this (not a lerobot-*) process: constructing a config does not read it
     monkeypatch.setattr(sys, "argv", ["pytest", "--dataset.root=/nonexistent/bogus"])
     assert BaxterPnPEnvConfig().to_dict() == BaxterPnPEnvConfig(preset="paper").to_dict()
     # neither does a real one, outside a stock script
     monkeypatch.setattr(sys, "argv", ["pytest", f"--dataset.root={tmp_path / 'full'}"])
     hand_over_command_line()
-    assert BaxterPnPEnvConfig().preset == "paper" and BaxterPnPEnvConfig.command_line_source is None
+    assert BaxterPnPEnvConfig().preset == "paper" and BaxterPnPEnvConfig.edge_records == {}
     # inside a stock lerobot-* script the boundary hands it over once; then the config uses it as a value
     monkeypatch.setattr(sys, "argv", ["lerobot-train", f"--dataset.root={tmp_path / 'full'}"])
     assert BaxterPnPEnvConfig().preset == "paper"  # construction alone still reads nothing

@@ -44,7 +44,7 @@ def test_recorded_cameras_found_through_a_config_file(tmp_path, monkeypatch):
     write_recorded(BaxterPnPEnvConfig(cameras=["front"], image_height=64, image_width=64), tmp_path / "ds")
     config = tmp_path / "train.json"
     config.write_text(json.dumps({"dataset": {"repo_id": "local/ds", "root": str(tmp_path / "ds")}}))
-    monkeypatch.setattr(BaxterPnPEnvConfig, "command_line_source", None)  # restored after the test
+    monkeypatch.setattr(BaxterPnPEnvConfig, "edge_records", {})  # restored after the test
     monkeypatch.setattr(sys, "argv", ["lerobot-train", f"--config_path={config}", "--steps=3"])
     hand_over_command_line()  # what the plugin does when lerobot-train loads it
     cfg = BaxterPnPEnvConfig()
@@ -57,7 +57,7 @@ def test_recorded_cameras_found_through_a_config_file(tmp_path, monkeypatch):
 def test_recorded_cameras_are_read_back(tmp_path):
     recorded = BaxterPnPEnvConfig(cameras=["front", "wrist"], image_height=48, image_width=64)
     write_recorded(recorded, tmp_path)
-    cfg = BaxterPnPEnvConfig(task_source=str(tmp_path))
+    cfg = BaxterPnPEnvConfig.from_source(str(tmp_path))
     assert cfg.cameras == ["front", "wrist"] and (cfg.image_height, cfg.image_width) == (48, 64)
     assert cfg.features["pixels/front"].shape == (48, 64, 3)
     assert cfg.features_map["pixels/wrist"] == "observation.images.wrist"
@@ -65,7 +65,7 @@ def test_recorded_cameras_are_read_back(tmp_path):
 
 def test_explicit_camera_flags_win_and_defaults_stay(tmp_path):
     write_recorded(BaxterPnPEnvConfig(cameras=["front"], image_height=48, image_width=64), tmp_path)
-    cfg = BaxterPnPEnvConfig(task_source=str(tmp_path), cameras=[], image_width=80)
+    cfg = BaxterPnPEnvConfig.from_source(str(tmp_path), cameras=[], image_width=80)
     assert cfg.cameras == [] and (cfg.image_height, cfg.image_width) == (48, 80)
     plain = BaxterPnPEnvConfig()
     assert plain.cameras == [] and (plain.image_height, plain.image_width) == (240, 320)

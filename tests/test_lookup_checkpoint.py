@@ -67,7 +67,7 @@ def test_stock_eval_of_the_checkpoint_equals_the_study_episode_by_episode(demos,
     from lerobot_pnp.report.builders import lookup_eval
     from lerobot_pnp.sim.suites import SUITES as CATALOGUE
 
-    env_cfg = BaxterPnPEnvConfig(task=",".join(SUITES), task_source=str(checkpoint))
+    env_cfg = BaxterPnPEnvConfig.from_source(str(checkpoint), task=",".join(SUITES))
     policy_cfg = PreTrainedConfig.from_pretrained(checkpoint)
     policy_cfg.pretrained_path = checkpoint
     policy = make_policy(policy_cfg, env_cfg=env_cfg)
@@ -79,7 +79,7 @@ def test_stock_eval_of_the_checkpoint_equals_the_study_episode_by_episode(demos,
     stock = {t["task_group"]: t["metrics"]["successes"] for t in info["per_task"]}
 
     ctx = types.SimpleNamespace(dataset_root=demos, data_keys={}, n_demos=None)
-    base = BaxterPnPEnvConfig(task_source=str(demos))
+    base = BaxterPnPEnvConfig.from_source(str(demos))
     study = {
         s: [r.success for r in lookup_eval(None, ctx, CATALOGUE[s].env_configs(base)[0], N, SEED, 2)] for s in SUITES
     }

@@ -22,8 +22,8 @@ def test_render_effects_off_by_default_and_recorded(tmp_path):
     assert BaxterPnPEnvConfig().render_effects is False
     write_recorded(BaxterPnPEnvConfig(cameras=["front"], image_height=32, image_width=32), tmp_path)
     assert json.loads((tmp_path / RECORDED_FILE).read_text())["render_effects"] is False
-    assert BaxterPnPEnvConfig(task_source=str(tmp_path)).render_effects is False
-    assert BaxterPnPEnvConfig(task_source=str(tmp_path), render_effects=True).render_effects is True  # flag wins
+    assert BaxterPnPEnvConfig.from_source(str(tmp_path)).render_effects is False
+    assert BaxterPnPEnvConfig.from_source(str(tmp_path), render_effects=True).render_effects is True  # flag wins
 
 
 def test_a_task_recorded_before_the_field_reads_back_with_effects(tmp_path):
@@ -33,7 +33,7 @@ def test_a_task_recorded_before_the_field_reads_back_with_effects(tmp_path):
     old = json.loads(path.read_text())
     del old["render_effects"]
     path.write_text(json.dumps(old))
-    cfg = BaxterPnPEnvConfig(task_source=str(tmp_path))
+    cfg = BaxterPnPEnvConfig.from_source(str(tmp_path))
     assert cfg.render_effects is True and cfg.cameras == ["front"]
     from lerobot_pnp.cache import same_env_configs
 

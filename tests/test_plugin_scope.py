@@ -159,7 +159,7 @@ def test_an_unknown_field_in_a_recorded_task_is_refused_by_every_reader(tmp_path
     record = json.loads((root / RECORDED_FILE).read_text())
     (root / RECORDED_FILE).write_text(json.dumps({**record, "gripper_tilt": 0.1}))
     readers = {
-        "eval": lambda: BaxterPnPEnvConfig(task_source=str(root)),
+        "eval": lambda: BaxterPnPEnvConfig.from_source(str(root)),
         "train": lambda: dataset_task(root),
         "train copy": lambda: copy_recorded(root, tmp_path),
         "viz replay": lambda: replay_config(types.SimpleNamespace(root=root, fps=1)),

@@ -65,22 +65,22 @@ def test_the_stock_eval_hook_refuses_other_cameras_before_building_the_policy(
     make_policy = _checked_make_policy(lambda *args, **kwargs: built.append(args))
     cfg = PreTrainedConfig.from_pretrained(pixels_checkpoint)
     cfg.pretrained_path = pixels_checkpoint
-    env_cfg = BaxterPnPEnvConfig(task_source=str(pixels_checkpoint), **changes)
+    env_cfg = BaxterPnPEnvConfig.from_source(str(pixels_checkpoint), **changes)
     with pytest.raises(IncompatiblePolicyError) as err:
         make_policy(cfg, env_cfg=env_cfg)
     assert str(err.value).startswith("policy of type 'pnp_pixels' does not fit") and message in str(err.value)
     assert not built
-    make_policy(cfg, env_cfg=BaxterPnPEnvConfig(task_source=str(pixels_checkpoint)))  # its own task: built
+    make_policy(cfg, env_cfg=BaxterPnPEnvConfig.from_source(str(pixels_checkpoint)))  # its own task: built
     assert len(built) == 1
 
 
 @pytest.mark.parametrize(("changes", "flag", "message"), MISMATCHES)
 def test_the_strict_loader_refuses_other_cameras(pixels_checkpoint, changes, flag, message):
-    env_cfg = BaxterPnPEnvConfig(task_source=str(pixels_checkpoint), **changes)
+    env_cfg = BaxterPnPEnvConfig.from_source(str(pixels_checkpoint), **changes)
     with pytest.raises(IncompatiblePolicyError, match="pnp_pixels") as err:
         load_policy(pixels_checkpoint, env_cfg=env_cfg)
     assert message in str(err.value)
-    assert load_policy(pixels_checkpoint, env_cfg=BaxterPnPEnvConfig(task_source=str(pixels_checkpoint))).type == (
+    assert load_policy(pixels_checkpoint, env_cfg=BaxterPnPEnvConfig.from_source(str(pixels_checkpoint))).type == (
         "pnp_pixels"
     )
 

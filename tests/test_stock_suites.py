@@ -117,13 +117,13 @@ def test_a_suite_contradicting_the_checkpoints_control_mode(tmp_path):
     """A nudge suite fires at keyframe step 1: in a dense checkpoint's task that is before the arm moves."""
     dense = BaxterPnPEnvConfig(preset="paper", control_mode="dense")
     write_checkpoint_task({"type": "baxter_pnp", **dense.to_dict()}, tmp_path)
-    dense_ckpt = BaxterPnPEnvConfig(task_source=str(tmp_path))
+    dense_ckpt = BaxterPnPEnvConfig.from_source(str(tmp_path))
     assert dense_ckpt.control_mode == "dense"
     with pytest.raises(ConfigError, match="suite 'nudge_0.03' nudges the object at env step 1"):
-        BaxterPnPEnvConfig(task_source=str(tmp_path), task="nominal,nudge_0.03")
-    ok = BaxterPnPEnvConfig(task_source=str(tmp_path), task="drop,latency")  # no keyframe-timed change
+        BaxterPnPEnvConfig.from_source(str(tmp_path), task="nominal,nudge_0.03")
+    ok = BaxterPnPEnvConfig.from_source(str(tmp_path), task="drop,latency")  # no keyframe-timed change
     assert ok.task == "drop,latency" and ok.control_mode == "dense"
-    fixed = BaxterPnPEnvConfig(task_source=str(tmp_path), task="nudge_0.03", nudge_at_step=30)
+    fixed = BaxterPnPEnvConfig.from_source(str(tmp_path), task="nudge_0.03", nudge_at_step=30)
     assert fixed.nudge_at_step == 30
 
 
@@ -202,3 +202,32 @@ def test_video_frames_are_sketches_and_a_frozen_scene_is_drawn_once():
     env.reset(seed=4, options={"lerobot_new_rollout": True})
     assert not env.is_frozen and env.render() is not still
     env.close()
+
+
+def test_stock_lerobot_eval_resolves_the_task_a_test_builds_from_the_same_record(tmp_path, monkeypatch):
+    """``lerobot-eval --policy.path=<ckpt>``: the plugin's load-time edge, then LeRobot's own parser (``parser.wrap``
+    over ``EvalPipelineConfig``, which builds the env config inside draccus): the env config it resolves equals
+    ``BaxterPnPEnvConfig(recorded=<the checkpoint's record>, **the same flags)``."""
+    from lerobot.configs import parser
+    from lerobot.configs.eval import EvalPipelineConfig
+
+    from lerobot_pnp.integration.registration import hand_over_command_line
+
+    ckpt = _checkpoint(tmp_path / "ckpt")
+    task = {"type": "baxter_pnp", **BaxterPnPEnvConfig(preset="full", image_width=80).to_dict()}
+    write_checkpoint_task(task, ckpt)
+    argv = ["lerobot-eval", f"--policy.path={ckpt}", "--env.type=baxter_pnp", "--env.task=nominal,drop",
+            "--env.nudge_max=0.01", "--policy.device=cpu", f"--output_dir={tmp_path / 'out'}"]  # fmt: skip
+    monkeypatch.setattr(BaxterPnPEnvConfig, "edge_records", {})
+    monkeypatch.setattr(sys, "argv", argv)
+    hand_over_command_line()  # what the plugin does when lerobot-eval loads it
+    seen = {}
+
+    def eval_main(cfg):
+        seen["env"] = cfg.env
+
+    eval_main.__annotations__ = {"cfg": EvalPipelineConfig}  # what parser.wrap parses (as lerobot_eval.main)
+    parser.wrap()(eval_main)()
+    explicit = BaxterPnPEnvConfig(recorded=BaxterPnPEnvConfig.read_source(ckpt), task="nominal,drop", nudge_max=0.01)
+    assert seen["env"].to_dict() == explicit.to_dict()
+    assert explicit.preset == "full" and explicit.image_width == 80 and explicit.nudge_max == 0.01

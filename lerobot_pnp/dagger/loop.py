@@ -75,7 +75,7 @@ def base_env_config(cfg: DaggerConfig):
     from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
 
     if cfg.base_root:
-        return BaxterPnPEnvConfig(task_source=cfg.base_root, **cfg.env_changes)
+        return BaxterPnPEnvConfig.from_source(cfg.base_root, **cfg.env_changes)
     return BaxterPnPEnvConfig(preset=cfg.preset, **cfg.env_changes)
 
 

@@ -49,8 +49,8 @@ def register_gym() -> None:
 
 # ---------------------------------------------------------------------------------------------- configs
 def register_env_config() -> None:
-    """``--env.type=baxter_pnp``: importing ``env_config`` registers it; inside a stock script the task source
-    its command line names becomes the default of every preset-less env config; LeRobot's ``--help`` as ours."""
+    """``--env.type=baxter_pnp``: importing ``env_config`` registers it; inside a stock script the task its
+    command line's source records is read for every preset-less env config; LeRobot's ``--help`` as ours."""
     from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
     from lerobot_pnp.support.cli_help import annotate_stock_help
 
@@ -81,13 +81,14 @@ def register_task_record() -> None:
 
 
 def hand_over_command_line() -> None:
-    """Inside a stock ``lerobot-*`` script, the task source its command line names (``stock_cli``) becomes the
-    default of every preset-less env config: LeRobot's parser hands the env config none of its sibling fields."""
-    from lerobot_pnp.integration.stock_cli import stock_script, task_source_from_argv
+    """Inside a stock ``lerobot-*`` script, the edge: the tasks recorded with the sources its command line names
+    (``stock_cli.command_line_sources``) are read now, before LeRobot parses it, and become the records of every
+    preset-less env config built from it (LeRobot's parser hands the env config none of its sibling fields)."""
+    from lerobot_pnp.integration.stock_cli import command_line_sources, stock_script
     from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
 
     if stock_script() is not None:
-        BaxterPnPEnvConfig.command_line_source = task_source_from_argv()
+        BaxterPnPEnvConfig.edge_records = BaxterPnPEnvConfig.read_edge_records(command_line_sources())
 
 
 # ---------------------------------------------------------------------------------------------- stock scripts

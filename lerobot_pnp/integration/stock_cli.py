@@ -2,8 +2,8 @@
 
 LeRobot's parser builds the env config inside ``draccus.parse`` of the whole pipeline config and hands it none of
 its sibling fields, so the task a run uses (``--dataset.root`` of ``lerobot-train``, ``--policy.path`` of
-``lerobot-eval``) is read here, once, when LeRobot's env configs are loaded (``registration``), and handed to
-the env config as a value. The config objects never read the process's arguments.
+``lerobot-eval``) is read here, once, when LeRobot's env configs are loaded (``registration``), and the task it records is
+handed to the env config as a value. The config objects never read the process's arguments.
 
 ``run_is_ours`` decides whether the plugin's hooks and messages have any business in this process: LeRobot
 imports the plugin in every ``lerobot-*`` process, and a run on another env, policy and dataset must see
@@ -71,6 +71,16 @@ def task_source_from_argv() -> str | None:
         return source
     config = _config_file()
     return _section(config, "dataset").get("root") or _section(config, "policy").get("path")
+
+
+def command_line_sources() -> dict[str | None, str | None]:
+    """The task sources this process's arguments name, as ``BaxterPnPEnvConfig.read_edge_records`` takes them:
+    the default source (None: ``task_source_from_argv``) and an explicit ``--env.task_source``."""
+    sources: dict[str | None, str | None] = {None: task_source_from_argv()}
+    explicit = arg("env.task_source") or _section(_config_file(), "env").get("task_source")
+    if isinstance(explicit, str) and explicit:
+        sources[explicit] = explicit
+    return sources
 
 
 def dataset_roots_from_argv() -> list[str]:

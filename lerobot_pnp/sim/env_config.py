@@ -9,11 +9,16 @@ start, where the object goes, the perturbations, the control mode and the episod
 Task fields default to ``None``, which means "not set here". They are resolved once, in this order:
 
 1. the named preset (``--env.preset``; ``paper`` = the paper's task; the values are in ``presets.py``),
-2. unless a preset was named explicitly, the task recorded with the data the run uses (``task_source``: a
-   dataset folder or a checkpoint; in stock ``lerobot-train`` it is ``--dataset.root`` and in ``lerobot-eval``
-   ``--policy.path``, read by ``stock_cli`` when the plugin loads, so a policy trained on a dataset with a
-   non-default task is evaluated on that task with no extra flag),
+2. unless a preset was named explicitly, the recorded task it is given (``recorded``: the env config recorded with
+   a dataset folder or a checkpoint, ``task_source``),
 3. fields given explicitly.
+
+Building a config reads no file and no command line: its meaning is a function of its fields and of the record it
+is given. Records are read at the edge: ``from_source`` (Python callers), and ``edge_records``, the records of the
+sources a command line names, read before the command line is parsed (stock ``lerobot-train``'s
+``--dataset.root`` and ``lerobot-eval``'s ``--policy.path`` by ``registration`` when the plugin loads, so a policy
+trained on a dataset with a non-default task is evaluated on that task with no extra flag; ``--env.task_source``
+of those and of ``lerobot-pnp`` commands likewise).
 
 The observation setup (``cameras``, ``image_height``, ``image_width``, ``render_effects``) and the control mode
 follow the same rule, so ``lerobot-eval --policy.path=...`` of a policy trained on camera images renders the same
@@ -25,7 +30,10 @@ from __future__ import annotations
 
 import logging
 import os
-from dataclasses import dataclass, field, fields
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import InitVar, dataclass, field, fields
+from pathlib import Path
 from typing import ClassVar
 
 from lerobot.configs.types import FeatureType, PolicyFeature
@@ -75,7 +83,9 @@ class BaxterPnPEnvConfig(EnvConfig):
     preset: str | None = None
     # A dataset folder or checkpoint whose recorded task to use (default: from the command line, see above).
     task_source: str | None = None
-    command_line_source: ClassVar[str | None] = None  # that default, handed over by registration (stock scripts)
+    # The records read at the edge, by source (None: the default source of a stock script's command line); a
+    # record is a dict ({}: the source records none) or the ConfigError reading it raised (raised on use)
+    edge_records: ClassVar[dict[str | None, dict | ConfigError]] = {}
     # keyframe (one step = move to a joint keyframe) | dense (one control period); None = the recorded one, else keyframe
     control_mode: str | None = None
     episode_length: int | None = None  # env steps before truncation; default keyframe_budget (dense: 1 s per keyframe)
@@ -142,9 +152,11 @@ class BaxterPnPEnvConfig(EnvConfig):
     carry_min_time: float | None = None
     features: dict[str, PolicyFeature] = field(default_factory=dict)
     features_map: dict[str, str] = field(default_factory=dict)
+    # The recorded task to start from (a checked record, ``read_source``; {}: none); not a field nor a flag
+    recorded: InitVar[dict | None] = None
 
-    def __post_init__(self):
-        self._resolve_task()
+    def __post_init__(self, recorded: dict | None):
+        self._resolve_task(recorded)
         validate(self)
         if self.fps is None:
             self.fps = KEYFRAME_FPS if self.control_mode == "keyframe" else DENSE_FPS
@@ -175,15 +187,13 @@ class BaxterPnPEnvConfig(EnvConfig):
         check_task(self)  # --env.task naming suites: every name known, every suite applicable to this task
 
     # ------------------------------------------------------------------ resolution and validation
-    def _resolve_task(self) -> None:
+    def _resolve_task(self, recorded: dict | None) -> None:
         if self.preset is not None and self.preset not in PRESETS:
             raise ConfigError(f"env.preset must be one of {sorted(PRESETS)}, got {shown(self.preset)}")
-        recorded: dict = {}
-        if self.preset is None:
-            source = self.task_source or self.command_line_source
-            found = find_recorded(source) if source else None
-            if found is not None:  # the record, checked by the rule of every reader (recorded_task)
-                recorded = check_record(*found, BaxterPnPEnvConfig)
+        if self.preset is not None:
+            recorded = {}  # a named preset: no recorded task
+        elif recorded is None:
+            recorded = self._edge_record()
         if recorded:
             # A recorded task is complete for the fields that existed when it was recorded; a field added since
             # had no effect then, which is its paper value (every paper value means "feature off").
@@ -202,6 +212,54 @@ class BaxterPnPEnvConfig(EnvConfig):
                 setattr(self, name, default)
         self._resolve_control(recorded)
         self.task_source = None  # resolved: the config now stands on its own
+
+    def _edge_record(self) -> dict:
+        """The record of ``task_source`` (else of the command line's default source) read at the edge."""
+        record = self.edge_records.get(self.task_source, {} if self.task_source is None else None)
+        if record is None:
+            raise ConfigError(
+                f"env.task_source {shown(self.task_source)} was not read where the config was built: build it with "
+                "BaxterPnPEnvConfig.from_source(source, **fields), or name it on the command line (--env.task_source)"
+            )
+        if isinstance(record, ConfigError):
+            raise record
+        return record
+
+    # ------------------------------------------------------------------ the edge: records read from disk
+    @staticmethod
+    def read_source(source: str | Path) -> dict:
+        """The task recorded with a dataset folder or checkpoint, checked (``recorded_files.check_record``); {}
+        when it records none."""
+        found = find_recorded(source)
+        return check_record(*found, BaxterPnPEnvConfig) if found is not None else {}
+
+    @classmethod
+    def from_source(cls, source: str | Path, **fields_) -> BaxterPnPEnvConfig:
+        """A config starting from the task ``source`` (a dataset folder or checkpoint) records, read here."""
+        recorded = cls.read_source(source) if fields_.get("preset") is None else {}
+        return cls(task_source=str(source), recorded=recorded, **fields_)
+
+    @classmethod
+    def read_edge_records(cls, sources: dict[str | None, str | None]) -> dict[str | None, dict | ConfigError]:
+        """The records of ``sources`` (key: the ``task_source`` they stand for, None the default source), each a
+        record, {} or the ConfigError reading it raised (a bad record fails the config that uses it)."""
+        out: dict[str | None, dict | ConfigError] = {}
+        for key, source in sources.items():
+            try:
+                out[key] = cls.read_source(source) if source else {}
+            except ConfigError as err:
+                out[key] = err
+        return out
+
+    @classmethod
+    @contextmanager
+    def reading_edge_records(cls, records: dict[str | None, dict | ConfigError]) -> Iterator[None]:
+        """``edge_records`` while a command line is parsed into configs, then the previous ones again."""
+        before, cls.edge_records = cls.edge_records, records
+        try:
+            yield
+        finally:
+            cls.edge_records = before
 
     def _resolve_control(self, recorded: dict) -> None:
         """Control mode and rate: the recorded ones (the data a policy learned from), and an explicit flag that
@@ -290,6 +348,8 @@ class BaxterPnPEnvConfig(EnvConfig):
             raise ConfigError(f"unknown baxter_pnp env field(s) {unknown}; valid fields: {sorted(valid)}")
         if data.get("preset") is None and "preset" in data:
             data.pop("preset")
+        if data.get("task_source"):  # its record is read here, before the config is built
+            return cls.from_source(data.pop("task_source"), **data)
         return cls(**data)
 
     def with_changes(self, **changes) -> BaxterPnPEnvConfig:

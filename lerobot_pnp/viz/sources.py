@@ -91,7 +91,7 @@ def replay_config(ds) -> BaxterPnPEnvConfig:
     recorded = read_recorded(root)
     if recorded is not None:
         motion = {k: recorded[k] for k in MOTION_FIELDS if recorded.get(k) is not None}
-        return BaxterPnPEnvConfig(task_source=str(root), cameras=[], **motion)
+        return BaxterPnPEnvConfig.from_source(str(root), cameras=[], **motion)
     fps = int(ds.fps)
     mode = "keyframe" if fps <= robot.KEYFRAME_FPS else "dense"
     logger.warning(
