@@ -23,13 +23,13 @@ from pathlib import Path
 import protocol_runs  # scripts/: the protocol runs on disk
 
 from lerobot_pnp.cache import CHECKPOINT_FILES, code_versions, digest_files, key_of
-from lerobot_pnp.dagger.config import RECOVERING_RECIPE
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.evaluation.checkpoints import load_policy
 from lerobot_pnp.evaluation.closed_loop import eval_lerobot_policy
 from lerobot_pnp.evaluation.records import summarize
 from lerobot_pnp.evaluation.stats import wilson_interval
 from lerobot_pnp.policy.configuration_pnp_lstm import PnpLstmConfig
+from lerobot_pnp.policy.recipes import RECOVERING_RECIPE
 from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.sim.suites import HELD_OUT_AXES, SUITES
 

@@ -70,7 +70,7 @@ def test_one_nested_flag_keeps_every_other_default(name, field, value, tmp_path,
 
 
 def test_a_dagger_policy_flag_keeps_the_recovering_recipe():
-    from lerobot_pnp.dagger import RECOVERING_RECIPE
+    from lerobot_pnp.policy.recipes import RECOVERING_RECIPE
 
     cfg = cli.config_of("dagger", ["--preset", "paper", "--policy.hidden_size", "8"])
     assert cfg.preset == "paper" and cfg.policy.hidden_size == 8
@@ -78,7 +78,7 @@ def test_a_dagger_policy_flag_keeps_the_recovering_recipe():
 
 
 def test_a_config_file_with_part_of_the_policy_keeps_the_rest_of_the_recipe(tmp_path):
-    from lerobot_pnp.dagger import RECOVERING_RECIPE
+    from lerobot_pnp.policy.recipes import RECOVERING_RECIPE
 
     config = tmp_path / "dagger.json"
     config.write_text(json.dumps({"num_demos": 10, "policy": {"num_layers": 1}}))

@@ -422,7 +422,7 @@ def test_a_round_folder_dagger_did_not_write_is_kept(dagger_cli_run):
 
 
 def test_one_policy_flag_keeps_the_recovering_recipe_in_the_saved_config(dagger_cli_run):
-    from lerobot_pnp.dagger import RECOVERING_RECIPE
+    from lerobot_pnp.policy.recipes import RECOVERING_RECIPE
 
     saved = json.loads((dagger_cli_run / "round_00" / "train" / "train_fast_config.json").read_text())["policy"]
     assert {k: saved[k] for k in RECOVERING_RECIPE} == {**RECOVERING_RECIPE, "hidden_size": 8}

@@ -523,7 +523,7 @@ def test_still_arm_phases_are_the_demonstrations_still_keyframes(full_root):
 )
 def test_shipped_configs_train_the_recovering_recipe(name):
     """The configs that say they train the recovering planner hold every field of the recipe the study trains."""
-    from lerobot_pnp.dagger import RECOVERING_RECIPE
+    from lerobot_pnp.policy.recipes import RECOVERING_RECIPE
 
     policy = json.loads((Path(__file__).parents[1] / "configs" / f"{name}.json").read_text())["policy"]
     assert {k: policy.get(k) for k in RECOVERING_RECIPE} == RECOVERING_RECIPE

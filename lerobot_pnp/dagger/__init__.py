@@ -6,14 +6,13 @@ folder: what a run records as its own, the table).
 The suites and the statistics are ``lerobot_pnp.evaluation``'s.
 """
 
-from .config import RECOVERING_BATCH_SIZE, RECOVERING_RECIPE, DaggerConfig
+from .config import RECOVERING_BATCH_SIZE, DaggerConfig
 from .folder import write_table
 from .loop import evaluate_checkpoint, run_dagger
 from .rollouts import evaluate, labelled_rollout
 
 __all__ = [
     "RECOVERING_BATCH_SIZE",
-    "RECOVERING_RECIPE",
     "DaggerConfig",
     "evaluate",
     "evaluate_checkpoint",

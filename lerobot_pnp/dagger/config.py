@@ -8,6 +8,7 @@ from typing import Any
 
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.policy import PnpLstmConfig
+from lerobot_pnp.policy.recipes import RECOVERING_RECIPE
 from lerobot_pnp.presets import TASK_FIELDS
 from lerobot_pnp.sim.suites import SUITES
 
@@ -52,24 +53,6 @@ def _suite_problems(field_name: str, names: list[str]) -> list[str]:
     return problems
 
 
-# The recovering planner's recipe (``configs/dagger.json``; what each part is and why: docs/policy.md).
-# The study (``lerobot_pnp.report``) trains the same recipe on its own data.
-RECOVERING_RECIPE: dict[str, Any] = {
-    "mode": "recovering",
-    "hidden_size": 256,
-    "num_layers": 2,  # a second layer carries two steps of latency (docs/policy.md)
-    "optimizer_lr": 3e-3,
-    "lr_scheduler": "cosine",
-    "scheduler_warmup_steps": 200,
-    "latency_augment_prob": 0.5,
-    "latency_augment_jitter": 0.5,
-    "latency_augment_stretch": True,
-    "binary_gripper": True,
-    "await_observation": True,
-    "still_arm_phases": [7],  # the place's open keeps the arm (Phase.PLACE_DESCEND) ...
-    "still_arm_tol": 0.05,  # ... where the network would move it by more than a refinement
-    "memory_per_attempt": True,  # a re-pick starts from the zero state (docs/policy.md)
-}
 RECOVERING_BATCH_SIZE = 32  # episodes per batch of the recipe (DAgger's default, the held-out protocol's)
 # epochs between two held-out losses of a recipe training (no figure reads its curve; a pass over the held-out
 # episodes costs about a tenth of an epoch's training)

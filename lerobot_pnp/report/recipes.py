@@ -10,8 +10,8 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from lerobot_pnp.dagger import RECOVERING_RECIPE
 from lerobot_pnp.dagger.config import DEFAULT_ROLLOUT_SUITES, mixture_beta
+from lerobot_pnp.policy.recipes import RECOVERING_RECIPE
 from lerobot_pnp.sim.suites import RECOVERY_BUDGET
 
 if TYPE_CHECKING:
