@@ -3,9 +3,13 @@
 **Cells.** A cell is one method's success on one suite, pooled over its training seeds (``success`` ->
 suite -> method: ``rate`` and ``n``; the successes are ``rate * n``). Two runs' cells *differ beyond their
 intervals* when the 95 % interval of the difference of their rates (B minus A; Newcombe's hybrid score
-interval for two independent rates, ``verdicts.difference_interval``) excludes 0. The runs' episodes are
-independent draws only when their seeds differ; with the same seeds on the same code and machine the rates
-are equal and the difference is 0. A cell that only one run has is listed as missing from the other.
+interval for two independent rates, ``verdicts.difference_interval``) excludes 0. Two runs of one config
+evaluate the same eval seeds, so their episodes start alike; the interval for independent rates is then the
+wider one, and a cell flagged by it differs the more surely. On the same code, CPU model and locked
+dependencies the seeded stages are meant to give the same rates; on another CPU the trained nets differ in
+their last bits and drift, and a cell may differ by chance: at 95 %, up to about one in twenty of the cells
+whose runs agree in distribution.
+A cell that only one run has is listed as missing from the other.
 
 **Verdicts.** Each ``held_out_axes`` entry (one method on one axis) is given its verdict anew by
 ``verdicts.summary_verdict``, from its counts, in both runs, so that two summaries written under different
