@@ -127,6 +127,9 @@ def test_quick_study_writes_a_report_where_the_planner_beats_the_lookup_table(tm
     summary = json.loads((out / "summary.json").read_text())
     nudge = summary["vs_lookup_table"]["clocked_lstm"]["nudge_0.03"]
     assert nudge["difference"] > 0 and nudge["max_p"] < 0.05, nudge
+    # the summary records where and from what it was made: CPU model, cores, the commit and the date
+    assert {"cpu", "cores_available", "commit", "uncommitted_changes", "date"} <= summary["machine"].keys()
+    assert summary["machine"]["cpu"] and summary["machine"]["cores_available"] >= 1
 
     # A report written again removes a figure the previous report drew and this one does not (its summary says
     # which), and nothing else in figures/.

@@ -25,6 +25,14 @@ def _invocation(cfg, t: dict) -> str:
     )
 
 
+def _code_sentence(mach: dict) -> str:
+    """The commit the study ran (and whether its code had uncommitted changes) and the date, where recorded."""
+    if not mach.get("commit"):
+        return ""
+    dirty = " with uncommitted changes to the study's code" if mach.get("uncommitted_changes") else ""
+    return f" Code: commit `{mach['commit'][:12]}`{dirty}, run on {mach.get('date', '?')}."
+
+
 def header(layout, cfg, methods, summary, left=()) -> list[str]:
     """What produced the report and how it evaluates, then the Methods section (``left``: the evaluations
     ``--report_only`` left out, named in the method lines)."""
@@ -34,7 +42,8 @@ def header(layout, cfg, methods, summary, left=()) -> list[str]:
         f"Produced by `{summary['command']}` (preset `{cfg.preset}`; full config in `{layout.config.name}`). "
         f"Task: `{cfg.task_preset}` (the demonstrations' task, recorded with them; every suite changes it).",
         f"Machine: {mach['cpu']}, {mach['cores_available']} cores available; Python {mach['python']}, "
-        f"LeRobot {mach['lerobot']}, torch {mach['torch']}, MuJoCo {mach['mujoco']}, gymnasium {mach['gymnasium']}.",
+        f"LeRobot {mach['lerobot']}, torch {mach['torch']}, MuJoCo {mach['mujoco']}, gymnasium {mach['gymnasium']}."
+        + _code_sentence(mach),
         f"Stage wall time (s): dataset {t.get('dataset', 0):.0f}"
         + "".join(f" (+ {k.split('_', 1)[1]} recording {v:.0f})" for k, v in t.items() if k.startswith("dataset_"))
         + ", training "
