@@ -497,7 +497,7 @@ def test_saves_without_image_embedding_write_the_same_table(tmp_path):
 
 @pytest.mark.parametrize(("field", "value"), [("partition", "cpu\n#SBATCH --x=1"), ("job_name", "a b"), ("qos", "q'")])
 def test_generate_refuses_a_slurm_name_sbatch_would_not_read_as_one(field, value):
-    from lerobot_pnp.dataset.generation import SlurmOptions
+    from lerobot_pnp.dataset.executors import SlurmOptions
 
     with pytest.raises(ConfigError, match=f"slurm.{field} may hold only") as err:
         SlurmOptions(**{field: value})

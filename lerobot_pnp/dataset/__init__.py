@@ -13,7 +13,8 @@ Modules, one job each: ``schema`` (the feature spec), ``episodes`` (slot seeds, 
 ``hub`` (``push``).
 """
 
-from lerobot_pnp.dataset.generation import GenerateConfig, SlurmOptions, generate
+from lerobot_pnp.dataset.executors import SlurmOptions
+from lerobot_pnp.dataset.generation import GenerateConfig, generate
 from lerobot_pnp.dataset.hub import PushConfig, push
 from lerobot_pnp.dataset.schema import ROBOT_TYPE, dataset_features
 from lerobot_pnp.dataset.splits import load_split

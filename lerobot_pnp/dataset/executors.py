@@ -19,9 +19,11 @@ import sys
 import threading
 import time
 import warnings
+from dataclasses import dataclass
 from pathlib import Path
 
-from lerobot_pnp.errors import DatasetError
+from lerobot_pnp.errors import ConfigError, DatasetError
+from lerobot_pnp.support.slurm_fields import check_slurm_fields
 
 
 def default_workers() -> int:
@@ -253,3 +255,20 @@ def active_slurm_jobs(job_ids: list[str]) -> list[str]:
         return []
     res = subprocess.run(["squeue", "-h", "-j", ",".join(job_ids)], capture_output=True, text=True, timeout=30)
     return list(job_ids) if res.stdout.strip() else []  # finished jobs are unknown to squeue (empty/rc 1)
+
+
+@dataclass
+class SlurmOptions:
+    """``--slurm.*``: resources of each SLURM array task (one shard) and of the merge job."""
+
+    partition: str = "cpu"  # SLURM partition (sbatch --partition) of the shard tasks and the merge job
+    cpus_per_task: int = 1  # CPUs per array task (sbatch --cpus-per-task)
+    mem_per_cpu_gb: int = 2  # GB per CPU (an integer: sbatch rejects "1.5G")
+    time: str = "04:00:00"  # per task, HH:MM:SS
+    qos: str | None = None  # SLURM quality of service (sbatch --qos); none = the cluster default
+    job_name: str = "pnp_generate"  # SLURM job name of the array; the merge job adds "_merge"
+
+    def __post_init__(self):
+        if self.cpus_per_task < 1 or self.mem_per_cpu_gb <= 0:
+            raise ConfigError("slurm.cpus_per_task must be >= 1 and slurm.mem_per_cpu_gb > 0")
+        check_slurm_fields(self)

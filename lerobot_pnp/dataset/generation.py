@@ -22,6 +22,7 @@ from pathlib import Path
 from lerobot_pnp.dataset.annotations import annotate_subtasks
 from lerobot_pnp.dataset.executors import (
     ProgressBar,
+    SlurmOptions,
     active_slurm_jobs,
     console_to_file,
     default_workers,
@@ -46,7 +47,6 @@ from lerobot_pnp.dataset.workdir import (
 from lerobot_pnp.errors import ConfigError, DatasetError, OtherSettingsError
 from lerobot_pnp.outputs import LOCK_FILE, remove_path, write_json_atomic
 from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
-from lerobot_pnp.support.slurm_fields import check_slurm_fields
 
 EXECUTORS = ("local", "slurm")
 MAX_EPISODES = 10_000_000  # above this, --allow_huge must say it is meant (memory and disk grow with N)
@@ -57,23 +57,6 @@ SHARD_SIZE = {"keyframe": 100, "dense": 20, "cameras": 25}
 MAX_LOCAL_SHARDS = 64
 # What a resumed run must share with the run on disk.
 _CONTENT_FIELDS = ("repo_id", "seed", "num_episodes", "max_retries", "train_fraction", "env")
-
-
-@dataclass
-class SlurmOptions:
-    """``--slurm.*``: resources of each SLURM array task (one shard) and of the merge job."""
-
-    partition: str = "cpu"  # SLURM partition (sbatch --partition) of the shard tasks and the merge job
-    cpus_per_task: int = 1  # CPUs per array task (sbatch --cpus-per-task)
-    mem_per_cpu_gb: int = 2  # GB per CPU (an integer: sbatch rejects "1.5G")
-    time: str = "04:00:00"  # per task, HH:MM:SS
-    qos: str | None = None  # SLURM quality of service (sbatch --qos); none = the cluster default
-    job_name: str = "pnp_generate"  # SLURM job name of the array; the merge job adds "_merge"
-
-    def __post_init__(self):
-        if self.cpus_per_task < 1 or self.mem_per_cpu_gb <= 0:
-            raise ConfigError("slurm.cpus_per_task must be >= 1 and slurm.mem_per_cpu_gb > 0")
-        check_slurm_fields(self)
 
 
 @dataclass

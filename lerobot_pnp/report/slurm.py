@@ -10,7 +10,7 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 
-from lerobot_pnp.dataset.generation import SlurmOptions
+from lerobot_pnp.dataset.executors import SlurmOptions
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.support.slurm_fields import check_slurm_fields
 
