@@ -31,13 +31,11 @@ from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_STATE
 
 from lerobot_pnp.errors import ConfigError, PolicyError
 
+from .options_pnp_lstm import LR_SCHEDULERS, MODES, STILL_ARM_PHASES, option_rules
+
 logger = logging.getLogger(__name__)
 
-LR_SCHEDULERS = ("none", "cosine")
-MODES = ("clocked", "recovering")
-# The FSM states the expert leaves without moving the arm (``expert.FSMExpert.next_keyframe``: close, hold before
-# the place, open, hold after the retract), the valid ``still_arm_phases``.
-STILL_ARM_PHASES = (2, 4, 7, 9)
+__all__ = ["LR_SCHEDULERS", "MODES", "STILL_ARM_PHASES", "PnpLstmConfig"]
 
 
 @PreTrainedConfig.register_subclass("pnp_lstm")
@@ -211,82 +209,7 @@ class PnpLstmConfig(PreTrainedConfig):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        checks = [
-            (self.steps_per_subtask >= 1, f"steps_per_subtask must be >= 1, got {self.steps_per_subtask}"),
-            (self.n_subtasks >= 1, f"n_subtasks must be >= 1, got {self.n_subtasks}"),
-            (self.num_layers in (1, 2), f"num_layers must be 1 or 2, got {self.num_layers}"),
-            (self.hidden_size >= 1, f"hidden_size must be >= 1, got {self.hidden_size}"),
-            (0.0 <= self.dropout < 1.0, f"dropout must be in [0, 1), got {self.dropout}"),
-            (self.input_noise_std >= 0.0, f"input_noise_std must be >= 0, got {self.input_noise_std}"),
-            (
-                0.0 <= self.latency_augment_prob <= 1.0,
-                f"latency_augment_prob must be in [0, 1], got {self.latency_augment_prob}",
-            ),
-            (
-                self.latency_augment_max >= 1 and 0.0 <= self.latency_augment_jitter <= 1.0,
-                f"latency_augment_max must be >= 1 and latency_augment_jitter in [0, 1], got "
-                f"{self.latency_augment_max} and {self.latency_augment_jitter}",
-            ),
-            (self.optimizer_lr > 0.0, f"optimizer_lr must be > 0, got {self.optimizer_lr}"),
-            (
-                self.optimizer_weight_decay >= 0.0,
-                f"optimizer_weight_decay must be >= 0, got {self.optimizer_weight_decay}",
-            ),
-            (
-                self.scheduler_warmup_steps >= 0,
-                f"scheduler_warmup_steps must be >= 0, got {self.scheduler_warmup_steps}",
-            ),
-            (
-                self.lr_scheduler in LR_SCHEDULERS,
-                f"lr_scheduler must be one of {LR_SCHEDULERS}, got {self.lr_scheduler!r}",
-            ),
-            (
-                not (self.carry_hidden_across_subtasks and not self.shared_network),
-                "carry_hidden_across_subtasks=True needs shared_network=True: separate subtask networks "
-                "do not share a hidden-state space",
-            ),
-            (
-                self.n_obs_steps == 1,
-                f"pnp_lstm keeps its own history in the LSTM state; n_obs_steps must be 1, got {self.n_obs_steps}",
-            ),
-            (self.mode in MODES, f"mode must be one of {MODES}, got {self.mode!r}"),
-            (
-                self.recovering or not self.memory_per_attempt,
-                "memory_per_attempt is the recovering planner's (mode='recovering'); the clocked planner's "
-                "subtask nets restart at their switch anyway",
-            ),
-            (
-                self.mode != "recovering" or not (self.shared_network or self.carry_hidden_across_subtasks),
-                "shared_network and carry_hidden_across_subtasks are the clocked planner's (its subtask nets); the "
-                "recovering planner has one trunk over the whole episode: leave them False",
-            ),
-            (
-                self.await_state_tol > 0
-                and self.await_action_tol > 0
-                and self.await_max_steps >= 1
-                and (self.await_in_flight is None or self.await_in_flight >= 0)
-                and self.await_past_states >= 1,
-                "await_state_tol and await_action_tol must be > 0, await_max_steps and await_past_states >= 1 and "
-                f"await_in_flight >= 0, got {self.await_state_tol}, {self.await_action_tol}, {self.await_max_steps}, "
-                f"{self.await_past_states} and {self.await_in_flight}",
-            ),
-            (
-                set(self.still_arm_phases) <= set(STILL_ARM_PHASES),
-                f"still_arm_phases must be among the FSM states that keep the arm {list(STILL_ARM_PHASES)}, got "
-                f"{list(self.still_arm_phases)}",
-            ),
-            (self.still_arm_tol >= 0.0, f"still_arm_tol must be >= 0, got {self.still_arm_tol}"),
-            (self.max_episode_length >= 1, f"max_episode_length must be >= 1, got {self.max_episode_length}"),
-            (
-                self.subtask_loss_weight >= 0.0 and self.phase_loss_weight >= 0.0,
-                "subtask_loss_weight and phase_loss_weight must be >= 0",
-            ),
-            (
-                self.dataset_fps is None or self.dataset_fps >= 1,
-                f"dataset_fps must be >= 1 or None, got {self.dataset_fps}",
-            ),
-        ]
-        for ok, message in checks:
+        for ok, message in option_rules(self):
             if not ok:
                 raise ConfigError(f"policy.{message}")
 

@@ -1,0 +1,111 @@
+"""The rules of ``pnp_lstm``'s options, one group per part of the planner that reads them.
+
+``PnpLstmConfig`` holds the options of two planners and of the parts they share; each group below is the rule
+of one part, next to the others so that the config states them all at construction (``option_rules``): the
+network and its training, latency augmentation (``latency.py``), the clocked and recovering planners
+(``clocked.py``, ``recovering.py``) and the observation gate (``observation_gate.py``). A rule is a pair
+(condition, the one-line message naming the option, its value and the valid ones).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+LR_SCHEDULERS = ("none", "cosine")
+MODES = ("clocked", "recovering")
+# The FSM states the expert leaves without moving the arm (``expert.FSMExpert.next_keyframe``: close, hold before
+# the place, open, hold after the retract), the valid ``still_arm_phases``.
+STILL_ARM_PHASES = (2, 4, 7, 9)
+
+Rule = tuple[bool, str]
+
+
+def network_rules(c: Any) -> list[Rule]:
+    """The network, its inputs and its training."""
+    return [
+        (c.steps_per_subtask >= 1, f"steps_per_subtask must be >= 1, got {c.steps_per_subtask}"),
+        (c.n_subtasks >= 1, f"n_subtasks must be >= 1, got {c.n_subtasks}"),
+        (c.num_layers in (1, 2), f"num_layers must be 1 or 2, got {c.num_layers}"),
+        (c.hidden_size >= 1, f"hidden_size must be >= 1, got {c.hidden_size}"),
+        (0.0 <= c.dropout < 1.0, f"dropout must be in [0, 1), got {c.dropout}"),
+        (c.input_noise_std >= 0.0, f"input_noise_std must be >= 0, got {c.input_noise_std}"),
+        (c.optimizer_lr > 0.0, f"optimizer_lr must be > 0, got {c.optimizer_lr}"),
+        (c.optimizer_weight_decay >= 0.0, f"optimizer_weight_decay must be >= 0, got {c.optimizer_weight_decay}"),
+        (c.scheduler_warmup_steps >= 0, f"scheduler_warmup_steps must be >= 0, got {c.scheduler_warmup_steps}"),
+        (c.lr_scheduler in LR_SCHEDULERS, f"lr_scheduler must be one of {LR_SCHEDULERS}, got {c.lr_scheduler!r}"),
+        (
+            c.n_obs_steps == 1,
+            f"pnp_lstm keeps its own history in the LSTM state; n_obs_steps must be 1, got {c.n_obs_steps}",
+        ),
+        (c.max_episode_length >= 1, f"max_episode_length must be >= 1, got {c.max_episode_length}"),
+        (
+            c.subtask_loss_weight >= 0.0 and c.phase_loss_weight >= 0.0,
+            "subtask_loss_weight and phase_loss_weight must be >= 0",
+        ),
+        (c.dataset_fps is None or c.dataset_fps >= 1, f"dataset_fps must be >= 1 or None, got {c.dataset_fps}"),
+    ]
+
+
+def latency_rules(c: Any) -> list[Rule]:
+    """Latency augmentation in training (``latency.py``)."""
+    return [
+        (
+            0.0 <= c.latency_augment_prob <= 1.0,
+            f"latency_augment_prob must be in [0, 1], got {c.latency_augment_prob}",
+        ),
+        (
+            c.latency_augment_max >= 1 and 0.0 <= c.latency_augment_jitter <= 1.0,
+            f"latency_augment_max must be >= 1 and latency_augment_jitter in [0, 1], got "
+            f"{c.latency_augment_max} and {c.latency_augment_jitter}",
+        ),
+    ]
+
+
+def planner_rules(c: Any) -> list[Rule]:
+    """Which planner (``mode``), and the options that belong to one of them only."""
+    return [
+        (c.mode in MODES, f"mode must be one of {MODES}, got {c.mode!r}"),
+        (
+            not (c.carry_hidden_across_subtasks and not c.shared_network),
+            "carry_hidden_across_subtasks=True needs shared_network=True: separate subtask networks "
+            "do not share a hidden-state space",
+        ),
+        (
+            c.mode == "recovering" or not c.memory_per_attempt,
+            "memory_per_attempt is the recovering planner's (mode='recovering'); the clocked planner's "
+            "subtask nets restart at their switch anyway",
+        ),
+        (
+            c.mode != "recovering" or not (c.shared_network or c.carry_hidden_across_subtasks),
+            "shared_network and carry_hidden_across_subtasks are the clocked planner's (its subtask nets); the "
+            "recovering planner has one trunk over the whole episode: leave them False",
+        ),
+    ]
+
+
+def gate_rules(c: Any) -> list[Rule]:
+    """The observation gate at inference (``observation_gate.py``): waiting for a move to be observed, and
+    holding the arm still in the FSM states that keep it."""
+    return [
+        (
+            c.await_state_tol > 0
+            and c.await_action_tol > 0
+            and c.await_max_steps >= 1
+            and (c.await_in_flight is None or c.await_in_flight >= 0)
+            and c.await_past_states >= 1,
+            "await_state_tol and await_action_tol must be > 0, await_max_steps and await_past_states >= 1 and "
+            f"await_in_flight >= 0, got {c.await_state_tol}, {c.await_action_tol}, {c.await_max_steps}, "
+            f"{c.await_past_states} and {c.await_in_flight}",
+        ),
+        (
+            set(c.still_arm_phases) <= set(STILL_ARM_PHASES),
+            f"still_arm_phases must be among the FSM states that keep the arm {list(STILL_ARM_PHASES)}, got "
+            f"{list(c.still_arm_phases)}",
+        ),
+        (c.still_arm_tol >= 0.0, f"still_arm_tol must be >= 0, got {c.still_arm_tol}"),
+    ]
+
+
+def option_rules(c: Any) -> list[Rule]:
+    """Every rule, in the order the config states them."""
+    return [*network_rules(c), *latency_rules(c), *planner_rules(c), *gate_rules(c)]
