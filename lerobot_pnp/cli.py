@@ -59,7 +59,7 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "report": (
         "lerobot_pnp.report.run:StudyConfig",
         "lerobot_pnp.report.run:run_study",
-        "the reproduction study (methods x suites x seeds -> report.md; --full: the whole study, resumable)",
+        "the reproduction study (methods x suites x seeds -> report.md; --full: the paper-task study; resumable)",
     ),
     "compare": (
         "lerobot_pnp.evaluation.compare:CompareConfig",

@@ -189,7 +189,7 @@ def headline(base: str) -> str:
     cam, state = nominal["camera_planner"], nominal["state_planner"]
     wins = round(state["rate"] * state["n"])
     return (
-        f"Trained from {demos} demonstrations for at most 30 minutes on 2 cores, it succeeds on {_rate(cam)} of nominal "
+        f"Trained from {demos} demonstrations (three seeds of 9000 steps; their training times: the camera planner page), it succeeds on {_rate(cam)} of nominal "
         f"episodes ({len(cam['per_seed'])} seeds, {cam['n']} episodes), where the state planner succeeds on {wins} of "
         f"{state['n']}: [its results, baselines and what limits it]({base}pixel_planner.md)."
     )

@@ -196,8 +196,10 @@ def readme_block(root: Path, docs: str, leave_out: tuple[str, ...] = ()) -> str:
         'cores, CPU time where measured, else wall time ("(study)": the study\'s training wall time). One '
         f"stock `lerobot-eval --env.task heldout` per row, {cfg.episodes} episodes per suite from seed {cfg.seed:,}; "
         "ACT counts latency in 20 fps steps, not keyframes. "
-        + "".join(f"Left out: the floor, {f}. " for f in left_out)
-        + f"Every suite and each row's commands: [the leaderboard]({page}). To add a row:"
+        + "".join(f"Left out: the floor (an untrained policy: the lowest score possible), {f}. " for f in left_out)
+        + f"Every suite and each row's commands: [the leaderboard]({page}). To add a row, evaluate it on the "
+        "protocol, write a `row.json` (`label`, `command`; optional `name`, `budget`) beside its `eval_info.json`, "
+        "and regenerate:"
     )
     add = ADD_ROW.format(runs_dir=cfg.runs_dir, episodes=cfg.episodes, seed=cfg.seed)
     add = add.replace(" --eval.batch_size", " \\\n  --eval.batch_size", 1)

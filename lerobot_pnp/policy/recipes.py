@@ -1,4 +1,4 @@
-"""The recovering planner's recipe: the ``pnp_lstm`` settings it is trained with (``configs/dagger.json``; what
+"""The recovering planner's recipe: the ``pnp_lstm`` settings it is trained with (``RECOVERING_RECIPE``; ``configs/dagger.json`` names them too; what
 each part is and why: docs/policy.md). DAgger (``lerobot_pnp.dagger``) and the study (``lerobot_pnp.report``)
 train it on their own data."""
 

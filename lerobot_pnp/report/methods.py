@@ -10,7 +10,7 @@ is evaluated. New methods (the recovering planner, DAgger rounds, ACT) plug in b
   inputs; no memory). Only the input-to-hidden weights are used, so it is not capacity-matched: the paper's
   architecture without its memory.
 * ``recovering``: the recovering planner (``policy/recovering.py``): one LSTM over the whole variable-length
-  episode, no clock, trained with the recipe of ``configs/dagger.json`` (``RECOVERING_RECIPE``) on the same
+  episode, no clock, trained with ``policy/recipes.py:RECOVERING_RECIPE`` on the same
   demonstrations, which show no recovery.
 * ``recovering_dagger``: ``recovering`` of the same seed plus one DAgger round (``lerobot_pnp.dagger``): 300
   rollouts of that policy under nominal, missed-grasp, drop, nudge and displacement conditions, every visited
@@ -155,7 +155,7 @@ METHODS: dict[str, Method] = {
         pnp_lstm_method(
             "recovering",
             "recovering LSTM",
-            "one LSTM over the whole episode, no clock, learned subtask switch; the recipe of `configs/dagger.json` "
+            "one LSTM over the whole episode, no clock, learned subtask switch; the recipe `RECOVERING_RECIPE` "
             f"({RECOVERING_TRUNK} trunk, late episodes, binary gripper, the observation gate, the arm held on the place's open, the memory restarted at each "
             "re-pick); recoveries only as the task "
             "demonstrates them (none on `paper`, every disturbance on `full`)",
