@@ -25,3 +25,14 @@ def exe(name: str) -> str:
     if not path.exists():
         pytest.skip(f"{name} is not installed next to {sys.executable}")
     return str(path)
+
+
+def load_script(relative: str):
+    """A benchmark or script of the repository (``benchmarks/x.py``, ``scripts/x.py``) imported as a module."""
+    import importlib.util
+
+    path = Path(__file__).resolve().parents[1] / relative
+    spec = importlib.util.spec_from_file_location(path.stem, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module

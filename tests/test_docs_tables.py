@@ -5,21 +5,18 @@ from the code (suite catalogue, CLI help, config fields); a page that differs me
 ``python scripts/docs_tables.py`` being run, or a page was edited by hand inside a generated block.
 """
 
-import importlib.util
 import re
 from pathlib import Path
 
 import pytest
 import yaml
+from clis import load_script
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def _docs_tables():
-    spec = importlib.util.spec_from_file_location("docs_tables", ROOT / "scripts" / "docs_tables.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("scripts/docs_tables.py")
 
 
 @pytest.fixture(scope="module")

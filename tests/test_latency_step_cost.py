@@ -1,9 +1,7 @@
 """The waiting-expert benchmark's rules: which keyframes it waits at changes the episode's length as documented."""
 
-import importlib.util
-from pathlib import Path
-
 import pytest
+from clis import load_script
 
 from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig, make_env
 from lerobot_pnp.sim.suites import get_suites
@@ -11,11 +9,7 @@ from lerobot_pnp.sim.suites import get_suites
 
 @pytest.fixture(scope="module")
 def bench():
-    path = Path(__file__).parent.parent / "benchmarks" / "latency_step_cost.py"
-    spec = importlib.util.spec_from_file_location("latency_step_cost", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("benchmarks/latency_step_cost.py")
 
 
 @pytest.fixture(scope="module")

@@ -2,7 +2,6 @@
 which of the study's code files differ between a summary's commit and a checkout
 (``report.code_provenance``, ``benchmarks/study_provenance.py``), on a small git repository made here."""
 
-import importlib.util
 import json
 import shutil
 import subprocess
@@ -10,6 +9,7 @@ from datetime import date
 from pathlib import Path
 
 import pytest
+from clis import load_script
 
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.report.code_provenance import checkout_commit, study_code_changes
@@ -22,11 +22,7 @@ pytestmark = pytest.mark.skipif(shutil.which("git") is None, reason="needs git")
 
 @pytest.fixture(scope="module")
 def bench():
-    path = ROOT / "benchmarks" / "study_provenance.py"
-    spec = importlib.util.spec_from_file_location("study_provenance", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("benchmarks/study_provenance.py")
 
 
 def _git(repo: Path, *args: str) -> str:

@@ -3,11 +3,11 @@ against itself shows no difference; a perturbed copy shows the cells beyond thei
 that change, and a changed headline verdict exits 1."""
 
 import copy
-import importlib.util
 import json
 from pathlib import Path
 
 import pytest
+from clis import load_script
 
 from lerobot_pnp.report.repro import compare, load_summary, render
 
@@ -18,11 +18,7 @@ FULL = ROOT / "docs" / "results" / "study" / "report_full" / "summary.json"
 
 @pytest.fixture(scope="module")
 def bench():
-    path = ROOT / "benchmarks" / "study_repro.py"
-    spec = importlib.util.spec_from_file_location("study_repro", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("benchmarks/study_repro.py")
 
 
 def _entry(summary: dict, axis: str, method: str) -> dict:

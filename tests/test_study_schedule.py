@@ -1,22 +1,17 @@
 """The study-time replay (``benchmarks/study_schedule.py``): a summary's recorded times replay through the
 study's own scheduler, an evaluation after its training, data-efficiency runs and the cross-check counted."""
 
-import importlib.util
 import json
-from pathlib import Path
 
 import pytest
+from clis import load_script
 
 from lerobot_pnp.report.schedule import TRAINING
 
 
 @pytest.fixture(scope="module")
 def bench():
-    path = Path(__file__).parent.parent / "benchmarks" / "study_schedule.py"
-    spec = importlib.util.spec_from_file_location("study_schedule", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("benchmarks/study_schedule.py")
 
 
 def test_a_summary_replays_every_recorded_job_in_the_pools_order(bench, tmp_path):
