@@ -211,19 +211,6 @@ def planner_table(base: str) -> str:
     )
 
 
-def cost_lines(base: str) -> str:
-    """What `make demo` and `make study` cost, on the machine that measured them."""
-    src = _json("sources.json")
-    demo, study = src["demo"], src["study"]
-    machine = _machine(_json(study["files"][0])["machine"])
-    return (
-        f"- `make demo`: **{demo['wall']}** on {demo['machine']} ({demo['how']}; commit `{demo['commit']}`, "
-        f"{demo['date']}).\n"
-        f"- `make study`: **{study['from_scratch_h']:.1f} h** from scratch on {machine} ({study['from_scratch_how']}; "
-        f"commit `{study['commit']}`, {study['date']})."
-    )
-
-
 def leaderboard_table(base: str) -> str:
     """The leaderboard's page in one compact table, the page's numbers; the untrained floor is on the page only."""
     from lerobot_pnp.evaluation.leaderboard import readme_block
@@ -335,12 +322,13 @@ def policy_fields(base: str) -> str:
 
 # ----------------------------------------------------------------------------------------------------- render
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from docs_cost import BLOCKS as COST_BLOCKS  # noqa: E402  (what make demo and make study cost)
 from docs_pixel_tables import BLOCKS as PIXEL_BLOCKS  # noqa: E402  (the camera planner page's blocks)
 
 BLOCKS = {
-    **PIXEL_BLOCKS, "paper-table": paper_table, "heldout-verdicts": heldout_verdicts, "heldout-suites": heldout_suites,
-    "gate-table": gate_table, "memory-table": memory_table, "planner-table": planner_table, "cost": cost_lines,
-    "leaderboard": leaderboard_table, "presets": presets_table, "suite-catalogue": suite_catalogue,
+    **PIXEL_BLOCKS, **COST_BLOCKS, "paper-table": paper_table, "heldout-verdicts": heldout_verdicts,
+    "heldout-suites": heldout_suites, "gate-table": gate_table, "memory-table": memory_table,
+    "planner-table": planner_table, "leaderboard": leaderboard_table, "presets": presets_table, "suite-catalogue": suite_catalogue,
     "cli-help": cli_help, "env-fields": env_fields, "policy-fields": policy_fields,
 }  # fmt: skip
 
