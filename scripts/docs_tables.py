@@ -12,7 +12,7 @@ A page holds a generated block between two marker comments::
 and this script owns everything between them. The result tables read the committed study summaries and
 measurement files under ``docs/results/`` (their provenance, commit, date and machine, is in
 ``docs/results/sources.json`` and each summary's ``machine``); the reference blocks read the code itself (the
-suite catalogue, the CLI's ``--help``, the config dataclasses), so a page can never drift from its source.
+suite catalogue, the CLI's ``--help``, the config dataclasses, the module map), so a page can never drift from its source.
 """
 
 from __future__ import annotations
@@ -335,10 +335,11 @@ def policy_fields(base: str) -> str:
 
 # ----------------------------------------------------------------------------------------------------- render
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from architecture import BLOCKS as ARCHITECTURE_BLOCKS  # noqa: E402  (docs/ARCHITECTURE.md's module map)
 from docs_pixel_tables import BLOCKS as PIXEL_BLOCKS  # noqa: E402  (the camera planner page's blocks)
 
 BLOCKS = {
-    **PIXEL_BLOCKS, "paper-table": paper_table, "heldout-verdicts": heldout_verdicts, "heldout-suites": heldout_suites,
+    **PIXEL_BLOCKS, **ARCHITECTURE_BLOCKS, "paper-table": paper_table, "heldout-verdicts": heldout_verdicts, "heldout-suites": heldout_suites,
     "gate-table": gate_table, "memory-table": memory_table, "planner-table": planner_table, "cost": cost_lines,
     "leaderboard": leaderboard_table, "presets": presets_table, "suite-catalogue": suite_catalogue,
     "cli-help": cli_help, "env-fields": env_fields, "policy-fields": policy_fields,
