@@ -1,18 +1,15 @@
 """Regenerate every number and reference table of README.md and docs/ from the files they come from.
 
-    python scripts/docs_tables.py          # rewrite the generated blocks in place
+    python scripts/docs_tables.py          # rewrite the generated blocks and facts in place
     python scripts/docs_tables.py --check  # exit 1 and name the pages whose blocks differ (tests/test_docs_tables.py)
 
-A page holds a generated block between two marker comments::
-
-    <!-- begin generated: NAME -->
-    ...
-    <!-- end generated: NAME -->
-
-and this script owns everything between them. The result tables read the committed study summaries and
-measurement files under ``docs/results/`` (their provenance, commit, date and machine, is in
-``docs/results/sources.json`` and each summary's ``machine``); the reference blocks read the code itself (the
-suite catalogue, the CLI's ``--help``, the config dataclasses, the module map), so a page can never drift from its source.
+A page holds a generated block between two marker comments, ``<!-- begin generated: NAME -->`` and
+``<!-- end generated: NAME -->`` (each on its own line), or a number its prose repeats between
+``<!-- fact: NAME -->`` and ``<!-- /fact -->`` (``docs_facts.py``), and this script owns everything between them.
+The result tables read the committed study summaries and measurement files under ``docs/results/`` (their
+provenance, commit, date and machine, is in ``docs/results/sources.json`` and each summary's ``machine``); the
+reference blocks read the code itself (the suite catalogue, the CLI's ``--help``, the config dataclasses, the
+module map), so a page can never drift from its source.
 """
 
 from __future__ import annotations
@@ -120,9 +117,10 @@ def heldout_verdicts(base: str) -> str:
     for axis in HELD_OUT_AXES:
         e = rows[(axis.name, "recovering")]
         low_name, low = min(e["held_out_suites"].items(), key=lambda kv: kv[1]["rate"])
+        sides = " | ".join(f"{_cell(e[side])} n={e[side]['n']}" for side in ("in_distribution", "held_out"))
         lines.append(
-            f"| {axis.name} ({axis.description}) | {_cell(e['in_distribution'])} | {_cell(e['held_out'])} | "
-            f"`{low_name}` {_cell(low, False)} | {_verdict(e, difference=True)} |"
+            f"| {axis.name} ({axis.description}) | {sides} | `{low_name}` {_cell(low, False)} | "
+            f"{_verdict(e, difference=True)} |"
         )
     others = []
     for m in HELDOUT_METHODS[1:]:
@@ -133,7 +131,8 @@ def heldout_verdicts(base: str) -> str:
         [
             *lines,
             "",
-            f"Recovering LSTM, task `full`, {len(seeds)} training seeds pooled, eval seeds from "
+            f"Recovering LSTM, task `full`, {len(seeds)} training seeds pooled (n: the episodes of a side's suites "
+            f"and seeds), eval seeds from "
             f"{summary['config']['eval_seed']:,}. Other methods' verdicts on the five axes: {'; '.join(others)}. "
             + study_source(),
         ]
@@ -336,6 +335,7 @@ def policy_fields(base: str) -> str:
 # ----------------------------------------------------------------------------------------------------- render
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from architecture import BLOCKS as ARCHITECTURE_BLOCKS  # noqa: E402  (docs/ARCHITECTURE.md's module map)
+from docs_facts import FACT, render_facts  # noqa: E402  (the numbers prose repeats, one line each)
 from docs_pixel_tables import BLOCKS as PIXEL_BLOCKS  # noqa: E402  (the camera planner page's blocks)
 
 BLOCKS = {
@@ -353,7 +353,7 @@ def pages() -> list[Path]:
 
 
 def render(page: Path, text: str, cache: dict[tuple[str, str], str]) -> str:
-    """``text`` with every generated block of ``page`` regenerated; an unknown block name is an error."""
+    """``text`` with every generated block and fact of ``page`` regenerated; an unknown name is an error."""
     base = os.path.relpath(RESULTS, page.parent).replace(os.sep, "/") + "/"
 
     def fill(m: re.Match) -> str:
@@ -364,16 +364,16 @@ def render(page: Path, text: str, cache: dict[tuple[str, str], str]) -> str:
             cache[(name, base)] = BLOCKS[name](base)
         return f"{m.group(1)}{cache[(name, base)]}\n{m.group(4)}"
 
-    return BLOCK.sub(fill, text)
+    return render_facts(page, BLOCK.sub(fill, text), cache)
 
 
 def regenerate() -> dict[Path, tuple[str, str]]:
-    """Every page that holds a generated block -> (its text now, its text regenerated)."""
+    """Every page that holds a generated block or fact -> (its text now, its text regenerated)."""
     cache: dict[tuple[str, str], str] = {}
     out = {}
     for page in pages():
         text = page.read_text()
-        if BLOCK.search(text):
+        if BLOCK.search(text) or FACT.search(text):
             out[page] = (text, render(page, text, cache))
     return out
 
