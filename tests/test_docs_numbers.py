@@ -214,6 +214,16 @@ def test_the_camera_planners_budget_states_its_protocols_data_seeds_and_training
     assert f"{math.floor(min(minutes))}-{math.ceil(max(minutes))} min each" in budget, (budget, minutes)
 
 
+def test_the_camera_planners_row_reproduces_from_its_command_and_config():
+    """The row's seeds trained on one torch thread each and its command runs the shipped config without a thread
+    flag, so the config trains on one thread (the page says the thread count changes the result)."""
+    row = _row("pnp_pixels")
+    config = json.loads((ROOT / "configs" / "train_pnp_pixels.json").read_text())
+    assert "configs/train_pnp_pixels.json" in row["command"] and "torch_num_threads" not in row["command"]
+    assert "each seed on one torch thread" in row["label"]
+    assert config["policy"]["torch_num_threads"] == 1
+
+
 def test_a_quoted_leaderboard_budget_is_the_rows(facts):
     budgets = {_row(p.parent.name).get("budget") for p in (RESULTS / "leaderboard").glob("*/row.json")}
     quoted = {rel: re.findall(r"leaderboard's budget \(\"([^\"]+)\"\)", text) for rel, text in _pages().items()}
