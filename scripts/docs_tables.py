@@ -8,7 +8,7 @@ A page holds a generated block between two marker comments, ``<!-- begin generat
 ``<!-- fact: NAME -->`` and ``<!-- /fact -->`` (``docs_facts.py``), and this script owns everything between them.
 The result tables read the committed study summaries and measurement files under ``docs/results/`` (their
 provenance, commit, date and machine, is in ``docs/results/sources.json`` and each summary's ``machine``); the
-reference blocks read the code itself (the suite catalogue, the CLI's ``--help``, the config dataclasses, the
+reference blocks (``docs_reference.py``) read the code itself (the suite catalogue, the CLI's ``--help``, the config dataclasses, the
 module map), so a page can never drift from its source.
 """
 
@@ -20,7 +20,6 @@ import os
 import re
 import sys
 from pathlib import Path
-from unittest import mock
 
 from lerobot_pnp.evaluation.verdicts import summary_verdict
 
@@ -230,119 +229,17 @@ def leaderboard_table(base: str) -> str:
     return readme_block(ROOT, docs=base + "../", leave_out=("untrained_pnp_lstm",))
 
 
-# ------------------------------------------------------------------------------------------- reference blocks
-def _changes(changes: dict, base: dict) -> str:
-    def fmt(v):
-        if isinstance(v, float):
-            return f"{v:.4g}"
-        if isinstance(v, (tuple, list)):
-            return "(" + ", ".join(fmt(x) for x in v) + ")"
-        return str(v)
-
-    shown = {k: v for k, v in changes.items() if k not in base or fmt(base[k]) != fmt(v)}
-    return ", ".join(f"`{k}={fmt(v)}`" for k, v in shown.items()) or "none"
-
-
-def presets_table(base: str) -> str:
-    """The task fields where the two presets differ, with each preset's value and the field's description."""
-    from lerobot_pnp.presets import FULL_TASK, PAPER_TASK
-    from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
-    from lerobot_pnp.support.cli_help import field_doc
-
-    lines = ["| field | `paper` | `full` | what it is |", "|---|---|---|---|"]
-    for k, v in FULL_TASK.items():
-        if PAPER_TASK[k] != v:
-            doc = field_doc(BaxterPnPEnvConfig, k).split(". ")[0].replace("|", "\\|")
-            lines.append(f"| `{k}` | {_changes({k: PAPER_TASK[k]}, {})[len(k) + 2 : -1]} | "
-                         f"{_changes({k: v}, {})[len(k) + 2 : -1]} | {doc} |")  # fmt: skip
-    same = sum(PAPER_TASK[k] == v for k, v in FULL_TASK.items())
-    return "\n".join([*lines, "", f"The other {same} task fields are the same in both presets."])
-
-
-def suite_catalogue(base: str) -> str:
-    """Every suite of ``sim/suites.py``, grouped as the studies use them, with what it changes."""
-    from lerobot_pnp.presets import FULL_TASK
-    from lerobot_pnp.sim.suites import HELD_OUT_AXES, SUITES
-
-    groups = {
-        "The paper-task study (base: the task a policy was trained on)": [],
-        "The held-out protocol (base: the `full` task)": [],
-        "DAgger's suites (`quiet*`: every perturbation off, then one at a time)": [],
-    }
-    titles = list(groups)
-    for s in SUITES.values():
-        key = 1 if s.name.startswith(("train_", "heldout_")) else 2 if s.name.startswith("quiet") else 0
-        groups[titles[key]].append(s)
-    out = [
-        f"{len(SUITES)} suites. Changes shown: every field a paper-task suite sets; for the other suites, the fields "
-        "whose value differs from the `full` preset (their base)."
-    ]
-    for i, (title, suites) in enumerate(groups.items()):
-        out += ["", f"### {title}", "", "| suite | what it is | env-config changes |", "|---|---|---|"]
-        for s in suites:
-            changes = "; ".join(_changes(p, FULL_TASK if i else {}) for p in s.parts)
-            out.append(f"| `{s.name}` | {s.description} | {changes} |")
-    out += ["", "### Held-out axes", "", "| axis | what varies | in distribution | held out |", "|---|---|---|---|"]
-    for a in HELD_OUT_AXES:
-        ins, held = (", ".join(f"`{n}`" for n in names) for names in (a.in_distribution, a.held_out))
-        out.append(f"| {a.name} | {a.description} | {ins} | {held} |")
-    return "\n".join(out)
-
-
-def cli_help(base: str) -> str:
-    """``lerobot-pnp --help`` and every command's ``--help``, as the CLI prints them at 100 columns."""
-    from lerobot_pnp import cli
-    from lerobot_pnp.support.cli_help import command_help
-
-    with mock.patch.dict(os.environ, {"COLUMNS": "100"}):
-        out = ["```text", "$ lerobot-pnp --help", cli._usage(), "```"]
-        for name, (cfg_ref, _, summary) in cli.COMMANDS.items():
-            out += [
-                "",
-                f"### `lerobot-pnp {name}`",
-                "",
-                "```text",
-                command_help(name, summary, cli._load(cfg_ref)),
-                "```",
-            ]
-    return "\n".join(out)
-
-
-def _field_table(cls, prefix: str) -> str:
-    from lerobot_pnp.support.cli_help import field_rows
-
-    lines = ["| flag | type | description [default] |", "|---|---|---|"]
-    for flag, tp, text in field_rows(cls):
-        text = text.replace("\N{NO-BREAK SPACE}", " ").replace("|", "\\|")
-        lines.append(f"| `{prefix}{flag.removeprefix('--')}` | `{tp}` | {text} |")
-    return "\n".join(lines)
-
-
-def env_fields(base: str) -> str:
-    """Every field of the env config: flags of lerobot-eval, lerobot-train and lerobot-pnp (``--env.*``)."""
-    from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
-
-    return _field_table(BaxterPnPEnvConfig, "--env.")
-
-
-def policy_fields(base: str) -> str:
-    """Every field of the pnp_lstm policy config (``--policy.*``)."""
-    from lerobot_pnp.policy.configuration_pnp_lstm import PnpLstmConfig
-
-    return _field_table(PnpLstmConfig, "--policy.")
-
-
 # ----------------------------------------------------------------------------------------------------- render
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from architecture import BLOCKS as ARCHITECTURE_BLOCKS  # noqa: E402  (docs/ARCHITECTURE.md's module map)
 from docs_facts import FACT, render_facts  # noqa: E402  (the numbers prose repeats, one line each)
 from docs_pixel_tables import BLOCKS as PIXEL_BLOCKS  # noqa: E402  (the camera planner page's blocks)
+from docs_reference import BLOCKS as REFERENCE_BLOCKS  # noqa: E402  (read from the code: CLI help, config fields)
 
 BLOCKS = {
-    **PIXEL_BLOCKS, **ARCHITECTURE_BLOCKS, "paper-table": paper_table, "heldout-verdicts": heldout_verdicts, "heldout-suites": heldout_suites,
-    "gate-table": gate_table, "memory-table": memory_table, "planner-table": planner_table, "cost": cost_lines,
-    "leaderboard": leaderboard_table, "presets": presets_table, "suite-catalogue": suite_catalogue,
-    "cli-help": cli_help, "env-fields": env_fields, "policy-fields": policy_fields,
+    **PIXEL_BLOCKS, **ARCHITECTURE_BLOCKS, **REFERENCE_BLOCKS, "paper-table": paper_table,
+    "heldout-verdicts": heldout_verdicts, "heldout-suites": heldout_suites, "gate-table": gate_table,
+    "memory-table": memory_table, "planner-table": planner_table, "cost": cost_lines, "leaderboard": leaderboard_table,
 }  # fmt: skip
 
 
