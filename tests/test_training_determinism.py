@@ -15,7 +15,7 @@ N = 8  # demonstrations of each recording
 SEEDS = (1000, 1001)
 
 # One process: set the caller's torch thread count, train the study's method for each seed in turn, print a digest
-# of each checkpoint's weights. DAgger and DART run 3 rollouts a round, not the study's 300.
+# of each checkpoint's weights. DAgger and DART run 2 rollouts a round, not the study's 300.
 WORKER = """
 import hashlib, json, sys
 from dataclasses import replace
@@ -31,11 +31,11 @@ root, out, name, threads = Path(sys.argv[1]), Path(sys.argv[2]), sys.argv[3], in
 torch.set_num_threads(threads)
 method = methods.METHODS[name]
 if method.schedule:
-    methods.METHODS[name] = method = replace(method, schedule={**method.schedule, "rollouts_per_round": 3})
+    methods.METHODS[name] = method = replace(method, schedule={**method.schedule, "rollouts_per_round": 2})
 data = root / ("dataset_phase" if method.data == "phase" else "dataset")
 digests = {}
 for seed in map(int, sys.argv[5].split(",")):
-    ctx = TrainContext(data, out / name / f"seed{seed}", seed, epochs=20, dense_root=root / "dataset_dense",
+    ctx = TrainContext(data, out / name / f"seed{seed}", seed, epochs=10, dense_root=root / "dataset_dense",
                        act_steps=30, task_budget=10, recipe_changes={"num_layers": 1})
     weights = load_file(str(Path(method.train(ctx)) / "model.safetensors"))
     digest = hashlib.sha256()
