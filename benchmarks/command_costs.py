@@ -4,12 +4,14 @@ The commands are read from the README (between ``<!-- quickstart -->`` and ``<!-
 as written, one after the other in one fresh temporary folder (each reads what the one before it wrote), with the
 executables next to this Python. For each command:
 
-- ``wall_s``: the wall clock around the command, ``cpu_s``: the user and system time of the command and every
-  process it waited for (``os.wait4``);
+- ``wall_s``: the wall clock around the command; ``cpu_s``: the user and system time of the command and its
+  worker processes (the larger of ``os.wait4``'s count, which holds the processes it waited for, and the sum
+  over its process tree sampled from ``/proc``);
 - ``peak_rss_mb``: the largest resident set of one process of the command (``os.wait4``'s ``ru_maxrss``: the
   command and every process it waited for); ``peak_tree_rss_mb``: the resident sets of the command's process tree
   summed, sampled from ``/proc`` every ``SAMPLE_S`` s (an upper bound where worker processes share pages; None
-  without ``/proc``);
+  without ``/proc``); a command that starts worker processes needs that much at most, one that does not needs
+  ``peak_rss_mb``;
 - ``disk_mb``: what the command added to the folder (blocks allocated, before against after).
 
 The record names the machine (CPU model, cores), the library versions, the commit and each command's one-minute
@@ -61,42 +63,49 @@ def disk_mb(folder: Path) -> float:
     return total / _MB
 
 
-def _tree_rss(root: int) -> int:
-    """The resident sets of ``root`` and its descendants summed, in bytes (Linux ``/proc``)."""
-    parents, rss = {}, {}
-    page = os.sysconf("SC_PAGE_SIZE")
+def _tree(root: int) -> dict[tuple[int, int], tuple[int, int]]:
+    """(pid, start time) -> (resident set in bytes, CPU ticks) of ``root`` and its descendants (Linux ``/proc``)."""
+    stats = {}
     for entry in os.scandir("/proc"):
         if entry.name.isdigit():
             try:
                 text = Path(entry.path, "stat").read_text()
             except OSError:
                 continue  # ended while scanning
-            fields = text[text.rindex(")") + 2 :].split()
-            parents[int(entry.name)], rss[int(entry.name)] = int(fields[1]), int(fields[21]) * page
-    total, todo = 0, [root]
+            stats[int(entry.name)] = text[text.rindex(")") + 2 :].split()  # the fields from the 3rd (state) on
+    page, out, todo = os.sysconf("SC_PAGE_SIZE"), {}, [root]
     while todo:
         pid = todo.pop()
-        total += rss.get(pid, 0)
-        todo += [child for child, parent in parents.items() if parent == pid]
-    return total
+        if (f := stats.get(pid)) is not None:
+            out[(pid, int(f[19]))] = (int(f[21]) * page, int(f[11]) + int(f[12]))  # rss; utime + stime
+        todo += [child for child, g in stats.items() if int(g[1]) == pid]
+    return out
 
 
 class TreeSampler(threading.Thread):
-    """The peak of ``_tree_rss(pid)``, sampled every ``SAMPLE_S`` s until ``stop()``."""
+    """The command's process tree, sampled every ``SAMPLE_S`` s until ``stop()``: the peak of its summed resident
+    sets, and the CPU time of every process seen in it (the last sample of each; a process that lives shorter
+    than a sample interval can be missed). Worker processes a fork server starts are in the tree, though the
+    command does not wait for them itself, so ``os.wait4`` does not count their CPU time."""
 
     def __init__(self, pid: int):
         super().__init__(daemon=True)
-        self.pid, self.peak, self._stop_event = pid, 0, threading.Event()
+        self.pid, self.peak, self.ticks, self._stop_event = pid, 0, {}, threading.Event()
         self.available = Path("/proc/self/stat").is_file()
 
     def run(self) -> None:
         while self.available and not self._stop_event.wait(SAMPLE_S):
-            self.peak = max(self.peak, _tree_rss(self.pid))
+            tree = _tree(self.pid)
+            self.peak = max(self.peak, sum(rss for rss, _ in tree.values()))
+            self.ticks.update({proc: ticks for proc, (_, ticks) in tree.items()})
 
-    def stop(self) -> float | None:
+    def stop(self) -> tuple[float | None, float | None]:
+        """(peak summed resident sets in MB, CPU seconds), None without ``/proc``."""
         self._stop_event.set()
         self.join()
-        return round(self.peak / _MB, 1) if self.available else None
+        if not self.available:
+            return None, None
+        return round(self.peak / _MB, 1), round(sum(self.ticks.values()) / os.sysconf("SC_CLK_TCK"), 1)
 
 
 def run_command(argv: list[str], cwd: Path, log: Path) -> dict:
@@ -112,16 +121,16 @@ def run_command(argv: list[str], cwd: Path, log: Path) -> dict:
     sampler.start()
     _, status, usage = os.wait4(proc.pid, 0)
     wall = time.perf_counter() - start
-    tree = sampler.stop()
+    tree_rss, tree_cpu = sampler.stop()
     rc = os.waitstatus_to_exitcode(status)
     if rc != 0:
         raise SystemExit(f"{shlex.join(argv)} exited {rc}; its output: {log}")
     return {
         "command": shlex.join(argv),
         "wall_s": round(wall, 1),
-        "cpu_s": round(usage.ru_utime + usage.ru_stime, 1),
+        "cpu_s": round(max(usage.ru_utime + usage.ru_stime, tree_cpu or 0.0), 1),
         "peak_rss_mb": round(usage.ru_maxrss / 1024, 1),  # KB on Linux
-        "peak_tree_rss_mb": tree,
+        "peak_tree_rss_mb": tree_rss,
         "disk_mb": round(disk_mb(cwd) - before, 1),
         "load_before": round(load, 2),
     }
