@@ -15,7 +15,9 @@ executables next to this Python. For each command:
 - ``disk_mb``: what the command added to the folder (blocks allocated, before against after).
 
 The record names the machine (CPU model, cores), the library versions, the commit and each command's one-minute
-load average before it started (other work on the machine slows a command down). ``scripts/docs_tables.py``
+load average before it started (other work on the machine slows a command down). The first run in a fresh
+checkout also writes Python's byte-code caches and reads the libraries from disk: the committed record is a
+second run. ``scripts/docs_tables.py``
 renders ``docs/costs.md``'s table from it.
 
     OMP_NUM_THREADS=1 MUJOCO_GL=egl HF_HUB_OFFLINE=1 python benchmarks/command_costs.py \\
