@@ -232,12 +232,13 @@ def leaderboard_table(base: str) -> str:
 # ----------------------------------------------------------------------------------------------------- render
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from architecture import BLOCKS as ARCHITECTURE_BLOCKS  # noqa: E402  (docs/ARCHITECTURE.md's module map)
+from docs_command_costs import BLOCKS as COST_BLOCKS  # noqa: E402  (docs/costs.md: each command's measured cost)
 from docs_facts import FACT, render_facts  # noqa: E402  (the numbers prose repeats, one line each)
 from docs_pixel_tables import BLOCKS as PIXEL_BLOCKS  # noqa: E402  (the camera planner page's blocks)
 from docs_reference import BLOCKS as REFERENCE_BLOCKS  # noqa: E402  (read from the code: CLI help, config fields)
 
 BLOCKS = {
-    **PIXEL_BLOCKS, **ARCHITECTURE_BLOCKS, **REFERENCE_BLOCKS, "paper-table": paper_table,
+    **PIXEL_BLOCKS, **ARCHITECTURE_BLOCKS, **REFERENCE_BLOCKS, **COST_BLOCKS, "paper-table": paper_table,
     "heldout-verdicts": heldout_verdicts, "heldout-suites": heldout_suites, "gate-table": gate_table,
     "memory-table": memory_table, "planner-table": planner_table, "cost": cost_lines, "leaderboard": leaderboard_table,
 }  # fmt: skip
