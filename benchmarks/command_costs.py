@@ -8,7 +8,8 @@ executables next to this Python. For each command:
   worker processes (the larger of ``os.wait4``'s count, which holds the processes it waited for, and the sum
   over its process tree sampled from ``/proc``);
 - ``peak_rss_mb``: the largest resident set of one process of the command (``os.wait4``'s ``ru_maxrss``: the
-  command and every process it waited for); ``peak_tree_rss_mb``: the resident sets of the command's process tree
+  command and every process it waited for; Linux counts in it this process's own resident set at the moment it
+  starts the command, so this process imports nothing beyond the standard library until the commands are done); ``peak_tree_rss_mb``: the resident sets of the command's process tree
   summed, sampled from ``/proc`` every ``SAMPLE_S`` s (an upper bound where worker processes share pages; None
   without ``/proc``); a command that starts worker processes needs that much at most, one that does not needs
   ``peak_rss_mb``;
@@ -143,9 +144,6 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "results" / "command_costs.json")
     parser.add_argument("--keep", type=Path, default=None, help="run in this new folder and keep what it writes")
     args = parser.parse_args(argv)
-    sys.path.insert(0, str(ROOT))
-    from lerobot_pnp.report.provenance import machine
-
     commands = quickstart_commands((ROOT / "README.md").read_text())
     env = {k: os.environ.get(k) for k in ("OMP_NUM_THREADS", "MUJOCO_GL", "HF_HUB_OFFLINE")}
     with tempfile.TemporaryDirectory(prefix="command_costs_") as tmp:
@@ -157,6 +155,9 @@ def main(argv: list[str] | None = None) -> int:
             rows.append(run_command(command, folder, Path(tmp) / f"command_{i}.log"))
             r = rows[-1]
             print(f"{r['wall_s']:8.1f} s {r['peak_rss_mb']:8.0f} MB {r['disk_mb']:8.1f} MB  {r['command'][:90]}")
+    sys.path.insert(0, str(ROOT))
+    from lerobot_pnp.report.provenance import machine  # after the commands: this process stays small (see above)
+
     record = {"machine": machine(), "environment": env, "commands": rows}
     args.out.parent.mkdir(parents=True, exist_ok=True)
     tmp_out = args.out.with_suffix(".json.tmp")
