@@ -114,9 +114,9 @@ def make_costs(base: str) -> str:
     study = study_cost()
     if study is None:
         lines.append(
-            "| `make study` | not measured by a run here | not measured | not measured | the study's cost record "
-            "(each `summary.json`'s `cost` block) is not committed yet; the estimate replayed from the studies' "
-            f"job times: [results, what it costs]({base}index.md#what-it-costs) |"
+            "| `make study` | not measured | not measured | not measured | the committed study summaries hold no "
+            "cost record (a run writes one into each `summary.json`, `cost`); the estimate replayed from the "
+            f"studies' job times: [results, what it costs]({base}index.md#what-it-costs) |"
         )
     else:
         lines.append("| `make study` | " + " | ".join(study) + " |")

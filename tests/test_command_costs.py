@@ -71,7 +71,7 @@ def test_make_study_is_filled_from_the_studys_cost_record_once_it_has_one(tables
     monkeypatch.setattr(tables, "_json", lambda rel: summary if rel.endswith("summary.json") else real(rel))
     summary.pop("cost", None)
     assert tables.study_cost() is None
-    assert "not measured by a run here" in tables.make_costs("results/")
+    assert "| `make study` | not measured |" in tables.make_costs("results/")
     summary["cost"] = {"wall_s": 4000.0, "peak_rss_mb": 12900.0, "disk_mb": 2048.0, "from_scratch": True}
     assert tables.study_cost()[:3] == ("1 h 6 min", "12.6 GB", "2.0 GB")
     assert "| `make study` | 1 h 6 min | 12.6 GB | 2.0 GB |" in tables.make_costs("results/")
