@@ -133,7 +133,9 @@ FACTS: dict[str, Fact] = {
 
 
 def render_facts(page: Path, text: str, cache: dict) -> str:
-    """``text`` with every fact's value regenerated; an unknown fact is an error naming the valid ones."""
+    """``text`` with every fact's value regenerated; an unknown fact is an error naming the valid ones, and so is a
+    fact that opens a line (Markdown reads a line that starts with an HTML comment as raw HTML, which ends a list
+    item or a paragraph there)."""
 
     def fill(m: re.Match) -> str:
         name = m.group(2)
@@ -143,4 +145,8 @@ def render_facts(page: Path, text: str, cache: dict) -> str:
             cache[("fact", name)] = FACTS[name].value()
         return f"{m.group(1)}{cache[('fact', name)]}{m.group(4)}"
 
-    return FACT.sub(fill, text)
+    text = FACT.sub(fill, text)
+    if m := re.search(r"^[ \t]*<!-- fact: ([\w-]+) -->", text, re.M):
+        line = text[: m.start()].count("\n") + 1
+        raise SystemExit(f"{page.relative_to(ROOT)}:{line}: fact {m.group(1)!r} opens a line; put a word before it")
+    return text
