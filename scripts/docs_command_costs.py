@@ -4,7 +4,8 @@ them (``docs_tables.py`` renders them; ``--check`` keeps the page equal to the r
 - ``command-costs``: ``docs/results/command_costs.json``, written by ``benchmarks/command_costs.py`` (one machine,
   one run of the README's quick start, each command's wall time, CPU time, peak memory and disk);
 - ``make-costs``: ``make demo`` from its timed run (``docs/results/sources.json``'s ``demo``), ``make study`` from
-  the study's own cost record (``study_cost``), ``make test`` from nothing: no run of it is recorded.
+  the study's own from-scratch cost record (``study_cost``, through ``docs_cost``), ``make test`` from nothing:
+  no run of it is recorded.
 """
 
 from __future__ import annotations
@@ -89,17 +90,20 @@ def command_costs(base: str) -> str:
 
 
 def study_cost() -> tuple[str, str, str, str] | None:
-    """``make study``'s (time, peak memory, disk, where) from the study's own cost record: the ``cost`` block a
-    study run writes into its ``summary.json``; None while the committed summaries hold none."""
-    cost = _json("study/report_full/summary.json").get("cost")
-    if not cost:
+    """``make study``'s (time, peak memory, disk, where) from the study's own from-scratch cost record, by the rule
+    and in the words of ``docs_cost`` (the one statement of the study's cost); None while the committed summaries
+    hold no such record."""
+    import docs_cost
+
+    _, summaries = docs_cost._study()
+    cost = docs_cost.measured(summaries)
+    if cost is None:
         return None
-    how = "from scratch" if cost.get("from_scratch") else "a resumed run: not from scratch"
     return (
-        duration(cost["wall_s"]),
-        size(cost.get("peak_rss_mb")),
-        size(cost.get("disk_mb")),
-        f"the study's cost record (`docs/results/study/report_full/summary.json`, `cost`; {how})",
+        docs_cost._duration(cost["wall_s"]),
+        docs_cost._size(cost.get("peak_rss_mb")),
+        docs_cost._size(cost.get("disk_mb")),
+        "the study itself, from scratch (`docs/results/study/*/summary.json`, `cost`)",
     )
 
 
@@ -114,9 +118,9 @@ def make_costs(base: str) -> str:
     study = study_cost()
     if study is None:
         lines.append(
-            "| `make study` | not measured | not measured | not measured | the committed study summaries hold no "
-            "cost record (a run writes one into each `summary.json`, `cost`); the estimate replayed from the "
-            f"studies' job times: [results, what it costs]({base}index.md#what-it-costs) |"
+            "| `make study` | not measured from scratch | not measured | not measured | the committed study summaries "
+            "hold no from-scratch cost record (a run writes one into each `summary.json`, `cost`); what they hold, "
+            f"their job times replayed: [results, what it costs]({base}index.md#what-it-costs) |"
         )
     else:
         lines.append("| `make study` | " + " | ".join(study) + " |")

@@ -66,12 +66,15 @@ def test_the_page_states_the_records_numbers(tables):
 
 
 def test_make_study_is_filled_from_the_studys_cost_record_once_it_has_one(tables, monkeypatch):
+    import docs_cost
+
     summary = json.loads((ROOT / "docs/results/study/report_full/summary.json").read_text())
-    real = tables._json
-    monkeypatch.setattr(tables, "_json", lambda rel: summary if rel.endswith("summary.json") else real(rel))
+    monkeypatch.setattr(docs_cost, "_study", lambda: ({}, [summary]))
     summary.pop("cost", None)
     assert tables.study_cost() is None
-    assert "| `make study` | not measured |" in tables.make_costs("results/")
-    summary["cost"] = {"wall_s": 4000.0, "peak_rss_mb": 12900.0, "disk_mb": 2048.0, "from_scratch": True}
-    assert tables.study_cost()[:3] == ("1 h 6 min", "12.6 GB", "2.0 GB")
-    assert "| `make study` | 1 h 6 min | 12.6 GB | 2.0 GB |" in tables.make_costs("results/")
+    assert "| `make study` | not measured from scratch |" in tables.make_costs("results/")
+    summary["cost"] = {"wall_s": 4000.0, "peak_rss_mb": 12900.0, "disk_mb": 2048.0, "from_scratch": False}
+    assert tables.study_cost() is None  # a resumed run's wall clock is not the study's cost
+    summary["cost"]["from_scratch"] = True
+    assert tables.study_cost()[:3] == ("1 h 07 min", "12.6 GB", "2.0 GB")
+    assert "| `make study` | 1 h 07 min | 12.6 GB | 2.0 GB |" in tables.make_costs("results/")
