@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import posixpath
 import re
 import sys
 from pathlib import Path
@@ -92,7 +93,7 @@ def paper_table(base: str) -> str:
             *lines,
             "",
             f"Success %, task `paper`, {len(seeds)} training seeds pooled, {min(ns)}-{max(ns)} episodes per cell. "
-            f"Each suite is described in the [suite catalogue]({base}../benchmark/suites.md) "
+            f"Each suite is described in the [suite catalogue]({posixpath.normpath(base + '../benchmark/suites.md')}) "
             "(95 % intervals, per-seed ranges and paired tests: "
             f"[the paper-task report]({base}study/report_full/report.md)). " + study_source(),
         ]
