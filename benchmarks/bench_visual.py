@@ -1,0 +1,104 @@
+"""What the visual variation costs a camera episode: every visual suite beside the scene as modelled, in one run.
+
+    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_visual.py [--sizes 64x64 320x240] [--rounds 6]
+        [--out docs/results/bench_visual.json]
+
+A camera episode is the scripted expert's keyframe episode on the `full` task with the front and wrist cameras
+rendered at every step (the env's observation, the camera planner's setting: no render effects), from its reset to
+its end. Per image size, each variant (``nominal``, ``train_visual`` and every held-out visual suite, each the
+suite's changes on that task) runs the same seeds, interleaved in rounds (one episode of every variant per round,
+seed = round) so that a shared machine's load falls on all alike; its envs are built before the first round (the
+distractor slots are added once, when an env is built). Reported per variant: the median CPU time per episode and
+per step, and its ratio to ``nominal``'s on the same seeds (the target: at most 1.20). The expert does not see the
+pixels, so every variant simulates exactly the same episodes and the difference is what the variation costs:
+writing the model's fields at reset (lights, colours, cameras, distractors) and the image noise and blur of every
+frame.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import statistics
+import time
+from pathlib import Path
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("MUJOCO_GL", "egl")
+os.environ.setdefault("HF_HUB_OFFLINE", "1")
+
+TARGET = 1.20  # the most a visual variation may multiply a camera episode's cost by
+
+
+def variants() -> list[str]:
+    from lerobot_pnp.sim.visual_suites import VISUAL_SUITES
+
+    return ["nominal", *VISUAL_SUITES]
+
+
+def episode_cost(size: tuple[int, int], rounds: int) -> dict:
+    """Per variant: median CPU ms per episode and per step over ``rounds`` seeds, and the ratio to nominal."""
+    from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig, make_env
+    from lerobot_pnp.sim.expert import run_expert_episode
+    from lerobot_pnp.sim.suites import SUITES
+
+    width, height = size
+    base = BaxterPnPEnvConfig(preset="full", cameras=["front", "wrist"], image_height=height, image_width=width)
+    envs = {name: make_env(SUITES[name].env_configs(base)[0]) for name in variants()}
+    cpu: dict[str, list[float]] = {name: [] for name in envs}
+    steps: dict[str, list[int]] = {name: [] for name in envs}
+    for name, env in envs.items():  # warm: the renderers are made on first use
+        run_expert_episode(env, 10_000)
+    for seed in range(rounds):
+        for name, env in envs.items():
+            t0 = time.process_time()
+            episode = run_expert_episode(env, seed)
+            cpu[name].append(time.process_time() - t0)
+            steps[name].append(episode.num_frames)
+    for env in envs.values():
+        env.close()
+    nominal = statistics.median(cpu["nominal"])
+    out = {}
+    for name in envs:
+        median = statistics.median(cpu[name])
+        out[name] = {
+            "episode_ms": round(1e3 * median, 1),
+            "step_ms": round(1e3 * sum(cpu[name]) / sum(steps[name]), 2),
+            "vs_nominal": round(median / nominal, 3),
+        }
+    return out
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sizes", nargs="+", default=["64x64", "320x240"], help="WIDTHxHEIGHT of the images")
+    parser.add_argument("--rounds", type=int, default=6, help="episodes per variant (seeds 0 .. rounds-1)")
+    parser.add_argument("--out", type=Path, help="write the result here as JSON")
+    args = parser.parse_args()
+    result = {
+        "command": "benchmarks/bench_visual.py "
+        + " ".join(f"--{k} {v}" for k, v in (("sizes", " ".join(args.sizes)), ("rounds", args.rounds))),  # fmt: skip
+        "machine": {"cpu": platform.processor() or platform.machine(), "cpu_count": os.cpu_count()},
+        "load_before": round(os.getloadavg()[0], 2),
+        "target_vs_nominal": TARGET,
+        "cameras": ["front", "wrist"],
+        "sizes": {},
+    }
+    for size in args.sizes:
+        w, h = (int(v) for v in size.lower().split("x"))
+        result["sizes"][size] = cost = episode_cost((w, h), args.rounds)
+        worst = max((v["vs_nominal"], k) for k, v in cost.items())
+        print(f"{size}: nominal {cost['nominal']['episode_ms']} ms/episode; most: {worst[1]} x{worst[0]}", flush=True)
+    text = json.dumps(result, indent=1)
+    if args.out:
+        tmp = args.out.with_name(args.out.name + ".tmp")
+        tmp.write_text(text + "\n")
+        tmp.replace(args.out)
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
