@@ -260,42 +260,6 @@ def presets_table(base: str) -> str:
     return "\n".join([*lines, "", f"The other {same} task fields are the same in both presets."])
 
 
-def suite_catalogue(base: str) -> str:
-    """Every suite of ``sim/suites.py``, grouped as the studies use them, with what it changes."""
-    from lerobot_pnp.presets import FULL_TASK, PAPER_TASK, PRESETS
-    from lerobot_pnp.sim.suites import ALL_AXES, SUITES
-    from lerobot_pnp.sim.visual_suites import VISUAL_SUITES
-
-    groups = {
-        "The paper-task study (base: the task a policy was trained on)": [],
-        "The held-out protocol (base: the `full` task)": [],
-        "DAgger's suites (`quiet*`: every perturbation off, then one at a time)": [],
-        "The visual axes (`train_visual`: changes from the `paper` task; the others: from `train_visual`)": [],
-    }
-    titles = list(groups)
-    for s in SUITES.values():
-        key = 3 if s.name in VISUAL_SUITES else 1 if s.name.startswith(("train_", "heldout_")) else 2 if (
-            s.name.startswith("quiet")) else 0  # fmt: skip
-        groups[titles[key]].append(s)
-    out = [
-        f"{len(SUITES)} suites. Changes shown: every field a paper-task suite sets; for the held-out protocol's and "
-        "DAgger's suites, the fields whose value differs from the `full` preset (their base); for the visual "
-        "suites, as their group says."
-    ]
-    for i, (title, suites) in enumerate(groups.items()):
-        out += ["", f"### {title}", "", "| suite | what it is | env-config changes |", "|---|---|---|"]
-        for s in suites:
-            ref = {} if i == 0 else FULL_TASK if i < 3 else PAPER_TASK if s.name == "train_visual" else (
-                PRESETS["full_visual"])  # fmt: skip
-            changes = "; ".join(_changes(p, ref) for p in s.parts)
-            out.append(f"| `{s.name}` | {s.description} | {changes} |")
-    out += ["", "### Held-out axes", "", "| axis | what varies | in distribution | held out |", "|---|---|---|---|"]
-    for a in ALL_AXES:
-        ins, held = (", ".join(f"`{n}`" for n in names) for names in (a.in_distribution, a.held_out))
-        out.append(f"| {a.name} | {a.description} | {ins} | {held} |")
-    return "\n".join(out)
-
-
 def cli_help(base: str) -> str:
     """``lerobot-pnp --help`` and every command's ``--help``, as the CLI prints them at 100 columns."""
     from lerobot_pnp import cli
@@ -341,12 +305,13 @@ def policy_fields(base: str) -> str:
 
 # ----------------------------------------------------------------------------------------------------- render
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from docs_catalogue_tables import BLOCKS as CATALOGUE_BLOCKS  # noqa: E402  (the suite catalogue's blocks)
 from docs_pixel_tables import BLOCKS as PIXEL_BLOCKS  # noqa: E402  (the camera planner page's blocks)
 
 BLOCKS = {
-    **PIXEL_BLOCKS, "paper-table": paper_table, "heldout-verdicts": heldout_verdicts, "heldout-suites": heldout_suites,
+    **PIXEL_BLOCKS, **CATALOGUE_BLOCKS, "paper-table": paper_table, "heldout-verdicts": heldout_verdicts, "heldout-suites": heldout_suites,
     "gate-table": gate_table, "memory-table": memory_table, "planner-table": planner_table, "cost": cost_lines,
-    "leaderboard": leaderboard_table, "presets": presets_table, "suite-catalogue": suite_catalogue,
+    "leaderboard": leaderboard_table, "presets": presets_table,
     "cli-help": cli_help, "env-fields": env_fields, "policy-fields": policy_fields,
 }  # fmt: skip
 
