@@ -128,7 +128,8 @@ FULL_TASK: dict[str, Any] = {
     "carry_min_time": 0.5,
 }
 # The training ranges of the visual held-out axes (sim/visual_suites.py holds the held-out ranges beyond them):
-# a few degrees and millimetres, slight tints and hue shifts, at most one distractor, faint sensor noise.
+# a few degrees and millimetres, slight tints and hue shifts, at most one distractor, faint sensor noise. A camera
+# policy of those axes trains on `full` with these (configs/generate_full_visual.json).
 VISUAL_TRAINING: dict[str, Any] = {
     "light_intensity_range": (0.0, 0.4),  # intensity x 0.76 .. 1.32
     "light_direction_range": (0.0, 0.17),  # up to 10 degrees
@@ -144,13 +145,7 @@ VISUAL_TRAINING: dict[str, Any] = {
     "image_noise_range": (0.0, 0.02),  # std up to 2 % of full scale
     "image_blur_range": (0.0, 0.5),  # std up to half a pixel
 }
-# `full_visual`: the `full` task seen through the visual training ranges (what a camera policy of the visual
-# held-out axes trains on).
-PRESETS: dict[str, dict[str, Any]] = {
-    "paper": PAPER_TASK,
-    "full": FULL_TASK,
-    "full_visual": {**FULL_TASK, **VISUAL_TRAINING},
-}
+PRESETS: dict[str, dict[str, Any]] = {"paper": PAPER_TASK, "full": FULL_TASK}
 TASK_FIELDS = tuple(PAPER_TASK)
 # The observation setup (not part of any preset): rendered cameras and their image size. Like the control mode it
 # is read back from the recorded task, so a policy trained on camera images is evaluated with the same cameras.

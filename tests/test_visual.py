@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from lerobot_pnp.errors import ConfigError
-from lerobot_pnp.presets import PAPER_TASK, PRESETS, VISUAL_TRAINING
+from lerobot_pnp.presets import PAPER_TASK, VISUAL_TRAINING
 from lerobot_pnp.sim import visual
 from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig, make_env
 from lerobot_pnp.sim.expert import run_expert_episode
@@ -195,10 +195,20 @@ def test_bad_values_are_one_line_naming_the_valid_range(changes, message):
 
 
 def test_the_visual_fields_are_recorded_and_read_back_with_the_task():
-    cfg = BaxterPnPEnvConfig(preset="full_visual")
+    cfg = BaxterPnPEnvConfig(preset="full", **VISUAL_TRAINING)
     record = cfg.to_dict()
     assert record["distractors_range"] == [0, 1] and record["camera_shift_range"] == [0.0, 0.005]
     again = BaxterPnPEnvConfig(recorded=record)
-    assert all(getattr(again, f) == tuple(PRESETS["full_visual"][f]) for f in visual.FIELDS)
+    assert all(getattr(again, f) == tuple(VISUAL_TRAINING[f]) for f in visual.FIELDS)
     old = {k: v for k, v in record.items() if k not in visual.FIELDS}  # recorded before these fields existed
     assert not visual.is_varied(BaxterPnPEnvConfig(recorded=old))
+
+
+def test_the_training_data_config_has_the_training_ranges():
+    import json
+    from pathlib import Path
+
+    config = json.loads((Path(__file__).resolve().parents[1] / "configs" / "generate_full_visual.json").read_text())
+    env = BaxterPnPEnvConfig.from_dict(config["env"])
+    assert env.preset == "full" and env.cameras == ["front", "wrist"]
+    assert {f: getattr(env, f) for f in visual.FIELDS} == VISUAL_TRAINING

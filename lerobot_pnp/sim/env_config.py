@@ -79,8 +79,7 @@ class BaxterPnPEnvConfig(EnvConfig):
     # gymnasium id suffix (the one task), or evaluation suites, comma-separated: heldout, paper, drop,... (stock_suites)
     task: str | None = GYM_TASK
     fps: int | None = None  # keyframe: 1 (one FSM state per step); dense: control rate, default 20
-    # Named task preset: "paper" (the paper's setting), "full" (everything on) or "full_visual" (full, visual
-    # training ranges). None = the recorded task, else paper
+    # Named task preset: "paper" (the paper's setting) or "full" (everything on). None = the recorded task, else paper
     preset: str | None = None
     # A dataset folder or checkpoint whose recorded task to use (default: from the command line, see above).
     task_source: str | None = None
