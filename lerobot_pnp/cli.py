@@ -29,7 +29,7 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "train": (
         "lerobot_pnp.train_fast:TrainFastConfig",
         "lerobot_pnp.train_fast:train_fast",
-        "fast in-memory training of the pnp_lstm policy (same checkpoint layout as lerobot-train)",
+        "fast in-memory training of pnp_lstm or pnp_pixels (same checkpoint layout as lerobot-train)",
     ),
     "viz": (
         "lerobot_pnp.viz:VizConfig",

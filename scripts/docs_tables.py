@@ -1,18 +1,15 @@
 """Regenerate every number and reference table of README.md and docs/ from the files they come from.
 
-    python scripts/docs_tables.py          # rewrite the generated blocks in place
+    python scripts/docs_tables.py          # rewrite the generated blocks and facts in place
     python scripts/docs_tables.py --check  # exit 1 and name the pages whose blocks differ (tests/test_docs_tables.py)
 
-A page holds a generated block between two marker comments::
-
-    <!-- begin generated: NAME -->
-    ...
-    <!-- end generated: NAME -->
-
-and this script owns everything between them. The result tables read the committed study summaries and
-measurement files under ``docs/results/`` (their provenance, commit, date and machine, is in
-``docs/results/sources.json`` and each summary's ``machine``); the reference blocks read the code itself (the
-suite catalogue, the CLI's ``--help``, the config dataclasses), so a page can never drift from its source.
+A page holds a generated block between two marker comments, ``<!-- begin generated: NAME -->`` and
+``<!-- end generated: NAME -->`` (each on its own line), or a number its prose repeats between
+``<!-- fact: NAME -->`` and ``<!-- /fact -->`` (``docs_facts.py``), and this script owns everything between them.
+The result tables read the committed study summaries and measurement files under ``docs/results/`` (their
+provenance, commit, date and machine, is in ``docs/results/sources.json`` and each summary's ``machine``); the
+reference blocks (``docs_reference.py``) read the code itself (the suite catalogue, the CLI's ``--help``, the config dataclasses, the
+module map), so a page can never drift from its source.
 """
 
 from __future__ import annotations
@@ -23,7 +20,6 @@ import os
 import re
 import sys
 from pathlib import Path
-from unittest import mock
 
 from lerobot_pnp.evaluation.verdicts import summary_verdict
 
@@ -120,9 +116,10 @@ def heldout_verdicts(base: str) -> str:
     for axis in HELD_OUT_AXES:
         e = rows[(axis.name, "recovering")]
         low_name, low = min(e["held_out_suites"].items(), key=lambda kv: kv[1]["rate"])
+        sides = " | ".join(f"{_cell(e[side])} n={e[side]['n']}" for side in ("in_distribution", "held_out"))
         lines.append(
-            f"| {axis.name} ({axis.description}) | {_cell(e['in_distribution'])} | {_cell(e['held_out'])} | "
-            f"`{low_name}` {_cell(low, False)} | {_verdict(e, difference=True)} |"
+            f"| {axis.name} ({axis.description}) | {sides} | `{low_name}` {_cell(low, False)} | "
+            f"{_verdict(e, difference=True)} |"
         )
     others = []
     for m in HELDOUT_METHODS[1:]:
@@ -133,7 +130,8 @@ def heldout_verdicts(base: str) -> str:
         [
             *lines,
             "",
-            f"Recovering LSTM, task `full`, {len(seeds)} training seeds pooled, eval seeds from "
+            f"Recovering LSTM, task `full`, {len(seeds)} training seeds pooled (n: the episodes of a side's suites "
+            f"and seeds), eval seeds from "
             f"{summary['config']['eval_seed']:,}. Other methods' verdicts on the five axes: {'; '.join(others)}. "
             + study_source(),
         ]
@@ -231,88 +229,18 @@ def leaderboard_table(base: str) -> str:
     return readme_block(ROOT, docs=base + "../", leave_out=("untrained_pnp_lstm",))
 
 
-# ------------------------------------------------------------------------------------------- reference blocks
-def _changes(changes: dict, base: dict) -> str:
-    def fmt(v):
-        if isinstance(v, float):
-            return f"{v:.4g}"
-        if isinstance(v, (tuple, list)):
-            return "(" + ", ".join(fmt(x) for x in v) + ")"
-        return str(v)
-
-    shown = {k: v for k, v in changes.items() if k not in base or fmt(base[k]) != fmt(v)}
-    return ", ".join(f"`{k}={fmt(v)}`" for k, v in shown.items()) or "none"
-
-
-def presets_table(base: str) -> str:
-    """The task fields where the two presets differ, with each preset's value and the field's description."""
-    from lerobot_pnp.presets import FULL_TASK, PAPER_TASK
-    from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
-    from lerobot_pnp.support.cli_help import field_doc
-
-    lines = ["| field | `paper` | `full` | what it is |", "|---|---|---|---|"]
-    for k, v in FULL_TASK.items():
-        if PAPER_TASK[k] != v:
-            doc = field_doc(BaxterPnPEnvConfig, k).split(". ")[0].replace("|", "\\|")
-            lines.append(f"| `{k}` | {_changes({k: PAPER_TASK[k]}, {})[len(k) + 2 : -1]} | "
-                         f"{_changes({k: v}, {})[len(k) + 2 : -1]} | {doc} |")  # fmt: skip
-    same = sum(PAPER_TASK[k] == v for k, v in FULL_TASK.items())
-    return "\n".join([*lines, "", f"The other {same} task fields are the same in both presets."])
-
-
-def cli_help(base: str) -> str:
-    """``lerobot-pnp --help`` and every command's ``--help``, as the CLI prints them at 100 columns."""
-    from lerobot_pnp import cli
-    from lerobot_pnp.support.cli_help import command_help
-
-    with mock.patch.dict(os.environ, {"COLUMNS": "100"}):
-        out = ["```text", "$ lerobot-pnp --help", cli._usage(), "```"]
-        for name, (cfg_ref, _, summary) in cli.COMMANDS.items():
-            out += [
-                "",
-                f"### `lerobot-pnp {name}`",
-                "",
-                "```text",
-                command_help(name, summary, cli._load(cfg_ref)),
-                "```",
-            ]
-    return "\n".join(out)
-
-
-def _field_table(cls, prefix: str) -> str:
-    from lerobot_pnp.support.cli_help import field_rows
-
-    lines = ["| flag | type | description [default] |", "|---|---|---|"]
-    for flag, tp, text in field_rows(cls):
-        text = text.replace("\N{NO-BREAK SPACE}", " ").replace("|", "\\|")
-        lines.append(f"| `{prefix}{flag.removeprefix('--')}` | `{tp}` | {text} |")
-    return "\n".join(lines)
-
-
-def env_fields(base: str) -> str:
-    """Every field of the env config: flags of lerobot-eval, lerobot-train and lerobot-pnp (``--env.*``)."""
-    from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
-
-    return _field_table(BaxterPnPEnvConfig, "--env.")
-
-
-def policy_fields(base: str) -> str:
-    """Every field of the pnp_lstm policy config (``--policy.*``)."""
-    from lerobot_pnp.policy.configuration_pnp_lstm import PnpLstmConfig
-
-    return _field_table(PnpLstmConfig, "--policy.")
-
-
 # ----------------------------------------------------------------------------------------------------- render
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from docs_catalogue_tables import BLOCKS as CATALOGUE_BLOCKS  # noqa: E402  (the suite catalogue's blocks)
+from architecture import BLOCKS as ARCHITECTURE_BLOCKS  # noqa: E402  (docs/ARCHITECTURE.md's module map)
+from docs_facts import FACT, render_facts  # noqa: E402  (the numbers prose repeats, one line each)
 from docs_pixel_tables import BLOCKS as PIXEL_BLOCKS  # noqa: E402  (the camera planner page's blocks)
+from docs_reference import BLOCKS as REFERENCE_BLOCKS  # noqa: E402  (read from the code: CLI help, config fields)
+from docs_visual_tables import BLOCKS as VISUAL_BLOCKS  # noqa: E402  (the visual axes' ranges)
 
 BLOCKS = {
-    **PIXEL_BLOCKS, **CATALOGUE_BLOCKS, "paper-table": paper_table, "heldout-verdicts": heldout_verdicts, "heldout-suites": heldout_suites,
-    "gate-table": gate_table, "memory-table": memory_table, "planner-table": planner_table, "cost": cost_lines,
-    "leaderboard": leaderboard_table, "presets": presets_table,
-    "cli-help": cli_help, "env-fields": env_fields, "policy-fields": policy_fields,
+    **PIXEL_BLOCKS, **ARCHITECTURE_BLOCKS, **REFERENCE_BLOCKS, **VISUAL_BLOCKS, "paper-table": paper_table,
+    "heldout-verdicts": heldout_verdicts, "heldout-suites": heldout_suites, "gate-table": gate_table,
+    "memory-table": memory_table, "planner-table": planner_table, "cost": cost_lines, "leaderboard": leaderboard_table,
 }  # fmt: skip
 
 
@@ -323,7 +251,7 @@ def pages() -> list[Path]:
 
 
 def render(page: Path, text: str, cache: dict[tuple[str, str], str]) -> str:
-    """``text`` with every generated block of ``page`` regenerated; an unknown block name is an error."""
+    """``text`` with every generated block and fact of ``page`` regenerated; an unknown name is an error."""
     base = os.path.relpath(RESULTS, page.parent).replace(os.sep, "/") + "/"
 
     def fill(m: re.Match) -> str:
@@ -334,16 +262,16 @@ def render(page: Path, text: str, cache: dict[tuple[str, str], str]) -> str:
             cache[(name, base)] = BLOCKS[name](base)
         return f"{m.group(1)}{cache[(name, base)]}\n{m.group(4)}"
 
-    return BLOCK.sub(fill, text)
+    return render_facts(page, BLOCK.sub(fill, text), cache)
 
 
 def regenerate() -> dict[Path, tuple[str, str]]:
-    """Every page that holds a generated block -> (its text now, its text regenerated)."""
+    """Every page that holds a generated block or fact -> (its text now, its text regenerated)."""
     cache: dict[tuple[str, str], str] = {}
     out = {}
     for page in pages():
         text = page.read_text()
-        if BLOCK.search(text):
+        if BLOCK.search(text) or FACT.search(text):
             out[page] = (text, render(page, text, cache))
     return out
 

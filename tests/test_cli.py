@@ -10,6 +10,7 @@ import json
 from pathlib import Path
 
 import pytest
+from clis import ENV
 from clis import exe as _exe
 from clis import run as _run
 
@@ -188,6 +189,15 @@ def test_bad_config_value_subprocess_message(tmp_path):
     proc = _run([_exe("lerobot-pnp"), "generate", "--num_episodes=-1", f"--root={tmp_path / 'ds'}"], tmp_path, 60)
     assert proc.returncode == 2
     assert "num_episodes must be an integer >= 1" in proc.stderr
+    assert "Traceback" not in proc.stderr, proc.stderr
+
+
+def test_an_invalid_mujoco_gl_is_one_line_naming_the_backends(tmp_path):
+    """MuJoCo raises a bare RuntimeError from inside ``import mujoco`` for a MUJOCO_GL it does not know; our
+    commands refuse it first, in one line that names the backends."""
+    proc = _run([_exe("lerobot-pnp"), "expert", "--n_episodes=1"], tmp_path, 60, env={**ENV, "MUJOCO_GL": "bogus"})
+    assert proc.returncode == 2, proc.stderr[-2000:]
+    assert "MUJOCO_GL='bogus' is not a MuJoCo rendering backend: use one of egl" in proc.stderr, proc.stderr
     assert "Traceback" not in proc.stderr, proc.stderr
 
 

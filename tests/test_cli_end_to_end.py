@@ -8,6 +8,7 @@ import json
 from pathlib import Path
 
 import pytest
+from clis import ENV
 from clis import exe as _exe
 from clis import run as _run
 
@@ -135,3 +136,49 @@ def test_lerobot_eval_refuses_a_contradicting_flag_and_a_checkpoint_of_other_fea
     proc = _run([*_eval_cmd(keyframe, tmp_path / "eval_dense"), "--env.control_mode=dense"], tmp_path)
     assert proc.returncode != 0 and "contradicts the recorded task ('keyframe'" in proc.stderr, proc.stderr[-2000:]
     assert not (tmp_path / "eval_dense" / "eval_info.json").exists()
+
+
+def _hub_cache_checkpoint(cache: Path, repo_id: str) -> Path:
+    """A checkpoint in the Hub cache's layout (``models--owner--name``, ``refs/main``, a snapshot), as
+    ``hf download`` or a first ``lerobot-eval --policy.path=<repo id>`` leaves it, recording the ``paper`` task."""
+    from lerobot_pnp.integration.recorded_task import write_checkpoint_task
+    from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
+
+    revision = "0123456789abcdef0123456789abcdef01234567"
+    repo = cache / f"models--{repo_id.replace('/', '--')}"
+    snapshot = repo / "snapshots" / revision
+    _write_mismatched_checkpoint(snapshot)
+    write_checkpoint_task({"type": "baxter_pnp", **BaxterPnPEnvConfig(preset="paper").to_dict()}, snapshot)
+    (repo / "refs").mkdir(parents=True)
+    (repo / "refs" / "main").write_text(revision)
+    return snapshot
+
+
+def test_a_hub_repo_id_as_policy_path_reads_the_checkpoints_recorded_task(tmp_path, monkeypatch):
+    """``--policy.path=owner/name`` in a run on this env stands for the record of the cached Hub checkpoint; a run
+    on another env, and a repo id that cannot be fetched, are left to LeRobot."""
+    from huggingface_hub import constants
+
+    from lerobot_pnp.integration import stock_cli
+
+    snapshot = _hub_cache_checkpoint(tmp_path / "hub", "someone/pnp_lstm_paper")
+    monkeypatch.setattr(constants, "HF_HUB_CACHE", str(tmp_path / "hub"))
+    monkeypatch.setattr(constants, "HF_HUB_OFFLINE", True)
+    ours = ["lerobot-eval", "--policy.path=someone/pnp_lstm_paper", "--env.type=baxter_pnp"]
+    monkeypatch.setattr("sys.argv", ours)
+    assert stock_cli.command_line_sources() == {None: str(snapshot)}
+    monkeypatch.setattr("sys.argv", [ours[0], ours[1], "--env.type=pusht"])
+    assert stock_cli.command_line_sources() == {None: "someone/pnp_lstm_paper"}
+    monkeypatch.setattr("sys.argv", [ours[0], "--policy.path=someone/not_cached", ours[2]])
+    assert stock_cli.command_line_sources() == {None: "someone/not_cached"}
+
+
+def test_lerobot_eval_of_a_hub_checkpoint_applies_its_recorded_task(tmp_path):
+    """The real lerobot-eval, offline, on a checkpoint in the Hub cache: its recorded keyframe task is read, so a
+    contradicting ``--env.control_mode=dense`` is refused in one line before any rollout."""
+    _hub_cache_checkpoint(tmp_path / "hub", "someone/pnp_lstm_paper")
+    env = {**ENV, "HF_HUB_CACHE": str(tmp_path / "hub"), "HF_HUB_OFFLINE": "1"}
+    cmd = [*_eval_cmd("someone/pnp_lstm_paper", tmp_path / "eval_hub"), "--env.control_mode=dense"]
+    proc = _run(cmd, tmp_path, env=env)
+    assert proc.returncode != 0 and "contradicts the recorded task ('keyframe'" in proc.stderr, proc.stderr[-2000:]
+    assert "Traceback" not in proc.stderr

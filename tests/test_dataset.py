@@ -11,6 +11,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -365,6 +366,39 @@ def test_push_without_token_or_network_fails_fast_and_touches_nothing(kf, tmp_pa
     assert cli.main(push) == 2
     assert "HF_HUB_OFFLINE" in capsys.readouterr().err
     assert _snapshot(root) == before
+
+
+def test_push_uploads_the_dataset_and_not_the_local_bookkeeping(kf, tmp_path, monkeypatch):
+    """The files a push sends (the Hub's API recorded here, not called): the dataset's meta/ and data/, not the
+    output folder's manifest, which would make a downloaded copy look like this command's own output."""
+    import huggingface_hub
+    from huggingface_hub import constants
+    from huggingface_hub.utils import filter_repo_objects
+
+    from lerobot_pnp import cli
+    from lerobot_pnp.dataset import hub
+
+    root, _ = kf
+    (root / "stage.json").write_text("{}")  # a study's record beside the dataset
+    sent: list[str] = []
+
+    def upload_folder(self, folder_path, allow_patterns=None, ignore_patterns=None, **kwargs):
+        files = [str(p.relative_to(folder_path)) for p in Path(folder_path).rglob("*") if p.is_file()]
+        sent.extend(filter_repo_objects(files, allow_patterns=allow_patterns, ignore_patterns=ignore_patterns))
+
+    monkeypatch.setattr(constants, "HF_HUB_OFFLINE", False)
+    monkeypatch.setenv("HF_TOKEN", "hf_not_a_real_token")
+    monkeypatch.setattr(hub, "_connect", lambda *a: None)
+    monkeypatch.setattr(huggingface_hub.HfApi, "upload_folder", upload_folder)
+    for name in ("create_repo", "create_tag", "delete_tag", "create_branch", "list_repo_refs"):
+        monkeypatch.setattr(huggingface_hub.HfApi, name, lambda self, *a, **k: SimpleNamespace(tags=[], branches=[]))
+    monkeypatch.setattr(huggingface_hub.RepoCard, "push_to_hub", lambda self, *a, **k: None)
+    try:
+        assert cli.main(["push", f"--repo_id={REPO}", f"--root={root}"]) == 0
+    finally:
+        (root / "stage.json").unlink()
+    assert "meta/info.json" in sent and any(f.startswith("data/") for f in sent), sent
+    assert ".pnp_manifest.json" not in sent and "stage.json" not in sent, sent
 
 
 # ---------------------------------------------------------------------------------------------- dense

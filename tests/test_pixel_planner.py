@@ -401,3 +401,19 @@ def test_the_shipped_config_trains_on_both_paths(image_dataset, tmp_path):
     assert main(args) == 0
     saved = json.loads((out / "checkpoints" / "last" / "pretrained_model" / "config.json").read_text())
     assert saved["type"] == "pnp_pixels" and saved["hidden_size"] == 16 and saved["num_keypoints"] == 16
+
+
+def test_the_pre_processor_refuses_a_missing_camera_naming_pnp_pixels():
+    """A batch without the trained camera is refused by the check step, in a message that names the policy."""
+    import torch
+
+    from lerobot_pnp.errors import PolicyError
+    from lerobot_pnp.policy import make_pnp_pixels_pre_post_processors
+
+    def unit(n: int) -> dict:
+        return {"mean": torch.zeros(n), "std": torch.ones(n), "min": -torch.ones(n), "max": torch.ones(n)}
+
+    stats = {"observation.state": unit(STATE_DIM), "observation.environment_state": unit(ENV_DIM)}
+    pre, _ = make_pnp_pixels_pre_post_processors(_config(), {**stats, "action": unit(ACTION_DIM)})
+    with pytest.raises(PolicyError, match=r"^pnp_pixels: observation 'observation\.images\.front' is missing"):
+        pre({"observation.state": torch.zeros(1, STATE_DIM)})

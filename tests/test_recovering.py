@@ -529,6 +529,21 @@ def test_shipped_configs_train_the_recovering_recipe(name):
     assert {k: policy.get(k) for k in RECOVERING_RECIPE} == RECOVERING_RECIPE
 
 
+def test_shipped_recovering_configs_hold_the_longest_episode_of_the_full_task():
+    """Every shipped config that trains a recovering planner (pnp_lstm or pnp_pixels) gives its training windows the
+    longest episode the ``full`` task allows: its keyframe budget + the final state (the rule the study applies,
+    ``report.recipes.policy_settings``); a shorter window refuses the longest demonstrations."""
+    from lerobot_pnp.presets import FULL_TASK
+
+    configs = sorted((Path(__file__).parents[1] / "configs").glob("*.json"))
+    recovering = {p.name: json.loads(p.read_text()).get("policy", {}) for p in configs}
+    recovering = {name: p for name, p in recovering.items() if p.get("mode") == "recovering"}
+    assert {"train_pnp_lstm_full.json", "train_pnp_pixels.json", "dagger.json"} <= set(recovering)
+    wrong = {n: p.get("max_episode_length") for n, p in recovering.items()
+             if p.get("max_episode_length") != FULL_TASK["keyframe_budget"] + 1}  # fmt: skip
+    assert not wrong, f"max_episode_length must be {FULL_TASK['keyframe_budget'] + 1}: {wrong}"
+
+
 def test_memory_per_attempt_trains_each_attempt_from_a_zero_state():
     """With ``memory_per_attempt`` an episode whose labels go back from place to pick trains as its attempts would
     alone, each from its own first frame; the frame where the labels go back is also the last of the attempt it

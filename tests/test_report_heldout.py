@@ -190,7 +190,7 @@ def test_the_paper_study_trains_the_recipe_with_its_changes(tmp_path, monkeypatc
     assert methods.train_stage(clocked, ctx).key == methods.train_stage(clocked, shipped).key
     augmenting = replace(ctx, recipe_changes={"latency_augment_prob": 0.2})  # the told MLP trains without it
     assert methods.policy_settings(methods.PHASE_TOLD_MLP, augmenting)["latency_augment_prob"] == 0.0
-    assert methods.policy_settings(methods.RECOVERING, augmenting)["latency_augment_prob"] == 0.2
+    assert methods.policy_settings(methods.RECOVERING_STUDY_SETTINGS, augmenting)["latency_augment_prob"] == 0.2
 
     seen, round0 = {}, tmp_path / "round0"
     round0.mkdir()

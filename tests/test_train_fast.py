@@ -346,11 +346,37 @@ def test_train_cli_rejects_bad_flags_before_any_work(dataset_root, tmp_path, cap
         (["--test_episodes", "20:10"], "test_episodes '20:10' is empty"),
         (["--policy.optimizer_lr", "-1"], "optimizer_lr must be > 0"),
         (["--policy.steps_per_subtask", "4"], "a keyframe episode has 10 frames"),
+        (["--policy.push_to_hub", "true"], "policy.push_to_hub needs policy.repo_id"),
     ):
         assert main(["train", *ds, *flags]) == 2, flags
         err = capsys.readouterr().err.strip()
         assert "\n" not in err and match in err, (flags, err)
     assert not (tmp_path / "o").exists()
+
+
+def test_push_to_hub_uploads_the_policy_its_processors_and_its_task(dataset_root, tmp_path, monkeypatch):
+    """``--policy.push_to_hub`` uploads what ``lerobot-train`` pushes (the Hub's API recorded here, not called):
+    every file of the saved ``pretrained_model`` (the weights, the config, both processors, and the task the data
+    was recorded in where it records one) and a model card."""
+    import huggingface_hub
+
+    uploaded: dict[str, set[str]] = {}
+
+    def create_repo(self, repo_id, **kwargs):
+        return huggingface_hub.RepoUrl(f"https://huggingface.co/{repo_id}")
+
+    def upload_folder(self, repo_id, folder_path, **kwargs):
+        uploaded.setdefault(repo_id, set()).update(p.name for p in Path(folder_path).rglob("*") if p.is_file())
+        return huggingface_hub.CommitInfo(f"https://huggingface.co/{repo_id}/commit/0", "", "", "0")
+
+    monkeypatch.setattr(huggingface_hub.HfApi, "create_repo", create_repo)
+    monkeypatch.setattr(huggingface_hub.HfApi, "upload_folder", upload_folder)
+    monkeypatch.setattr(huggingface_hub.ModelCard, "validate", lambda self, *a, **k: None)  # a Hub call too
+    policy = PnpLstmConfig(device="cpu", hidden_size=8, push_to_hub=True, repo_id="someone/pnp_lstm")
+    train_fast(_cfg(dataset_root, tmp_path / "run", policy=policy, epochs=1, batch_size=8))
+    files = uploaded["someone/pnp_lstm"]
+    saved = {p.name for p in (tmp_path / "run/checkpoints/last/pretrained_model").iterdir()}
+    assert saved <= files and {"model.safetensors", "policy_preprocessor.json", "README.md"} <= files, files
 
 
 def test_train_cli_bad_input(dataset_root, tmp_path, capsys):

@@ -25,6 +25,12 @@ class PushConfig:
         return Path(self.root) if self.root else Path("outputs/datasets") / self.repo_id
 
 
+# What a LeRobotDataset is on the Hub: its folders, not the local bookkeeping beside them (the output folder's
+# ``.pnp_manifest.json``, a study's ``stage.json``), which would make a downloaded copy look like a local command's
+# own output
+DATASET_FILES = ("meta/*", "data/*", "videos/*")
+
+
 def push(cfg: PushConfig) -> dict:
     """Upload ``cfg.output_root`` to the Hub with LeRobot's ``push_to_hub`` (tags ``v3.0``).
 
@@ -48,7 +54,9 @@ def push(cfg: PushConfig) -> dict:
     except OSError as err:
         raise DatasetError(f"cannot push: the Hub at {constants.ENDPOINT} is unreachable ({err})") from None
     try:
-        ds.push_to_hub(branch=cfg.branch, private=cfg.private, push_videos=cfg.push_videos)
+        ds.push_to_hub(
+            branch=cfg.branch, private=cfg.private, push_videos=cfg.push_videos, allow_patterns=list(DATASET_FILES)
+        )
     except Exception as err:
         raise DatasetError(f"push to {cfg.repo_id} failed: {err}") from err
     return {

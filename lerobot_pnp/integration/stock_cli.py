@@ -14,8 +14,12 @@ name; nothing heavier.
 from __future__ import annotations
 
 import json
+import re
 import sys
 from pathlib import Path
+
+from huggingface_hub import hf_hub_download
+from huggingface_hub.errors import EntryNotFoundError, HfHubHTTPError
 
 from lerobot_pnp.presets import ENV_TYPE
 from lerobot_pnp.sim.recorded_files import CHECKPOINT_RECORDED_FILE, RECORDED_FILE
@@ -73,10 +77,35 @@ def task_source_from_argv() -> str | None:
     return _section(config, "dataset").get("root") or _section(config, "policy").get("path")
 
 
+def names_our_env() -> bool:
+    """Whether this process's arguments (or its ``--config_path`` file) name ``--env.type=baxter_pnp``."""
+    return (arg("env.type") or _section(_config_file(), "env").get("type")) == ENV_TYPE
+
+
+# a Hub repo id as LeRobot takes one for ``--policy.path``: ``owner/name``, when no such folder exists
+_REPO_ID = re.compile(r"^[\w.-]+/[\w.-]+$")
+
+
+def hub_checkpoint_folder(source: str) -> str | None:
+    """The local folder (in the Hub cache) holding the task record of the checkpoint that the repo id ``source``
+    names, downloaded as LeRobot downloads the checkpoint's other files; None when ``source`` is a path, when the
+    repository records no task, or when it cannot be reached (LeRobot then reports the repository itself)."""
+    if not _REPO_ID.match(source) or Path(source).expanduser().exists():
+        return None
+    try:
+        return str(Path(hf_hub_download(repo_id=source, filename=CHECKPOINT_RECORDED_FILE)).parent)
+    except (EntryNotFoundError, HfHubHTTPError, OSError, ValueError):  # not found, unreachable, offline and not cached
+        return None
+
+
 def command_line_sources() -> dict[str | None, str | None]:
     """The task sources this process's arguments name, as ``BaxterPnPEnvConfig.read_edge_records`` takes them:
-    the default source (None: ``task_source_from_argv``) and an explicit ``--env.task_source``."""
-    sources: dict[str | None, str | None] = {None: task_source_from_argv()}
+    the default source (None: ``task_source_from_argv``) and an explicit ``--env.task_source``. A ``--policy.path``
+    that is a Hub repo id, in a run on this env, stands for the checkpoint's task record fetched from the Hub."""
+    default = task_source_from_argv()
+    if default and default == arg("policy.path") and names_our_env():
+        default = hub_checkpoint_folder(default) or default
+    sources: dict[str | None, str | None] = {None: default}
     explicit = arg("env.task_source") or _section(_config_file(), "env").get("task_source")
     if isinstance(explicit, str) and explicit:
         sources[explicit] = explicit

@@ -1,4 +1,5 @@
-"""The ``pnp_lstm`` policy: LSTM task planner (de Magistris et al. 2016) as a LeRobot 0.6.1 plugin.
+"""The policies, as LeRobot 0.6.1 plugin types: ``pnp_lstm`` (the LSTM task planner of de Magistris et al. 2016),
+``pnp_pixels`` (the same planner on camera images) and ``pnp_lookup_table`` (the nearest-demonstration replay).
 
 Importing this package registers the ``pnp_lstm`` policy type with LeRobot (the config class is
 decorated with ``PreTrainedConfig.register_subclass``). LeRobot then finds ``PnpLstmPolicy`` and

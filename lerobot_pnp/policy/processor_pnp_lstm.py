@@ -53,6 +53,7 @@ class CheckObservationStep(ObservationProcessorStep):
     action_shape: list[int] | None = None  # checked when a batch carries an action (training)
     fps: int | None = None  # dataset fps and window offsets: to name the frame of a bad value
     delta_indices: list[int] | None = None
+    policy: str = "pnp_lstm"  # the policy type its messages name
 
     def __call__(self, transition):
         transition = super().__call__(transition)
@@ -67,7 +68,7 @@ class CheckObservationStep(ObservationProcessorStep):
         for key, shape in self.expected.items():
             if key not in observation:
                 raise PolicyError(
-                    f"pnp_lstm: observation {key!r} is missing (the checkpoint needs {sorted(self.expected)}; "
+                    f"{self.policy}: observation {key!r} is missing (the checkpoint needs {sorted(self.expected)}; "
                     f"got {sorted(k for k in observation if k.startswith(OBS_PREFIX))})"
                 )
             self._check(key, observation[key], shape, extra)
@@ -79,7 +80,7 @@ class CheckObservationStep(ObservationProcessorStep):
         if tuple(value.shape[-len(shape) :]) != tuple(shape):
             what = "observation " if key.startswith(OBS_PREFIX) else ""
             raise PolicyError(
-                f"pnp_lstm: {what}{key!r} has shape {tuple(value.shape)} but the checkpoint was trained on "
+                f"{self.policy}: {what}{key!r} has shape {tuple(value.shape)} but the checkpoint was trained on "
                 f"{tuple(shape)} per frame: this checkpoint is for a different env or dataset"
             )
         if value.is_floating_point() and not bool(torch.isfinite(value).all()):
@@ -94,7 +95,7 @@ class CheckObservationStep(ObservationProcessorStep):
         row = where[0] if where else 0
         episodes = extra.get("episode_index")
         if episodes is None:
-            return PolicyError(f"pnp_lstm: observation {key!r} contains NaN or inf (batch row {row})")
+            return PolicyError(f"{self.policy}: observation {key!r} contains NaN or inf (batch row {row})")
         episode = int(torch.as_tensor(episodes).reshape(-1)[row])
         frame = "?"
         timestamps = extra.get("timestamp")
@@ -181,6 +182,7 @@ def make_pipelines(
         action_shape=list(action.shape) if action is not None else None,
         fps=config.dataset_fps,
         delta_indices=config.observation_delta_indices,
+        policy=config.type,
     )
     return make_policy_processor_pipelines(
         input_steps=[check, s.rename_observations, s.add_batch_dim, s.to_device, s.normalize],

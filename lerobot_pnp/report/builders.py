@@ -19,7 +19,7 @@ from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.evaluation.checkpoints import load_policy
 from lerobot_pnp.evaluation.closed_loop import eval_expert, eval_lerobot_policy
 from lerobot_pnp.report import act_baseline, adapters, training
-from lerobot_pnp.report.recipes import RECOVERING, policy_settings
+from lerobot_pnp.report.recipes import RECOVERING_STUDY_SETTINGS, policy_settings
 from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
 
 if TYPE_CHECKING:
@@ -98,7 +98,7 @@ def dagger_train(ctx: TrainContext, name: str = "recovering_dagger", *, method_o
             base_repo_id=f"local/{ctx.dataset_root.name}",
             round0_checkpoint=str(round0),
             eval_episodes=0,  # the study evaluates it like every other method
-            policy=PnpLstmConfig(**policy_settings(RECOVERING, ctx)),
+            policy=PnpLstmConfig(**policy_settings(RECOVERING_STUDY_SETTINGS, ctx)),
             epochs=ctx.epochs,
             batch_size=RECOVERING_BATCH_SIZE,
             seed=ctx.seed,

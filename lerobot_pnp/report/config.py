@@ -16,7 +16,7 @@ from dataclasses import dataclass, field, fields
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.presets import PRESETS as TASK_PRESETS
 from lerobot_pnp.report.episode_rule import EpisodeRule, RuleChanges, resolve_rule
-from lerobot_pnp.report.methods import DATA_EFFICIENCY_METHODS, METHODS, RECOVERING, get_methods
+from lerobot_pnp.report.methods import DATA_EFFICIENCY_METHODS, METHODS, RECOVERING_STUDY_SETTINGS, get_methods
 from lerobot_pnp.report.slurm import StudySlurmOptions, checked
 from lerobot_pnp.sim.suites import STUDY_SUITES, get_suites
 
@@ -257,7 +257,7 @@ class StudyConfig:
             raise ConfigError(f"recipe_changes may not set {fixed}: each method and the task decide them")
         # a value the planner refuses fails now, in one line, not after the demonstrations were generated
         try:
-            PnpLstmConfig(**{**RECOVERING, **self.recipe_changes})
+            PnpLstmConfig(**{**RECOVERING_STUDY_SETTINGS, **self.recipe_changes})
         except (ValueError, TypeError) as e:
             raise ConfigError(f"recipe_changes {self.recipe_changes}: {e}") from None
 

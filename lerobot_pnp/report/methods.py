@@ -68,7 +68,7 @@ from lerobot_pnp.report.recipes import (
     DART_SIGMA,
     MEMORYLESS_MLP,
     PHASE_TOLD_MLP,
-    RECOVERING,
+    RECOVERING_STUDY_SETTINGS,
     RECOVERING_TRUNK,
     dagger_betas,
     dagger_round_names,
@@ -159,7 +159,7 @@ METHODS: dict[str, Method] = {
             f"({RECOVERING_TRUNK} trunk, late episodes, binary gripper, the observation gate, the arm held on the place's open, the memory restarted at each "
             "re-pick); recoveries only as the task "
             "demonstrates them (none on `paper`, every disturbance on `full`)",
-            **RECOVERING,
+            **RECOVERING_STUDY_SETTINGS,
         ),
         Method(
             "recovering_dagger",
@@ -173,7 +173,7 @@ METHODS: dict[str, Method] = {
             True,
             functools.partial(dagger_train, method_of=_method),
             checkpoint_eval,
-            RECOVERING,
+            RECOVERING_STUDY_SETTINGS,
             continues="recovering",
             batch_size=RECOVERING_BATCH_SIZE,
             schedule=DAGGER_SCHEDULE,
@@ -191,7 +191,7 @@ METHODS: dict[str, Method] = {
             True,
             functools.partial(dart_train, method_of=_method),
             checkpoint_eval,
-            RECOVERING,
+            RECOVERING_STUDY_SETTINGS,
             continues="recovering",
             batch_size=RECOVERING_BATCH_SIZE,
             schedule=DART_SCHEDULE,

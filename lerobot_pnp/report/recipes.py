@@ -17,17 +17,22 @@ from lerobot_pnp.sim.suites import RECOVERY_BUDGET
 if TYPE_CHECKING:
     from lerobot_pnp.report.method_spec import TrainContext
 
-# The recovering planner's recipe; its training windows hold the longest episode of the study (a recovery
-# suite's budget + the final state: DAgger's rollouts are that long).
-RECOVERING = {**RECOVERING_RECIPE, "max_episode_length": RECOVERY_BUDGET + 1}
+# The study's settings of the recovering planner: RECOVERING_RECIPE, its training windows holding the longest
+# episode of the study (a recovery suite's budget + the final state: DAgger's rollouts are that long).
+RECOVERING_STUDY_SETTINGS = {**RECOVERING_RECIPE, "max_episode_length": RECOVERY_BUDGET + 1}
 # The memoryless controls take the recipe that gave each its best nominal success on the `full` task
 # (docs/policy.md): the plain MLP with the late episodes, the phase-told one without.
 # Without memory there is none to restart at a re-pick: memory_per_attempt is off (it would change nothing).
-MEMORYLESS_MLP = {**RECOVERING, "recurrent": False, "memory_per_attempt": False}
-PHASE_TOLD_MLP = {**RECOVERING, "recurrent": False, "latency_augment_prob": 0.0, "memory_per_attempt": False}
+MEMORYLESS_MLP = {**RECOVERING_STUDY_SETTINGS, "recurrent": False, "memory_per_attempt": False}
+PHASE_TOLD_MLP = {
+    **RECOVERING_STUDY_SETTINGS,
+    "recurrent": False,
+    "latency_augment_prob": 0.0,
+    "memory_per_attempt": False,
+}
 DAGGER_ROLLOUTS = 300  # policy episodes of the one DAgger round, cycled over the rollout suites
 # the recipe's trunk as the method descriptions name it, read from the recipe so that a report cannot name another
-RECOVERING_TRUNK = f"{RECOVERING['num_layers']} x {RECOVERING['hidden_size']} LSTM"
+RECOVERING_TRUNK = f"{RECOVERING_STUDY_SETTINGS['num_layers']} x {RECOVERING_STUDY_SETTINGS['hidden_size']} LSTM"
 # DAgger's rounds in the study (Ross et al.'s mixture): round r's rollouts execute the expert's label at each step
 # with probability DAGGER_BETA * 0.5 ** (r - 1), the policy's action otherwise, and every visited state is labelled.
 # Pure on-policy rounds (beta 0) label only the first keyframe of each recovery (docs/guides/dagger-dart.md).
@@ -79,7 +84,7 @@ def policy_settings(overrides: dict, ctx: TrainContext) -> dict:
     if overrides.get("mode") != "recovering":
         return overrides
     # a change reaches the settings the method keeps from the recipe (the told MLP keeps its own augmentation)
-    kept = {k: v for k, v in ctx.recipe_changes.items() if overrides.get(k) == RECOVERING.get(k)}
+    kept = {k: v for k, v in ctx.recipe_changes.items() if overrides.get(k) == RECOVERING_STUDY_SETTINGS.get(k)}
     settings = {**overrides, **kept}
     if ctx.task_budget is not None:
         settings["max_episode_length"] = max(settings["max_episode_length"], ctx.task_budget + 1)

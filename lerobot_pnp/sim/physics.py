@@ -16,9 +16,10 @@ import numpy as np
 from lerobot_pnp import robot
 from lerobot_pnp.errors import PhysicsError
 from lerobot_pnp.sim.interpolation import joint_trajectory
-from lerobot_pnp.sim.mujoco_gl import default_mujoco_gl
+from lerobot_pnp.sim.mujoco_gl import check_mujoco_gl, default_mujoco_gl
 
 default_mujoco_gl()  # MuJoCo reads MUJOCO_GL once, when imported: headless EGL on Linux unless the user chose
+check_mujoco_gl()  # a value MuJoCo rejects is one line, not a traceback from inside ``import mujoco``
 
 import mujoco  # noqa: E402
 

@@ -113,6 +113,10 @@ class TrainFastConfig:
                 f"policy.n_subtasks x policy.steps_per_subtask = {self.policy.clock_frames}, but a keyframe "
                 f"episode has {robot.N_KEYFRAMES} frames",
             ),
+            (
+                not self.policy.push_to_hub or bool(self.policy.repo_id),
+                "policy.push_to_hub needs policy.repo_id, the Hub repo (owner/name) to push the trained policy to",
+            ),
         ]
         if self.init_from is not None and not Path(self.init_from, "config.json").is_file():
             checks.append((False, f"init_from {self.init_from} is not a policy checkpoint (no config.json)"))

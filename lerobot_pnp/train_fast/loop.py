@@ -75,13 +75,14 @@ class _Run:
     def out_dir(self) -> Path:
         return self.folder.path
 
-    def save(self, step: int) -> Path:
-        from lerobot.common.train_utils import get_step_checkpoint_dir, save_checkpoint, update_last_checkpoint
+    def train_config(self, step: int):
+        """The run as LeRobot's ``TrainPipelineConfig``: what a checkpoint's ``train_config.json`` and a pushed
+        model card hold."""
         from lerobot.configs.default import DatasetConfig
         from lerobot.configs.train import TrainPipelineConfig
 
         cfg = self.cfg
-        train_cfg = TrainPipelineConfig(
+        return TrainPipelineConfig(
             dataset=DatasetConfig(repo_id=cfg.dataset_repo_id, root=cfg.dataset_root, video_backend="pyav"),
             policy=self.policy.config,
             output_dir=self.out_dir,
@@ -95,6 +96,11 @@ class _Run:
             optimizer=self.opt_cfg,
             scheduler=self.sched_cfg,
         )
+
+    def save(self, step: int) -> Path:
+        from lerobot.common.train_utils import get_step_checkpoint_dir, save_checkpoint, update_last_checkpoint
+
+        cfg, train_cfg = self.cfg, self.train_config(step)
         ckpt = get_step_checkpoint_dir(self.out_dir, self.total_steps, step)
         save_checkpoint(
             checkpoint_dir=ckpt,
@@ -111,6 +117,15 @@ class _Run:
         # save: PnpLstmPolicy._save_pretrained), so lerobot-eval finds it from any folder.
         update_last_checkpoint(ckpt)
         return ckpt / "pretrained_model"
+
+    def push(self, step: int) -> None:
+        """``--policy.push_to_hub``: the final policy (with its recorded task), its processors and a model card to
+        ``--policy.repo_id``, as ``lerobot-train`` pushes them."""
+        repo_id = self.policy.config.repo_id
+        logger.info("Pushing the policy and its processors to the Hub: %s", repo_id)
+        self.policy.push_model_to_hub(self.train_config(step))
+        self.preprocessor.push_to_hub(repo_id)
+        self.postprocessor.push_to_hub(repo_id)
 
 
 def seed_everything(seed: int) -> None:
@@ -307,6 +322,8 @@ def _train(cfg: TrainFastConfig, folder: OutputFolder) -> TrainFastResult:
     history, step = _fit(run, train_all, test_all, n_epochs, device)
     policy.eval()
     ckpt_dir = run.save(step)
+    if cfg.policy.push_to_hub:
+        run.push(step)
     return _final_report(run, ds, data, train_all, test_all, step, ckpt_dir, history)
 
 
