@@ -1,18 +1,18 @@
 """What the visual variation costs a camera episode: every visual suite beside the scene as modelled, in one run.
 
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_visual.py [--sizes 64x64 320x240] [--rounds 6]
+    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_visual.py [--sizes 64x64 320x240] [--rounds 12]
         [--out docs/results/bench_visual.json]
 
 A camera episode is the scripted expert's keyframe episode on the `full` task with the front and wrist cameras
 rendered at every step (the env's observation, the camera planner's setting: no render effects), from its reset to
 its end. Per image size, each variant (``nominal``, ``train_visual`` and every held-out visual suite, each the
-suite's changes on that task) runs the same seeds, interleaved in rounds (one episode of every variant per round,
-seed = round) so that a shared machine's load falls on all alike; its envs are built before the first round (the
-distractor slots are added once, when an env is built). Reported per variant: the median CPU time per episode and
-per step, and the median over seeds of its cost over ``nominal``'s on the same seed (the target: at most 1.20). The expert does not see the
-pixels, so every variant simulates exactly the same episodes and the difference is what the variation costs:
-writing the model's fields at reset (lights, colours, cameras, distractors) and the image noise and blur of every
-frame.
+suite's changes on that task) runs the same seeds, interleaved in rounds: one episode of every variant per round,
+seed = round, each round starting at another variant, so that a shared machine's load falls on all alike. The
+envs are built before the first round (the distractor slots are added once, when an env is built). Reported per
+variant: the median CPU time per episode and per step, and the median over seeds of its cost over ``nominal``'s
+on the same seed (the target: at most 1.20). The expert does not see the pixels, so every variant simulates
+exactly the same episodes and the difference is what the variation costs: writing the model's fields at reset
+(lights, colours, cameras, distractors) and the image noise and blur of every frame.
 """
 
 from __future__ import annotations
@@ -52,8 +52,11 @@ def episode_cost(size: tuple[int, int], rounds: int) -> dict:
     steps: dict[str, list[int]] = {name: [] for name in envs}
     for env in envs.values():  # warm: the renderers are made on first use
         run_expert_episode(env, 10_000)
+    names = list(envs)
     for seed in range(rounds):
-        for name, env in envs.items():
+        for k in range(len(names)):  # each round in another order: no variant always runs first
+            name = names[(k + seed) % len(names)]
+            env = envs[name]
             t0 = time.process_time()
             episode = run_expert_episode(env, seed)
             cpu[name].append(time.process_time() - t0)
@@ -74,7 +77,7 @@ def episode_cost(size: tuple[int, int], rounds: int) -> dict:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", nargs="+", default=["64x64", "320x240"], help="WIDTHxHEIGHT of the images")
-    parser.add_argument("--rounds", type=int, default=6, help="episodes per variant (seeds 0 .. rounds-1)")
+    parser.add_argument("--rounds", type=int, default=12, help="episodes per variant (seeds 0 .. rounds-1)")
     parser.add_argument("--out", type=Path, help="write the result here as JSON")
     args = parser.parse_args()
     from lerobot_pnp.report.provenance import machine

@@ -1,12 +1,12 @@
 """A camera sensor's faults on a rendered image: Gaussian blur (optics out of focus), then Gaussian noise.
 
-Plain numpy on the HxWx3 uint8 frames the env renders, kept cheap because it runs on every frame of every camera:
+Plain numpy on the HxWx3 uint8 frames the env renders, in integers, because it runs on every frame of every camera:
 
-* the blur is separable, its kernel cut at 3 standard deviations, edges repeated, in float32 over the image's rows
-  as flat arrays;
-* the noise is drawn as 16 random bits per pixel and channel (``Generator.bytes``, the cheapest draw numpy has),
-  each mapped through a table of the Gaussian's inverse distribution at 65536 levels (``noise_table``): a
-  Gaussian to 4.3 standard deviations, rounded to whole pixel values, added in integers and clipped.
+* the blur is separable, its kernel cut at 3 standard deviations and its weights in 1/256ths (a sum of 256, so a
+  pass over uint8 values fits uint16 exactly), each pass rounded back to whole pixel values, edges repeated;
+* the noise is one random byte per pixel and channel (``Generator.bytes``, numpy's cheapest draw), mapped through a
+  table of the Gaussian's quantiles at 256 equally likely levels (``noise_table``): a Gaussian cut at 2.7 standard
+  deviations, scaled so that its standard deviation is the one asked for, added in integers and clipped.
 """
 
 from __future__ import annotations
@@ -17,45 +17,55 @@ from statistics import NormalDist
 
 import numpy as np
 
-LEVELS = 1 << 16  # noise levels: one per value of 16 random bits
+LEVELS = 256  # noise levels: one per value of a random byte
+_ONE = 256  # the blur's weights are in 1/256ths
 
 
 def gaussian_kernel(sigma: float) -> np.ndarray:
-    """The normalised 1-D Gaussian of std ``sigma`` pixels, cut at 3 std (at least 3 taps)."""
+    """The normalised 1-D Gaussian of std ``sigma`` pixels, cut at 3 std (at least 3 taps), in float64."""
     radius = max(1, math.ceil(3 * sigma))
-    x = np.arange(-radius, radius + 1, dtype=np.float32)
-    k = np.exp(-0.5 * (x / np.float32(sigma)) ** 2)
-    return (k / k.sum()).astype(np.float32)
+    x = np.arange(-radius, radius + 1, dtype=np.float64)
+    k = np.exp(-0.5 * (x / sigma) ** 2)
+    return k / k.sum()
+
+
+@functools.lru_cache(maxsize=16)
+def integer_kernel(sigma: float) -> np.ndarray:
+    """``gaussian_kernel`` in whole 1/256ths summing to exactly 256 (the rounding's remainder on the centre tap)."""
+    w = np.rint(gaussian_kernel(sigma) * _ONE).astype(np.int64)
+    w[len(w) // 2] += _ONE - int(w.sum())
+    return w.astype(np.uint16)
+
+
+def _pass(w: np.ndarray, views) -> np.ndarray:
+    """``sum(w[i] * views(i))`` rounded to whole values (uint16: every sum is at most 255 * 256 + 128)."""
+    out = views(0) * w[0]
+    for i in range(1, len(w)):
+        out += views(i) * w[i]
+    out += _ONE // 2
+    out >>= 8
+    return out
 
 
 def blur(image: np.ndarray, sigma: float) -> np.ndarray:
-    """``image`` (HxWxC) blurred by a Gaussian of std ``sigma`` pixels, as float32 (unchanged for sigma 0)."""
+    """``image`` (HxWxC uint8) blurred by a Gaussian of std ``sigma`` pixels, as uint8 (a copy; sigma 0: unchanged)."""
     if sigma <= 0:
-        return image.astype(np.float32)
-    k = gaussian_kernel(sigma)
-    r = len(k) // 2
-    h, w, c = image.shape
-    padded = np.pad(image, ((r, r), (r, r), (0, 0)), mode="edge").astype(np.float32).reshape(h + 2 * r, -1)
-    rows = _weighted_sum(k, [padded[i : i + h] for i in range(len(k))])  # down the columns
-    out = _weighted_sum(k, [rows[:, i * c : i * c + w * c] for i in range(len(k))])  # along the rows
-    return out.reshape(h, w, c)
-
-
-def _weighted_sum(k: np.ndarray, views: list[np.ndarray]) -> np.ndarray:
-    """``sum(k[i] * views[i])`` with two buffers (no array made per term)."""
-    out = np.multiply(views[0], k[0])
-    term = np.empty_like(out)
-    for weight, view in zip(k[1:], views[1:], strict=True):
-        np.multiply(view, weight, out=term)
-        out += term
-    return out
+        return image.copy()
+    w = integer_kernel(float(sigma))
+    r = len(w) // 2
+    h, width, c = image.shape
+    padded = np.pad(image, ((r, r), (r, r), (0, 0)), mode="edge").reshape(h + 2 * r, -1).astype(np.uint16)
+    rows = _pass(w, lambda i: padded[i : i + h])  # down the columns
+    out = _pass(w, lambda i: rows[:, i * c : i * c + width * c])  # along the rows
+    return out.reshape(h, width, c).astype(np.uint8)
 
 
 @functools.cache
 def _standard_levels() -> np.ndarray:
-    """The standard normal's quantile at the middle of each of ``LEVELS`` equal-probability bins."""
+    """The standard normal's quantile at the middle of each of ``LEVELS`` equally likely bins, scaled to std 1."""
     inv = NormalDist().inv_cdf
-    return np.array([inv((i + 0.5) / LEVELS) for i in range(LEVELS)], dtype=np.float64)
+    levels = np.array([inv((i + 0.5) / LEVELS) for i in range(LEVELS)])
+    return levels / levels.std()
 
 
 @functools.lru_cache(maxsize=16)
@@ -67,9 +77,9 @@ def noise_table(std: float) -> np.ndarray:
 def degrade(image: np.ndarray, blur_sigma: float, noise_std: float, rng: np.random.Generator) -> np.ndarray:
     """The image a faulty sensor returns: blurred, then noise of std ``noise_std`` (fraction of full scale) drawn
     from ``rng``; uint8. Draws from ``rng`` only when there is noise."""
-    out = image if blur_sigma <= 0 else np.rint(blur(image, blur_sigma))
+    out = blur(image, blur_sigma) if blur_sigma > 0 else image
     if noise_std <= 0:
-        return out.astype(np.uint8) if out is not image else image
-    bits = np.frombuffer(rng.bytes(2 * image.size), dtype="<u2").reshape(image.shape)
-    noisy = out.astype(np.int16) + np.take(noise_table(float(noise_std)), bits)
+        return out
+    levels = np.frombuffer(rng.bytes(image.size), dtype=np.uint8).reshape(image.shape)
+    noisy = out.astype(np.int16) + np.take(noise_table(float(noise_std)), levels)
     return np.clip(noisy, 0, 255).astype(np.uint8)
