@@ -6,7 +6,8 @@ Plain numpy on the HxWx3 uint8 frames the env renders, in integers, because it r
   pass over uint8 values fits uint16 exactly), each pass rounded back to whole pixel values, edges repeated;
 * the noise is one random byte per pixel and channel (``Generator.bytes``, numpy's cheapest draw), mapped through a
   table of the Gaussian's quantiles at 256 equally likely levels (``noise_table``): a Gaussian cut at 2.7 standard
-  deviations, scaled so that its standard deviation is the one asked for, added in integers and clipped.
+  deviations, scaled so that its standard deviation is the one asked for; the noisy value of every (value, level)
+  pair is one table (``noisy_values``), so a frame's noise is one lookup.
 """
 
 from __future__ import annotations
@@ -31,10 +32,12 @@ def gaussian_kernel(sigma: float) -> np.ndarray:
 
 @functools.lru_cache(maxsize=16)
 def integer_kernel(sigma: float) -> np.ndarray:
-    """``gaussian_kernel`` in whole 1/256ths summing to exactly 256 (the rounding's remainder on the centre tap)."""
+    """``gaussian_kernel`` in whole 1/256ths summing to exactly 256 (the rounding's remainder on the centre tap), the
+    end taps that round to 0 left out."""
     w = np.rint(gaussian_kernel(sigma) * _ONE).astype(np.int64)
     w[len(w) // 2] += _ONE - int(w.sum())
-    return w.astype(np.uint16)
+    cut = int(np.argmax(w > 0))  # taps that round to 0 at both ends add nothing
+    return w[cut : len(w) - cut].astype(np.uint16)
 
 
 def _pass(w: np.ndarray, views) -> np.ndarray:
@@ -74,12 +77,20 @@ def noise_table(std: float) -> np.ndarray:
     return np.rint(_standard_levels() * (255.0 * std)).astype(np.int16)
 
 
+@functools.lru_cache(maxsize=16)
+def noisy_values(std: float) -> np.ndarray:
+    """The noisy pixel value for every (value, level) pair, at index ``value * 256 + level``: the value plus the
+    level's offset (``noise_table``), clipped to 0..255 (uint8)."""
+    values = np.arange(256, dtype=np.int16)[:, None] + noise_table(std)[None, :]
+    return np.clip(values, 0, 255).astype(np.uint8).ravel()
+
+
 def degrade(image: np.ndarray, blur_sigma: float, noise_std: float, rng: np.random.Generator) -> np.ndarray:
     """The image a faulty sensor returns: blurred, then noise of std ``noise_std`` (fraction of full scale) drawn
     from ``rng``; uint8. Draws from ``rng`` only when there is noise."""
     out = blur(image, blur_sigma) if blur_sigma > 0 else image
     if noise_std <= 0:
         return out
-    levels = np.frombuffer(rng.bytes(image.size), dtype=np.uint8).reshape(image.shape)
-    noisy = out.astype(np.int16) + np.take(noise_table(float(noise_std)), levels)
-    return np.clip(noisy, 0, 255).astype(np.uint8)
+    index = out.astype(np.uint16) << 8
+    index |= np.frombuffer(rng.bytes(image.size), dtype=np.uint8).reshape(image.shape)
+    return np.take(noisy_values(float(noise_std)), index)
