@@ -5,6 +5,7 @@ perturbations or the state observations; off, the scene and every episode are ex
 from __future__ import annotations
 
 import colorsys
+import math
 
 import numpy as np
 import pytest
@@ -151,6 +152,15 @@ def test_image_noise_and_blur():
     soft = blur(edge, 1.5)
     assert soft[5, 0, 0] == 0 and soft[5, 19, 0] == 255 and 0 < soft[5, 9, 0] < soft[5, 10, 0] < 255
     assert abs(soft.sum() - edge.astype(float).sum()) < 1e-2 * edge.sum()  # the kernel keeps the brightness
+    from lerobot_pnp.sim.image_noise import gaussian_kernel
+
+    image = rng.integers(0, 256, (30, 41, 3)).astype(np.uint8)
+    for sigma in (0.5, 1.0, 2.0):  # within a level of the float Gaussian with its edges repeated
+        k, r = gaussian_kernel(sigma), math.ceil(3 * sigma)
+        ref = np.pad(image, ((r, r), (r, r), (0, 0)), mode="edge").astype(float)
+        ref = sum(w * ref[i : i + 30] for i, w in enumerate(k))
+        ref = sum(w * ref[:, i : i + 41] for i, w in enumerate(k))
+        assert np.abs(blur(image, sigma).astype(float) - ref).max() <= 1.5, sigma
 
 
 def test_the_video_frame_has_no_sensor_noise_and_the_observation_does():
