@@ -1,6 +1,7 @@
-"""The visual axes' block of docs/benchmark/heldout.md, read from the code: each visual factor's training range
-(``presets.VISUAL_TRAINING``) and held-out range (``sim/visual_suites.HELD_OUT_RANGES``) in readable units
-(``scripts/docs_tables.py`` renders it).
+"""The visual axes' blocks of docs/benchmark/heldout.md: each visual factor's training range
+(``presets.VISUAL_TRAINING``) and held-out range (``sim/visual_suites.HELD_OUT_RANGES``) in readable units, read
+from the code, and what the variation costs a camera episode, read from ``docs/results/bench_visual.json``
+(``scripts/docs_tables.py`` renders them).
 """
 
 from __future__ import annotations
@@ -62,4 +63,31 @@ def visual_ranges(base: str) -> str:
     return "\n".join(lines)
 
 
-BLOCKS = {"visual-ranges": visual_ranges}
+def visual_cost(base: str) -> str:
+    """Per image size of ``docs/results/bench_visual.json``: nominal's camera episode, and per visual suite its cost
+    over nominal's on the same seeds and the variation's own share of an episode."""
+    import json
+    from pathlib import Path
+
+    record = json.loads((Path(__file__).resolve().parents[1] / "docs" / "results" / "bench_visual.json").read_text())
+    sizes = record["sizes"]
+    machine = record["machine"]
+    lines = [
+        f"Measured by `{record['command']}` on {machine['cpu']} ({machine['cores_available']} cores, shared; load "
+        f"{record['load_before']} before), commit `{str(machine['commit'])[:7]}`, {machine['date']}: CPU time per "
+        "episode, front and wrist cameras, target 1.20.",
+        "",
+        "| suite | " + " | ".join(f"{size}: x nominal | {size}: variation's share" for size in sizes) + " |",
+        "|---|" + "---|---|" * len(sizes),
+    ]
+    nominal = " | ".join(f"{v['nominal']['episode_ms']:.0f} ms | -" for v in sizes.values())
+    lines.append(f"| `nominal` (ms per episode) | {nominal} |")
+    for name in next(iter(sizes.values())):
+        if name != "nominal":
+            cells = " | ".join(f"{v[name]['vs_nominal']:.2f} | {100 * v[name]['variation_share']:.0f} %"
+                               for v in sizes.values())  # fmt: skip
+            lines.append(f"| `{name}` | {cells} |")
+    return "\n".join(lines)
+
+
+BLOCKS = {"visual-ranges": visual_ranges, "visual-cost": visual_cost}
