@@ -8,6 +8,7 @@ import json
 from pathlib import Path
 
 import pytest
+from test_stock_eval_cameras import SCRIPT_ENV, pixels_checkpoint  # noqa: F401  (a tiny camera checkpoint)
 
 from lerobot_pnp import cli
 from lerobot_pnp.evaluation.verdicts import axis_verdict
@@ -158,3 +159,28 @@ def test_the_leaderboard_shows_the_visual_axes_only_for_rows_evaluated_on_them(t
     table = page[page.index("## Visual axes") : page.index("## Per suite")]
     assert "| `b_camera` | camera policy |" in table and "`a_state`" not in table
     assert "99.0 -> 75.0: does not generalise" in table and "99.0 -> 98.5: generalises" in table
+
+
+@pytest.mark.slow
+def test_stock_lerobot_eval_runs_a_visual_axis_on_a_camera_checkpoint_and_compare_judges_it(
+    pixels_checkpoint,  # noqa: F811  (the fixture imported above)
+    tmp_path,
+    capsys,
+):
+    """The real ``lerobot-eval`` process on a (tiny, untrained) camera checkpoint with ``--env.task heldout_sensor``:
+    one entry per suite of the axis, and ``compare`` gives the axis its verdict (none: far below 90 % in
+    distribution)."""
+    from clis import exe, run
+
+    out = tmp_path / "eval"
+    args = [exe("lerobot-eval"), f"--policy.path={pixels_checkpoint}", "--env.type=baxter_pnp", "--env.task=heldout_sensor",
+            "--eval.n_episodes=2", "--eval.batch_size=2", "--eval.use_async_envs=false", "--policy.device=cpu",
+            "--seed=100000", f"--output_dir={out}"]  # fmt: skip
+    proc = run(args, tmp_path, timeout=600, env=SCRIPT_ENV)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    info = json.loads((out / "eval_info.json").read_text())
+    assert [t["task_group"] for t in info["per_task"]] == suite_names("heldout_sensor")
+    assert cli.main(["compare", f"cam={out}", "--output_dir", str(tmp_path / "compare")]) == 0
+    capsys.readouterr()
+    (entry,) = json.loads((tmp_path / "compare" / "compare.json").read_text())["held_out_axes"]
+    assert entry["axis"] == "sensor" and entry["verdict"] == "no_verdict" and entry["held_out"]["n"] == 4

@@ -25,9 +25,10 @@ from __future__ import annotations
 import numpy as np
 
 from lerobot_pnp import robot
-from lerobot_pnp.sim.mujoco_gl import default_mujoco_gl
+from lerobot_pnp.sim.mujoco_gl import check_mujoco_gl, default_mujoco_gl
 
-default_mujoco_gl()
+default_mujoco_gl()  # MuJoCo reads MUJOCO_GL once, when imported (as physics.py)
+check_mujoco_gl()
 
 import mujoco  # noqa: E402
 

@@ -88,10 +88,6 @@ class SceneVariation:
         for k, value in self._headlight.items():
             setattr(m.vis.headlight, k, np.clip(value * gain, 0, None))
 
-    @property
-    def varies_images(self) -> bool:
-        return visual.varies_images(self.config)
-
     def images(self, pixels: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         """The rendered images as the episode's sensor returns them (blur, then noise redrawn every frame)."""
         s = self.sample

@@ -90,11 +90,6 @@ def is_varied(cfg) -> bool:
     return any(getattr(cfg, name)[1] > 0 for name in FIELDS)
 
 
-def varies_images(cfg) -> bool:
-    """Whether the rendered images get sensor noise or blur."""
-    return cfg.image_noise_range[1] > 0 or cfg.image_blur_range[1] > 0
-
-
 @dataclass(frozen=True)
 class CameraOffset:
     """A camera's deviation: a translation (m, in its parent's frame) and a rotation (unit quaternion, w first,
