@@ -57,7 +57,7 @@ def main() -> None:
     datasets = args.dataset_s or [0.0] * len(args.study)
     jobs, times, serial = [], {}, 0.0
     for i, summary in enumerate(args.study):
-        j, t, check = summary_jobs(summary, i)
+        j, t, check, _ = summary_jobs(summary, i)
         jobs, serial = jobs + j, serial + check
         times.update(t)
     tasks = cluster_tasks(jobs, args.suites_per_job)

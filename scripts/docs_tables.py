@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import posixpath
 import re
 import sys
 from pathlib import Path
@@ -92,7 +93,7 @@ def paper_table(base: str) -> str:
             *lines,
             "",
             f"Success %, task `paper`, {len(seeds)} training seeds pooled, {min(ns)}-{max(ns)} episodes per cell. "
-            f"Each suite is described in the [suite catalogue]({base}../benchmark/suites.md) "
+            f"Each suite is described in the [suite catalogue]({posixpath.normpath(base + '../benchmark/suites.md')}) "
             "(95 % intervals, per-seed ranges and paired tests: "
             f"[the paper-task report]({base}study/report_full/report.md)). " + study_source(),
         ]
@@ -209,19 +210,6 @@ def planner_table(base: str) -> str:
     )
 
 
-def cost_lines(base: str) -> str:
-    """What `make demo` and `make study` cost, on the machine that measured them."""
-    src = _json("sources.json")
-    demo, study = src["demo"], src["study"]
-    machine = _machine(_json(study["files"][0])["machine"])
-    return (
-        f"- `make demo`: **{demo['wall']}** on {demo['machine']} ({demo['how']}; commit `{demo['commit']}`, "
-        f"{demo['date']}).\n"
-        f"- `make study`: **{study['from_scratch_h']:.1f} h** from scratch on {machine} ({study['from_scratch_how']}; "
-        f"commit `{study['commit']}`, {study['date']})."
-    )
-
-
 def leaderboard_table(base: str) -> str:
     """The leaderboard's page in one compact table, the page's numbers; the untrained floor is on the page only."""
     from lerobot_pnp.evaluation.leaderboard import readme_block
@@ -232,15 +220,18 @@ def leaderboard_table(base: str) -> str:
 # ----------------------------------------------------------------------------------------------------- render
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from architecture import BLOCKS as ARCHITECTURE_BLOCKS  # noqa: E402  (docs/ARCHITECTURE.md's module map)
+from docs_command_costs import BLOCKS as COMMAND_COST_BLOCKS  # noqa: E402  (docs/costs.md: each command's cost)
+from docs_cost import BLOCKS as COST_BLOCKS  # noqa: E402  (what make demo and make study cost)
 from docs_facts import FACT, render_facts  # noqa: E402  (the numbers prose repeats, one line each)
 from docs_pixel_tables import BLOCKS as PIXEL_BLOCKS  # noqa: E402  (the camera planner page's blocks)
 from docs_reference import BLOCKS as REFERENCE_BLOCKS  # noqa: E402  (read from the code: CLI help, config fields)
 from docs_visual_tables import BLOCKS as VISUAL_BLOCKS  # noqa: E402  (the visual axes' ranges)
 
 BLOCKS = {
-    **PIXEL_BLOCKS, **ARCHITECTURE_BLOCKS, **REFERENCE_BLOCKS, **VISUAL_BLOCKS, "paper-table": paper_table,
+    **PIXEL_BLOCKS, **ARCHITECTURE_BLOCKS, **REFERENCE_BLOCKS, **COST_BLOCKS, **COMMAND_COST_BLOCKS, **VISUAL_BLOCKS,
+    "paper-table": paper_table,
     "heldout-verdicts": heldout_verdicts, "heldout-suites": heldout_suites, "gate-table": gate_table,
-    "memory-table": memory_table, "planner-table": planner_table, "cost": cost_lines, "leaderboard": leaderboard_table,
+    "memory-table": memory_table, "planner-table": planner_table, "leaderboard": leaderboard_table,
 }  # fmt: skip
 
 

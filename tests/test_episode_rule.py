@@ -43,16 +43,16 @@ def test_a_claim_method_extends_the_fixed_runs_episodes_with_the_next_seeds(tmp_
     layout = StudyLayout(tmp_path / "s")
     study = dict(output_dir=str(layout.out), preset="quick", num_episodes=10, workers=1, methods=["lookup_table"],
                  suites=[SuiteSpec("nominal", 4)], eval_batch_size=2, cli_check_episodes=0)  # fmt: skip
-    records, _, _ = _job(StudyConfig(**study, episodes_rule=None), layout)
+    records, *_ = _job(StudyConfig(**study, episodes_rule=None), layout)
     fixed = [vars(r) for r in records["nominal"]]
     never = {"block": 2, "fixed_methods": [], "claim_methods": ["lookup_table"], "claim_half_width": 1e-6}
-    records, _, _ = _job(StudyConfig(**study, episodes_rule=never), layout)  # never decided: 2 x n
+    records, *_ = _job(StudyConfig(**study, episodes_rule=never), layout)  # never decided: 2 x n
     extended = [vars(r) for r in records["nominal"]]
     assert [e["seed"] for e in extended] == list(range(100_000, 100_008)) and extended[:4] == fixed
     stored = json.loads(layout.eval_record("lookup_table", "-", "nominal").read_text())
     assert stored["parts"]["episodes_rule"] == {"half_width": 1e-6, "block": 2, "from_n": True, "max_factor": 2}
     at_once = {**never, "claim_half_width": 0.49}  # decided at n: the fixed run's episodes exactly
-    records, _, _ = _job(StudyConfig(**study, episodes_rule=at_once), layout)
+    records, *_ = _job(StudyConfig(**study, episodes_rule=at_once), layout)
     assert [vars(r) for r in records["nominal"]] == fixed
 
 
@@ -139,27 +139,27 @@ def test_a_truncated_fixed_record_is_exactly_a_fresh_adaptive_evaluation(tmp_pat
     layout = StudyLayout(tmp_path / "s")
     study = dict(output_dir=str(layout.out), preset="quick", num_episodes=10, workers=1, methods=["lookup_table"],
                  suites=[SuiteSpec("nominal", 6)], eval_batch_size=2, cli_check_episodes=0)  # fmt: skip
-    records, _, left = _job(StudyConfig(**study), layout)
+    records, _, left, *_ = _job(StudyConfig(**study), layout)
     full = [vars(r) for r in records["nominal"]]
     assert [e["seed"] for e in full] == list(range(100_000, 100_006)) and left == []
     record = layout.eval_record("lookup_table", "-", "nominal")
     lo, hi = wilson_interval(sum(e["success"] for e in full[:4]), 4)
     rule = {"half_width": (hi - lo) / 2 + 1e-9, "block": 2, "fixed_methods": []}  # decided by 4 of 6 at the latest
     adaptive = StudyConfig(**study, episodes_rule=rule, report_only=True)
-    records, timings, left = _job(adaptive, layout)
+    records, timings, left, *_ = _job(adaptive, layout)
     keep = len(records["nominal"])
     assert keep in (2, 4) and left == [] and "of its 6 episodes (episodes_rule)" in capsys.readouterr().out
     assert [vars(r) for r in records["nominal"]] == full[:keep]
     assert "episodes_rule" not in json.loads(record.read_text())["parts"]  # the fixed record is kept as it is
     shutil.move(record, tmp_path / "fixed.json")
-    records, _, _ = _job(replace(adaptive, report_only=False), layout)  # a fresh run under the rule
+    records, *_ = _job(replace(adaptive, report_only=False), layout)  # a fresh run under the rule
     assert [vars(r) for r in records["nominal"]] == full[:keep]
     stored = json.loads(record.read_text())
     assert stored["parts"]["episodes_rule"] == {"half_width": rule["half_width"], "block": 2}
     assert [e["seed"] for e in stored["episodes"]] == list(range(100_000, 100_000 + keep))
-    _, _, left = _job(replace(adaptive, episodes_rule=replace(adaptive.episodes_rule, half_width=0.4)), layout)
+    _, _, left, *_ = _job(replace(adaptive, episodes_rule=replace(adaptive.episodes_rule, half_width=0.4)), layout)
     assert [x.changed for x in left] == [("episodes_rule",)]  # another rule: not reused
-    _, _, left = _job(StudyConfig(**study, report_only=True), layout)
+    _, _, left, *_ = _job(StudyConfig(**study, report_only=True), layout)
     assert [x.changed for x in left] == [("episodes_rule",)]  # nor as a fixed-n record
 
 

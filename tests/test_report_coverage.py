@@ -32,6 +32,21 @@ def test_suites_of_the_same_conditions_on_the_task_are_aliases():
     assert {a: of for a, of in aliases.items() if a != of} == {"train_nudge": "nominal", "train_mixture": "nominal"}
 
 
+def test_on_full_train_nudge_and_train_mixture_play_nominals_episodes(tmp_path):
+    """Why the held-out study evaluates them as ``nominal``: each sets what the ``full`` task already sets (its
+    nudge size; its three disturbances at the full preset's probabilities), so their env configs equal nominal's,
+    and every seed plays the same episode, disturbances included: the expert's records on the same seeds are the
+    same, field by field."""
+    full = BaxterPnPEnvConfig(preset="full")
+    configs = {s.name: s.env_configs(full) for s in get_suites(["nominal", "train_nudge", "train_mixture"])}
+    assert all(len(c) == 1 and c[0].to_dict() == configs["nominal"][0].to_dict() for c in configs.values())
+    (expert,) = methods.get_methods(["expert"])
+    ctx = methods.TrainContext(tmp_path, tmp_path / "train", 1000, 1)
+    runs = {name: [vars(r) for r in expert.evaluate(None, ctx, c[0], 6, 100_000, 6)] for name, c in configs.items()}
+    assert runs["train_nudge"] == runs["nominal"] == runs["train_mixture"]
+    assert any(r["perturbations"] for r in runs["nominal"])  # disturbances fired, the same in each
+
+
 def test_an_evaluation_is_keyed_by_its_conditions_and_an_older_record_with_the_suite_name_stays_valid(tmp_path):
     (lookup,) = methods.get_methods(["lookup_table"])
     ctx = methods.TrainContext(tmp_path, tmp_path / "train", 1000, 1, data_keys={"keyframe": "k"})

@@ -187,6 +187,33 @@ def _logged_job(job, log_dir):
     return job.key
 
 
+def _eager_job(job, log_dir):
+    """A stand-in for run_job: records when it started. The ACT training waits (up to a minute) for the start of the
+    clocked net's evaluation, so one process stays busy until the pool has chosen what follows the clocked
+    training: its evaluation or the next training."""
+    import time
+    from pathlib import Path
+
+    start = time.time()
+    name = f"{job.method}_{job.part}"
+    Path(log_dir, f"{name}.started").write_text(str(start))
+    if name == "act_training":
+        _wait_for_mark(log_dir, "clocked_lstm_nominal", start)
+    return job.key
+
+
+def test_a_pool_evaluates_a_checkpoint_as_soon_as_it_exists(tmp_path):
+    """Once the clocked net's training is done, its evaluation starts before the training still waiting in line:
+    first results come early, and the pool stays as full (``schedule.ready``)."""
+    from lerobot_pnp.report.schedule import TRAINING, Job, run_jobs
+
+    jobs = [Job("clocked_lstm", "1", None, TRAINING), Job("shared_lstm", "1", None, TRAINING),
+            Job("clocked_lstm", "1", None, "nominal"), Job("act", "1", None, TRAINING)]  # fmt: skip
+    assert set(dict(run_jobs(jobs, (str(tmp_path),), 2, fn=_eager_job))) == set(jobs)
+    start = {p.name.removesuffix(".started"): float(p.read_text()) for p in tmp_path.glob("*.started")}
+    assert start["clocked_lstm_nominal"] < start["shared_lstm_training"]
+
+
 def test_a_pool_takes_the_likely_longest_jobs_first():
     """Dense-control (ACT) jobs, then the runs DAgger/DART continue, then the recovering recipe's trainings,
     then other trainings, then evaluation-only jobs: in the listed order (ACT last) two workers would leave the
@@ -212,13 +239,14 @@ def test_a_pool_takes_the_likely_longest_jobs_first():
 @pytest.mark.slow
 def test_studies_alongside_share_one_pool_and_keep_their_own_reports(tmp_path):
     """`alongside`: a second study's jobs run in the first one's pool (two processes, a trained method's suites
-    as jobs of their own); each study writes its own records and report, and running it again redoes nothing."""
+    and the cross-check as jobs of their own); each study writes its own records and report, both summaries hold
+    the run's cost, and running it again redoes nothing (and says so in the cost)."""
     base = dict(preset="quick", num_episodes=N, epochs=1, train_seeds=[1000], cli_check_episodes=0)
     other = tmp_path / "other.json"
     other.write_text(json.dumps({**base, "output_dir": str(tmp_path / "b"), "methods": ["expert", "recovering"],
                                  "suites": [{"name": "nominal", "n_episodes": 2}, {"name": "drop", "n_episodes": 2}]}))  # fmt: skip
-    cfg = StudyConfig(**base, output_dir=str(tmp_path / "a"), workers=2, methods=["lookup_table", "recovering"],
-                      suites=[SuiteSpec("nominal", 2)], alongside=[str(other)])  # fmt: skip
+    cfg = StudyConfig(**{**base, "cli_check_episodes": 2}, output_dir=str(tmp_path / "a"), workers=2,
+                      methods=["lookup_table", "recovering"], suites=[SuiteSpec("nominal", 2)], alongside=[str(other)])  # fmt: skip
     summary = run_study(cfg)
     assert summary["report"] == str(tmp_path / "a" / "report.md") and len(summary["alongside"]) == 1
     assert summary["alongside"][0]["report"] == str(tmp_path / "b" / "report.md")
@@ -227,9 +255,19 @@ def test_studies_alongside_share_one_pool_and_keep_their_own_reports(tmp_path):
     assert a == {"evals/lookup_table/seed-/nominal.json", "evals/recovering/seed1000/nominal.json"}
     assert b == {"evals/expert/seed-/nominal.json", "evals/expert/seed-/drop.json",
                  "evals/recovering/seed1000/nominal.json", "evals/recovering/seed1000/drop.json"}  # fmt: skip
+    # the run's cost, the same in both studies' summaries: every stage, each done by this run itself
+    costs = [json.loads((tmp_path / name / "summary.json").read_text())["cost"] for name in "ab"]
+    assert costs[0] == costs[1] and list(costs[0]["stages"]) == ["datasets", "jobs", "cli_check", "report"]
+    assert costs[0]["ran"] == {"datasets": [2, 2], "trainings": [2, 2], "evaluations": [6, 6], "cli_checks": [1, 1]}
+    cli = json.loads((tmp_path / "a" / "summary.json").read_text())["lerobot_eval_cli_check"]
+    assert (cli["n"], cli["agree"]) == (2, 2)  # the cross-check, run as a job of the pool, compared after it
+    assert costs[0]["from_scratch"] and costs[0]["processes"] == 2 and costs[0]["disk_mb"] > 0
     files = {p: p.stat().st_mtime_ns for p in tmp_path.rglob("*.json") if "evals" in p.parts or "train" in p.parts}
     run_study(cfg)
     assert {p for p, t in files.items() if p.stat().st_mtime_ns != t} == set()
+    again = json.loads((tmp_path / "a" / "summary.json").read_text())["cost"]
+    assert again["ran"] == {"datasets": [0, 2], "trainings": [0, 2], "evaluations": [0, 6], "cli_checks": [0, 1]}
+    assert not again["from_scratch"]  # a resumed run's wall clock is not the study's cost
     with pytest.raises(ConfigError, match="same output_dir"):
         run_study(StudyConfig(**{**base, "output_dir": str(tmp_path / "b")}, alongside=[str(other)]))
 

@@ -28,7 +28,7 @@ def test_a_summary_replays_every_recorded_job_in_the_pools_order(bench, tmp_path
     }
     summary = tmp_path / "summary.json"
     summary.write_text(json.dumps({"timings_s": timings}))
-    jobs, times, cli = bench.summary_jobs(summary, 0)
+    jobs, times, cli, _ = bench.summary_jobs(summary, 0)
     assert cli == 7.0 and len(jobs) == 6 and sum(times.values()) == 225.0
     n10 = next(j for j in jobs if j.tag == "n10" and j.part == TRAINING)
     assert n10.n_demos == 10
@@ -36,3 +36,21 @@ def test_a_summary_replays_every_recorded_job_in_the_pools_order(bench, tmp_path
     # the clocked net's two suites wait for its training (100 -> 130 on both cores)
     assert bench.replay(jobs, times, 2) == pytest.approx(130.0)
     assert bench.replay(jobs, times, 1) == pytest.approx(225.0)
+
+
+def test_the_cross_check_replays_as_a_pool_job_after_the_nominal_evaluation(bench, tmp_path):
+    """The study runs its cross-check in the pool once the nominal evaluation it compares with is recorded: on
+    one core beside the other suite, not after the pool; a summary without its config replays it after."""
+    timings = {"train/clocked_lstm/1000": 100.0, "eval/clocked_lstm/1000/nominal": 10.0,
+               "eval/clocked_lstm/1000/nudge_0.03": 30.0, "eval/expert/-/nominal": 40.0, "cli_check": 15.0}  # fmt: skip
+    config = {"methods": ["expert", "clocked_lstm"], "train_seeds": [1000], "cli_check_episodes": 5}
+    summary = tmp_path / "summary.json"
+    summary.write_text(json.dumps({"timings_s": timings, "config": config}))
+    # 100 s training; then its nominal (10 s) and the other suite (30 s) side by side; the cross-check after the
+    # nominal one (110 -> 125) beside the other suite (-> 130)
+    assert bench.replay_studies([summary]) == {"jobs": 5, "train_s": 100.0, "eval_s": 95.0, "pool_s": 130.0,
+                                               "serial_s": 0.0}  # fmt: skip
+    after = bench.replay_studies([summary], cli_in_pool=False)
+    assert (after["pool_s"], after["serial_s"]) == (130.0, 15.0)
+    summary.write_text(json.dumps({"timings_s": timings}))
+    assert bench.replay_studies([summary])["serial_s"] == 15.0

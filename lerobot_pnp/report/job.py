@@ -10,7 +10,7 @@ import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 from lerobot_pnp.cache import Stage
 from lerobot_pnp.evaluation.records import records_from_json, records_to_json
@@ -18,6 +18,7 @@ from lerobot_pnp.integration.recorded_task import read_recorded
 from lerobot_pnp.outputs import write_json_atomic
 from lerobot_pnp.report import coverage
 from lerobot_pnp.report.config import StudyConfig, SuiteSpec
+from lerobot_pnp.report.cost import max_rss_mb
 from lerobot_pnp.report.layout import StudyLayout
 from lerobot_pnp.report.methods import TrainContext, get_methods, keyed_train, train_stage
 from lerobot_pnp.report.schedule import ALL, TRAINING, Job
@@ -25,6 +26,18 @@ from lerobot_pnp.report.stages import episode_rule, eval_stage, truncated_record
 from lerobot_pnp.sim.suites import get_suites
 
 TRAIN_TIME = "study_train_time.json"  # in a training folder: how long its training took (reported when reused)
+
+
+class JobResult(NamedTuple):
+    """What a job hands back: the records per suite (aliases included), its stage timings, what ``report_only``
+    left out, what it did itself (``ran``: trainings and evaluations, [done now, the job's]; ``cost.CostMeter``)
+    and the peak resident set of the process it ran in, in MB."""
+
+    records: dict
+    timings: dict
+    left: list
+    ran: dict
+    rss_mb: float
 
 
 def train_context(
@@ -81,11 +94,13 @@ def job_suites(job: Job, cfg: StudyConfig, base_env) -> list[str]:
     return [s.name for s, _ in pairs if aliases[s.name] == s.name]
 
 
-def _train(method, ctx: TrainContext, job: Job, timings: dict):
-    """The job's trained artefact (trained now, or found on disk); its training time into ``timings``."""
+def _train(method, ctx: TrainContext, job: Job, timings: dict, ran: dict):
+    """The job's trained artefact (trained now, or found on disk); its training time into ``timings``, and into
+    ``ran`` whether it was trained now."""
     t = time.perf_counter()
     artifact, fresh = keyed_train(method, ctx)
     if fresh:  # trained now, not found from an earlier run
+        ran["trainings"][0] = 1
         write_json_atomic(ctx.train_dir / TRAIN_TIME, {"wall_s": time.perf_counter() - t})
         print(f"  trained {method.name} seed {job.tag}: {time.perf_counter() - t:.0f} s", flush=True)
     return artifact
@@ -94,23 +109,26 @@ def _train(method, ctx: TrainContext, job: Job, timings: dict):
 def run_job(job: Job, cfg: StudyConfig, layout: StudyLayout, roots: dict[str, Path], base_env, keys: dict[str, str]):
     """Train ``job`` if one of its evaluations is missing or stale, run those evaluations (``job.part``: all of
     it, the training alone or one suite); return the records per suite, the stage timings and what
-    ``report_only`` left out (``coverage.LeftOut``). Suites of the same effective conditions are evaluated once
-    (``coverage.suite_aliases``). Everything it finishes is on disk, so an interrupted study resumes."""
+    ``report_only`` left out (``coverage.LeftOut``), as a ``JobResult``. Suites of the same effective conditions
+    are evaluated once (``coverage.suite_aliases``). Everything it finishes is on disk, so an interrupted study
+    resumes."""
     import torch
 
     torch.set_num_threads(1)
     (method,) = get_methods([job.method])
     ctx = train_context(job, method, cfg, layout, roots, keys)
     records, timings, left, artifact = {}, {}, [], None
+    ran = {"trainings": [0, int(method.learned and job.part in (ALL, TRAINING))], "evaluations": [0, 0]}
     evaluations = _evaluations(job, method, ctx, cfg, layout, base_env)
     if job.part == TRAINING:
         if method.learned and not cfg.report_only and any(e.needed for e in evaluations):
-            _train(method, ctx, job, timings)
+            _train(method, ctx, job, timings, ran)
         evaluations = []
     elif job.part != ALL:
         evaluations = [e for e in evaluations if e.suite.name == job.part]
     for ev in evaluations:
         suite, names, stage = ev.suite, ev.names, ev.stages[0] if ev.finished is None else ev.finished
+        ran["evaluations"][1] += 1
         if ev.cut is not None:  # a fixed-n record holding exactly what this evaluation would run
             data = ev.cut
             print(f"  evaluation {method.name} {job.tag} {suite.name}: reused, the first {len(data['episodes'])} "
@@ -124,9 +142,10 @@ def run_job(job: Job, cfg: StudyConfig, layout: StudyLayout, roots: dict[str, Pa
             continue
         else:
             if artifact is None:
-                artifact = _train(method, ctx, job, timings)
+                artifact = _train(method, ctx, job, timings, ran)
             data = evaluate(method, artifact, ctx, suite, ev.n_episodes, base_env, cfg, ev.rule)
             stage.commit(**data)  # the record and the episodes in one atomic write
+            ran["evaluations"][0] += 1
             ok = sum(e["success"] for e in data["episodes"])
             print(
                 f"  {method.name:<13} {job.tag:>5} {suite.name:<16} {ok}/{len(data['episodes'])} ({data['wall_s']:.0f} s)",
@@ -136,7 +155,7 @@ def run_job(job: Job, cfg: StudyConfig, layout: StudyLayout, roots: dict[str, Pa
         records.update(dict.fromkeys(names, records_from_json(data)))
     if (wall_s := train_time(ctx.train_dir)) is not None:  # the time it took when it was trained (this run or earlier)
         timings[f"train/{method.name}/{job.tag}"] = wall_s
-    return records, timings, left
+    return JobResult(records, timings, left, ran, max_rss_mb())
 
 
 def train_time(train_dir: Path) -> float | None:

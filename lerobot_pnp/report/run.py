@@ -1,19 +1,19 @@
 """The study as stages, each cached on disk and reused when finished (an interrupted run resumes).
 
-Stages: 1. dataset (the expert's demonstrations; 1b. the same demonstrations recorded again for a method
-that needs another view of them: at the control rate for ACT, with the phase observed for the phase-told
-control; checked to be the same episodes) -> 2-3. per method x training seed: train, then evaluate every
-suite (same eval seeds for every method), in a process pool the training and each suite's evaluation as jobs
-of their own, a suite's starting once its training is done -> 4. report
-(``report.md``, figures, ``summary.json``). Every stage is keyed by what determines it (``stages.py``,
-``methods.train_stage``; ``lerobot_pnp.cache``): a dataset by its generation settings, a training by its
-method, data key, seed and epochs, an evaluation by the training's key, the suite as defined now, its
-episodes and seeds, and the episode rule when one chooses its count (``config.EpisodeRule``; a fixed-n
-record is then reused cut to where the rule stops, when exact); the key is stored in its JSON, written
-atomically. Rerunning the same command only does what is missing; a changed flag re-runs what depends on it,
-so the report states the config of its results. The output folder is locked for the run, and every name the
-study writes there is checked before any folder is written or cleared (``report.folder``): the study writes,
-replaces and (``--fresh``) deletes only what it wrote.
+Stages: 1. dataset (the expert's demonstrations; 1b. the same demonstrations recorded again for a method that
+needs another view of them: at the control rate for ACT, with the phase observed for the phase-told control;
+checked to be the same episodes) -> 2-3. per method x training seed: train, then evaluate every suite (same eval
+seeds for every method), in a process pool the training and each suite's evaluation as jobs of their own, a
+suite's starting once its training is done (the `lerobot-eval` cross-check a job of the pool too) -> 4. report
+(``report.md``, figures, ``summary.json``, with what the run cost: ``report.cost``). Every stage is keyed by
+what determines it (``stages.py``, ``methods.train_stage``; ``lerobot_pnp.cache``): a dataset by its generation
+settings, a training by its method, data key, seed and epochs, an evaluation by the training's key, the suite as
+defined now, its episodes and seeds, and the episode rule when one chooses its count (``config.EpisodeRule``; a
+fixed-n record is then reused cut to where the rule stops, when exact); the key is stored in its JSON, written
+atomically. Rerunning the same command only does what is missing; a changed flag re-runs what depends on it, so
+the report states the config of its results. The output folder is locked for the run, and every name the study
+writes there is checked before any folder is written or cleared (``report.folder``): the study writes, replaces
+and (``--fresh``) deletes only what it wrote.
 
 This module runs the stages in order; the jobs and their pool: ``report.schedule``; what one job does (train,
 evaluate): ``report.job``; the same datasets and jobs as SLURM jobs (``--executor slurm``): ``report.cluster``; the `lerobot-eval` cross-check: ``report.cross_check``; the config and its presets:
@@ -33,12 +33,13 @@ from lerobot_pnp.outputs import OutputFolder
 from lerobot_pnp.report import coverage, cross_check
 from lerobot_pnp.report.adapters import check_same_demonstrations
 from lerobot_pnp.report.config import StudyConfig, SuiteSpec  # noqa: F401  (SuiteSpec: the CLI's and callers')
+from lerobot_pnp.report.cost import CostMeter, add_cost
 from lerobot_pnp.report.folder import interrupted, open_study_folder, refuse_taken, study_names
 from lerobot_pnp.report.job import job_suites, run_job, suites_for
 from lerobot_pnp.report.layout import CLUSTER_DIR, StudyLayout
 from lerobot_pnp.report.methods import DATA_EFFICIENCY_METHODS, get_methods
 from lerobot_pnp.report.provenance import command, machine
-from lerobot_pnp.report.schedule import Job, job_processes, run_jobs, split_jobs
+from lerobot_pnp.report.schedule import CLI_CHECK, Job, job_processes, run_jobs, split_jobs
 from lerobot_pnp.report.stages import dataset_stage
 from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
 
@@ -65,7 +66,9 @@ def run_study(cfg: StudyConfig) -> dict:
     under ``"alongside"``). Each output folder is locked for the whole run (a second study on it fails at
     once). Before anything is written or cleared, in any folder: the executor is checked, and every name a
     study writes (``folder.refuse_taken``); ``--fresh`` then deletes only what the study wrote. An interrupted
-    run is one line saying how to continue (``folder.interrupted``)."""
+    run is one line saying how to continue (``folder.interrupted``). What the run cost (wall clock, CPU, memory
+    and disk per stage, and whether it did every stage itself) goes into every study's ``summary.json`` as
+    ``cost`` (``report.cost``)."""
     cfgs = [cfg, *(load_study_config(path) for path in cfg.alongside)]
     for c in cfgs[1:]:  # how to run (not what to run) is the command line's, for every study
         c.fresh, c.report_only = c.fresh or cfg.fresh, c.report_only or cfg.report_only
@@ -77,17 +80,24 @@ def run_study(cfg: StudyConfig) -> dict:
         from lerobot_pnp.report.cluster import check_available
 
         check_available()
+    meter = CostMeter(outs)
     try:
         with ExitStack() as stack:
             folders = [stack.enter_context(open_study_folder(Path(c.output_dir))) for c in cfgs]  # all locked first
-            runs = _start(cfgs, folders)
-            summaries = _run_prepared(runs)
+            runs = _start(cfgs, folders, meter)
+            meter.stage("datasets")
+            summaries = _run_prepared(runs, meter)
+            cost = meter.record()
+            for r in runs:
+                add_cost(r.layout.summary, cost)
     except KeyboardInterrupt:
         raise interrupted(Path(cfg.output_dir)) from None
+    finally:
+        meter.sampler.stop()
     return summaries[0] if len(summaries) == 1 else {**summaries[0], "alongside": summaries[1:]}
 
 
-def _start(cfgs: list[StudyConfig], folders: list[OutputFolder]) -> list[_PreparedStudy]:
+def _start(cfgs: list[StudyConfig], folders: list[OutputFolder], meter: CostMeter) -> list[_PreparedStudy]:
     """Every study's folder checked (cluster jobs of an earlier run, the names it writes), then cleared
     (``--fresh``), then its datasets made."""
     if any(f.path.joinpath(CLUSTER_DIR).is_dir() for f in folders):  # an earlier run's cluster jobs still at work
@@ -101,7 +111,11 @@ def _start(cfgs: list[StudyConfig], folders: list[OutputFolder]) -> list[_Prepar
     for c, f in zip(cfgs, folders, strict=True):
         if c.fresh:
             f.clear()
-    return [_prepare(c, layout, f) for c, f, layout in zip(cfgs, folders, layouts, strict=True)]
+    runs = [_prepare(c, layout, f) for c, f, layout in zip(cfgs, folders, layouts, strict=True)]
+    for r in runs:  # a dataset counts as made by this run only when generated now, from nothing
+        made = [r.generation, *(r.generation[data] for data in RECORDINGS if data in r.generation)]
+        meter.count("datasets", sum(g.get("status") == "generated" for g in made), len(made))
+    return runs
 
 
 def load_study_config(path: str) -> StudyConfig:
@@ -184,7 +198,7 @@ def _prepare(cfg: StudyConfig, layout: StudyLayout, folder: OutputFolder) -> _Pr
                           started)  # fmt: skip
 
 
-def _run_prepared(runs: list[_PreparedStudy]) -> list[dict]:
+def _run_prepared(runs: list[_PreparedStudy], meter: CostMeter) -> list[dict]:
     """Stages 2-3 of every study in one pool, then each study's cross-check and report (stage 4)."""
     jobs = [replace(j, study=i) for i, r in enumerate(runs) for j in r.jobs]
     processes = job_processes(runs[0].cfg, len(jobs))
@@ -199,6 +213,8 @@ def _run_prepared(runs: list[_PreparedStudy]) -> list[dict]:
     )
     if processes > 1 or slurm:  # a trained method's suites spread over the free processes (or cluster jobs)
         jobs = split_jobs(jobs, {j: job_suites(j, runs[j.study].cfg, runs[j.study].base_env) for j in jobs})
+    if processes > 1 and not slurm:  # each cross-check's lerobot-eval run in the pool, not after it on one core
+        jobs += [j for i, r in enumerate(runs) if (j := cross_check.cli_job(r.cfg, r.methods, i, jobs)) is not None]
     contexts = tuple(r.context for r in runs)
     if slurm:
         from lerobot_pnp.report.cluster import run_on_slurm
@@ -207,15 +223,24 @@ def _run_prepared(runs: list[_PreparedStudy]) -> list[dict]:
         processes = max(1, processes)  # the cluster jobs submitted
     else:
         finished = dict(run_jobs(jobs, (contexts,), processes, fn=_study_job))
-    return [_finish(r, [j for j in jobs if j.study == i], finished, processes) for i, r in enumerate(runs)]
+    meter.processes = processes
+    meter.stage("jobs")
+    for result in finished.values():
+        for what, (done, total) in result.ran.items():
+            meter.count(what, done, total)
+        meter.job_rss_mb = max(meter.job_rss_mb, result.rss_mb)
+    return [_finish(r, [j for j in jobs if j.study == i], finished, meter) for i, r in enumerate(runs)]
 
 
 def _study_job(job: Job, contexts: tuple):
-    """``run_job`` in the context of the job's study (a module-level function: the pool pickles it)."""
+    """``run_job`` (or the cross-check's run, ``cross_check.cli_job``) in the context of the job's study (a
+    module-level function: the pool pickles it)."""
+    if job.part == CLI_CHECK:
+        return cross_check.run_cli_job(job, *contexts[job.study])
     return run_job(job, *contexts[job.study])
 
 
-def _finish(run: _PreparedStudy, jobs: list[Job], finished: dict, processes: int) -> dict:
+def _finish(run: _PreparedStudy, jobs: list[Job], finished: dict, meter: CostMeter) -> dict:
     """The study's results from its jobs, the `lerobot-eval` cross-check and the report."""
     from lerobot_pnp.report.writer import StudyInputs, write_report
 
@@ -223,16 +248,19 @@ def _finish(run: _PreparedStudy, jobs: list[Job], finished: dict, processes: int
     results: dict[str, dict[str, dict[str, list]]] = {}  # method -> tag -> suite -> records, in job order
     left: list[coverage.LeftOut] = []  # what report_only could not show (coverage)
     for job in jobs:
-        records, job_timings, job_left = finished[job]
-        timings.update(job_timings)
-        left += job_left
-        for suite, recs in records.items():
+        result = finished[job]
+        timings.update(result.timings)
+        left += result.left
+        for suite, recs in result.records.items():
             results.setdefault(job.method, {}).setdefault(job.tag, {})[suite] = recs
     results, left = coverage.withhold(results, left)
 
     cli_check = cross_check.cli_check(cfg, run.methods, results, (layout, run.roots, run.keys), timings)
+    if cli_check is not None and "left_out" not in cli_check and not any(j.part == CLI_CHECK for j in jobs):
+        meter.count("cli_checks", int("cli_check" in timings), 1)  # run here (the pool's job counted its own)
+    meter.stage("cli_check")
     timings["run/wall_clock"] = time.perf_counter() - run.started  # this invocation, all processes together
-    timings["run/processes"] = processes
+    timings["run/processes"] = meter.processes
 
     _stage(f"4/4 report ({layout.out})")
     run.folder.claim(*layout.report_names())
@@ -241,4 +269,5 @@ def _finish(run: _PreparedStudy, jobs: list[Job], finished: dict, processes: int
                         cli_check, left, {a: of for a, of in aliases.items() if a != of})  # fmt: skip
     summary = write_report(layout, study)
     print(f"\nreport: {layout.report}")
+    meter.stage("report")
     return summary

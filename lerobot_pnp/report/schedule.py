@@ -1,5 +1,6 @@
 """The study's jobs and their schedule: a method x training seed as its training and one job per suite, run
-in a process pool the likely longest first, a job starting once the one it waits for has finished.
+in a process pool, a job starting once the one it waits for has finished: an evaluation as soon as its training
+is done, the other jobs the likely longest first.
 
 What one job does is ``report.job``; the stages around the pool, ``report.run``.
 """
@@ -12,8 +13,9 @@ from dataclasses import dataclass, replace
 from lerobot_pnp.report.config import StudyConfig
 from lerobot_pnp.report.methods import get_methods
 
-# ``Job.part``: a method x seed's training and every suite in one job (one process), or the training alone
-ALL, TRAINING = "*", "training"
+# ``Job.part``: a method x seed's training and every suite in one job (one process), or the training alone, or
+# the study's `lerobot-eval` cross-check (``cross_check.cli_job``); any other part is a suite's evaluation
+ALL, TRAINING, CLI_CHECK = "*", "training", "cli_check"
 
 # what every training or evaluation job imports, loaded once by the pool's fork server (no MuJoCo: its GL backend
 # is chosen where an env is built)
@@ -41,8 +43,11 @@ class Job:
 
     def after(self) -> tuple[str, str, str, int] | None:
         """The job that must finish first: a suite's evaluation waits for its training; a training waits for the
-        training of the same seed that its method continues (DAgger)."""
+        training of the same seed that its method continues (DAgger); the cross-check waits for the nominal
+        evaluation it is compared with."""
         method = get_methods([self.method])[0]
+        if self.part == CLI_CHECK:
+            return self.method, self.tag, "nominal", self.study
         if self.part not in (ALL, TRAINING):
             return (self.method, self.tag, TRAINING, self.study) if method.learned else None
         if method.continues:
@@ -68,8 +73,9 @@ def job_processes(cfg: StudyConfig, n_jobs: int) -> int:
 
 
 def longest_first(jobs: list[Job]) -> list[Job]:
-    """The order a pool takes jobs in: the likely longest first, so that the last job to finish is a short one
-    and no core idles while one long job runs on alone (longest-processing-time scheduling). A job's class:
+    """The order a pool considers jobs in (``ready`` takes those that waited for a finished job first): the
+    likely longest first, so that the last job to finish is a short one and no core idles while one long job
+    runs on alone (longest-processing-time scheduling). A job's class:
     a dense-control method's (every evaluation episode runs at the control rate, failures to the budget's end),
     then one that another continues (DAgger's and DART's rounds wait on it), then the recovering recipe's
     trainings, then other trainings, then evaluations of untrained methods, then those of trained ones (which
@@ -90,6 +96,17 @@ def longest_first(jobs: list[Job]) -> list[Job]:
         return 2.5 if method.learned else 3
 
     return sorted(jobs, key=cost_class)
+
+
+def ready(pending: list[Job], names: set, done: set) -> list[Job]:
+    """The jobs of ``pending`` (in ``longest_first`` order) that can start now, in the order the pool takes them:
+    first those that waited for a job now done (a suite's evaluation once its training is done, the cross-check),
+    so that a checkpoint is evaluated as soon as it exists and the first results come early; then the others in
+    their order. The wall clock is the same either way while the pool is full (``benchmarks/study_schedule.py``
+    replays both): what runs first changes, not what each job computes (each is single-threaded and keyed)."""
+    free = [j for j in pending if j.after() not in names or j.after() in done]
+    waited = [j for j in free if j.after() in done and j.part not in (ALL, TRAINING)]
+    return waited + [j for j in free if j not in waited]
 
 
 def run_jobs(jobs: list[Job], context: tuple, processes: int, fn):
@@ -120,9 +137,7 @@ def run_jobs(jobs: list[Job], context: tuple, processes: int, fn):
     )
     with pool:
         while pending or running:
-            for job in [j for j in pending if j.after() not in names or j.after() in done]:
-                if len(running) >= processes:
-                    break
+            for job in ready(pending, names, done)[: processes - len(running)]:
                 pending.remove(job)
                 running[pool.submit(fn, job, *context)] = job
             finished, _ = wait(running, return_when=FIRST_COMPLETED)
