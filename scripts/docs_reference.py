@@ -41,29 +41,35 @@ def presets_table(base: str) -> str:
 
 def suite_catalogue(base: str) -> str:
     """Every suite of ``sim/suites.py``, grouped as the studies use them, with what it changes."""
-    from lerobot_pnp.presets import FULL_TASK
-    from lerobot_pnp.sim.suites import HELD_OUT_AXES, SUITES
+    from lerobot_pnp.presets import FULL_TASK, PAPER_TASK, VISUAL_TRAINING
+    from lerobot_pnp.sim.suites import ALL_AXES, SUITES
+    from lerobot_pnp.sim.visual_suites import VISUAL_SUITES
 
     groups = {
         "The paper-task study (base: the task a policy was trained on)": [],
         "The held-out protocol (base: the `full` task)": [],
         "DAgger's suites (`quiet*`: every perturbation off, then one at a time)": [],
+        "The visual axes (`train_visual`: changes from the `paper` task; the others: from `train_visual`)": [],
     }
     titles = list(groups)
     for s in SUITES.values():
-        key = 1 if s.name.startswith(("train_", "heldout_")) else 2 if s.name.startswith("quiet") else 0
+        key = 3 if s.name in VISUAL_SUITES else 1 if s.name.startswith(("train_", "heldout_")) else 2 if (
+            s.name.startswith("quiet")) else 0  # fmt: skip
         groups[titles[key]].append(s)
     out = [
-        f"{len(SUITES)} suites. Changes shown: every field a paper-task suite sets; for the other suites, the fields "
-        "whose value differs from the `full` preset (their base)."
+        f"{len(SUITES)} suites. Changes shown: every field a paper-task suite sets; for the held-out protocol's and "
+        "DAgger's suites, the fields whose value differs from the `full` preset (their base); for the visual "
+        "suites, as their group says."
     ]
     for i, (title, suites) in enumerate(groups.items()):
         out += ["", f"### {title}", "", "| suite | what it is | env-config changes |", "|---|---|---|"]
         for s in suites:
-            changes = "; ".join(_changes(p, FULL_TASK if i else {}) for p in s.parts)
+            ref = {} if i == 0 else FULL_TASK if i < 3 else PAPER_TASK if s.name == "train_visual" else (
+                {**FULL_TASK, **VISUAL_TRAINING})  # fmt: skip
+            changes = "; ".join(_changes(p, ref) for p in s.parts)
             out.append(f"| `{s.name}` | {s.description} | {changes} |")
     out += ["", "### Held-out axes", "", "| axis | what varies | in distribution | held out |", "|---|---|---|---|"]
-    for a in HELD_OUT_AXES:
+    for a in ALL_AXES:
         ins, held = (", ".join(f"`{n}`" for n in names) for names in (a.in_distribution, a.held_out))
         out.append(f"| {a.name} | {a.description} | {ins} | {held} |")
     return "\n".join(out)

@@ -225,9 +225,11 @@ from docs_cost import BLOCKS as COST_BLOCKS  # noqa: E402  (what make demo and m
 from docs_facts import FACT, render_facts  # noqa: E402  (the numbers prose repeats, one line each)
 from docs_pixel_tables import BLOCKS as PIXEL_BLOCKS  # noqa: E402  (the camera planner page's blocks)
 from docs_reference import BLOCKS as REFERENCE_BLOCKS  # noqa: E402  (read from the code: CLI help, config fields)
+from docs_visual_tables import BLOCKS as VISUAL_BLOCKS  # noqa: E402  (the visual axes' ranges)
 
 BLOCKS = {
-    **PIXEL_BLOCKS, **ARCHITECTURE_BLOCKS, **REFERENCE_BLOCKS, **COST_BLOCKS, **COMMAND_COST_BLOCKS, "paper-table": paper_table,
+    **PIXEL_BLOCKS, **ARCHITECTURE_BLOCKS, **REFERENCE_BLOCKS, **COST_BLOCKS, **COMMAND_COST_BLOCKS, **VISUAL_BLOCKS,
+    "paper-table": paper_table,
     "heldout-verdicts": heldout_verdicts, "heldout-suites": heldout_suites, "gate-table": gate_table,
     "memory-table": memory_table, "planner-table": planner_table, "leaderboard": leaderboard_table,
 }  # fmt: skip
