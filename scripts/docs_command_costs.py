@@ -131,4 +131,37 @@ def make_costs(base: str) -> str:
     return "\n".join(lines)
 
 
-BLOCKS = {"command-costs": command_costs, "make-costs": make_costs}
+def eval_startup(base: str = "") -> str:
+    """``lerobot-eval``'s time to its first episode by phase, with this plugin and without it
+    (``docs/results/eval_startup.json``, written by ``benchmarks/bench_eval_startup.py``)."""
+    rec = _json("eval_startup.json")
+    med = rec["median_s"]
+    rows = [
+        ("LeRobot's imports (torch, the policies, datasets)", "imports"),
+        ("plugin discovery", "discovery"),
+        ("parsing the command line (every field's help text)", "parse"),
+        ("this env (`make_env`)", "make_env"),
+        ("the policy and its processors", "make_policy"),
+        ("**to the first episode**", "total"),
+    ]
+    lines = ["| phase | `baxter_pnp` + `pnp_lstm` | a stock config, no plugin |", "|---|---:|---:|"]
+    for label, key in rows:
+        without = med["without"].get(key)
+        right = "-" if key in ("make_env", "make_policy") else f"{without:.2f} s"
+        if key == "total":
+            right += " (to `make_env`)"
+        lines.append(f"| {label} | {med['with'][key]:.2f} s | {right} |")
+    ours = sum(rec["plugin_adds_to_stock_s"].values()) + rec["env_and_policy_s"]
+    return "\n".join(
+        [
+            *lines,
+            "",
+            f"Median of {rec['rounds']} rounds, {rec['cpu']}, {rec['cores']} cores (load average "
+            f"{rec['load_average']:.1f}). The plugin's part (discovery and parsing beyond the stock run, the env "
+            f"and the policy): {ours:.2f} s, {rec['plugin_share_of_first_episode']:.0%} of the time to the first "
+            "episode.",
+        ]
+    )
+
+
+BLOCKS = {"command-costs": command_costs, "make-costs": make_costs, "eval-startup": eval_startup}
