@@ -9,21 +9,77 @@ does not is looked up in ``--sources`` (the entry whose ``files`` lists it, rela
 Prints, per summary, its commit and the files whose code changed since (and those whose docstrings or
 comments alone changed). Exit status 0 when every summary's code is the checkout's, 1 when some changed, 2
 when a commit is not named or not in the repository (a shallow clone) or git is missing.
+
+    python benchmarks/study_provenance.py --record STUDY_CHECKOUT   # writes docs/results/study/code.json
+
+``--record`` writes the digest of every study code file of the checkout a study ran in (``code.json``: the
+commit and, per file, the sha256 of its code with docstrings and comments set aside), so that a checkout can be
+compared with the published study without git history (``code_changes``; ``tests/test_study_provenance.py``).
 """
 
 from __future__ import annotations
 
 import argparse
+import fnmatch
+import hashlib
 import json
 import sys
 from pathlib import Path
 
 from lerobot_pnp.errors import ConfigError, PnPError
-from lerobot_pnp.report.code_provenance import SOURCE_ROOT, study_code_changes
+from lerobot_pnp.outputs import write_json_atomic
+from lerobot_pnp.report.code_provenance import (
+    SOURCE_ROOT,
+    STUDY_CODE,
+    _code_of,
+    checkout_commit,
+    study_code_changes,
+)
 from lerobot_pnp.report.repro import load_summary
 
 RESULTS = SOURCE_ROOT / "docs" / "results"
 SUMMARIES = (RESULTS / "study" / "report_full" / "summary.json", RESULTS / "study" / "heldout" / "summary.json")
+CODE_RECORD = RESULTS / "study" / "code.json"
+
+
+def _study_files(root: Path) -> list[str]:
+    """The files under ``root`` that ``STUDY_CODE``'s pathspecs name, read without git: its ``:(glob)`` and
+    plain paths, less its ``:(exclude,glob)`` folders."""
+    include, exclude = [], []
+    for spec in STUDY_CODE:
+        magic, _, pattern = spec.rpartition(")") if spec.startswith(":(") else ("", "", spec)
+        (exclude if "exclude" in magic else include).append(pattern)
+    names = {p.relative_to(root).as_posix() for pattern in include for p in root.glob(pattern) if p.is_file()}
+    return sorted(n for n in names if not any(fnmatch.fnmatch(n, pattern) for pattern in exclude))
+
+
+def code_digests(root: Path) -> dict[str, str]:
+    """Per study code file under ``root`` (relative name), the sha256 of its code: a Python module's syntax tree
+    with docstrings set aside (comments never reach it), any other file's bytes."""
+    root = Path(root)
+    digests = {}
+    for name in _study_files(root):
+        data = (root / name).read_bytes()
+        code = _code_of(data.decode()) if name.endswith(".py") else None
+        digests[name] = hashlib.sha256(code.encode() if code is not None else data).hexdigest()
+    return digests
+
+
+def code_changes(record: dict, root: Path) -> list[str]:
+    """The study code files whose code differs between the recorded study checkout and ``root``: changed,
+    added or removed since."""
+    now, then = code_digests(root), record["files"]
+    return sorted(name for name in now.keys() | then.keys() if now.get(name) != then.get(name))
+
+
+def record_code(checkout: Path, out: Path = CODE_RECORD) -> dict:
+    """Write ``out``: the commit of the study ``checkout`` and its study code files' digests."""
+    commit = checkout_commit(checkout)
+    if commit is None:
+        raise ConfigError(f"{checkout} is not the top of a git checkout: the study's commit cannot be named")
+    record = {"commit": commit, "files": code_digests(checkout)}
+    write_json_atomic(out, record)
+    return record
 
 
 def summary_commit(path: Path, sources: Path) -> str:
@@ -57,9 +113,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("summaries", nargs="*", type=Path, default=list(SUMMARIES))
     parser.add_argument("--root", type=Path, default=SOURCE_ROOT, help="the checkout to compare (its work tree)")
     parser.add_argument("--sources", type=Path, default=RESULTS / "sources.json")
+    parser.add_argument("--record", type=Path, help="write code.json from the checkout the study ran in")
     args = parser.parse_args(argv)
     same = True
     try:
+        if args.record:
+            record = record_code(args.record)
+            print(f"{CODE_RECORD}: {len(record['files'])} study code files of {record['commit']}")
+            return 0
         for path in args.summaries:
             ok, lines = describe(path, args.root, args.sources)
             same = same and ok

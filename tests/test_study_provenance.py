@@ -124,3 +124,37 @@ def test_the_report_names_the_commit_where_the_summary_records_it():
         " Code: commit `0123456789ab` with uncommitted changes to the study's code, run on 2026-12-07."
     )
     assert _code_sentence({"cpu": "a summary written before the commit was recorded"}) == ""
+
+
+def test_the_published_study_was_made_by_the_code_that_ships(bench):
+    """The committed study (its summaries, reports and figures) is the output of this checkout's study code (the
+    package apart from the viewer, the two study configs, the lock file; docstrings and comments aside), read
+    from the digests recorded from the checkout it ran in, so a clone without history checks it too. A change to
+    that code fails here until the study is rerun and committed with its record."""
+    record = json.loads(bench.CODE_RECORD.read_text())
+    for summary in bench.SUMMARIES:
+        assert json.loads(summary.read_text())["machine"]["commit"] == record["commit"], summary
+    changed = bench.code_changes(record, ROOT)
+    assert not changed, (
+        f"the published study was made at {record['commit'][:12]}, and its code has changed since in "
+        f"{', '.join(changed)}: rerun `make study`, copy outputs/{{report_full,heldout}} into docs/results/study/ "
+        "and record the code (python benchmarks/study_provenance.py --record .)"
+    )
+
+
+def test_the_code_record_tells_a_code_change_from_a_docstring_change(bench, repo, tmp_path):
+    root, first, second = repo
+    _git(root, "checkout", "-q", first)
+    record = bench.record_code(root, tmp_path / "code.json")
+    assert record["commit"] == first and json.loads((tmp_path / "code.json").read_text()) == record
+    assert set(record["files"]) == {
+        "lerobot_pnp/sim/physics.py",
+        "lerobot_pnp/report/run.py",
+        "configs/report_full.json",
+    }
+    _git(root, "checkout", "-q", second)
+    assert bench.code_changes(record, root) == ["lerobot_pnp/sim/physics.py"]  # run.py's docstrings alone changed
+    _write(root, {"lerobot_pnp/sim/new.py": "X = 1\n"})
+    assert bench.code_changes(record, root) == ["lerobot_pnp/sim/new.py", "lerobot_pnp/sim/physics.py"]
+    with pytest.raises(ConfigError, match="not the top of a git checkout"):
+        bench.record_code(root / "lerobot_pnp", tmp_path / "other.json")
