@@ -202,7 +202,7 @@ def test_a_leaderboard_budget_states_the_data_and_training_time_of_its_study(row
 
 
 def test_the_camera_planners_budget_states_its_protocols_data_seeds_and_training_times():
-    from docs_pixel_tables import PROTOCOLS
+    PROTOCOLS = load_script("scripts/docs_pixel_tables.py").PROTOCOLS
 
     folder, demos, _, _ = PROTOCOLS[0]
     budget = _row("pnp_pixels")["budget"]

@@ -68,15 +68,19 @@ def _nav_pages(nav) -> list[str]:
     return out
 
 
+REPRO = "results/study/repro.md"  # the study's rerun table
+
+
 def test_the_site_nav_holds_every_page():
     """mkdocs --strict fails on a page off the nav (make test builds it); this names the page without a build. The
-    one exception, mkdocs' ``not_in_nav``: the pages ``lerobot-pnp compare`` wrote for the camera planner, which its
-    page links instead (the next test)."""
+    exceptions, mkdocs' ``not_in_nav``: the pages ``lerobot-pnp compare`` wrote for the camera planner, which its
+    page links instead (the next test), and the study's rerun table, which the page on reproducing it links."""
     config = yaml.safe_load((ROOT / "mkdocs.yml").read_text())
     nav = set(_nav_pages(config["nav"]))
     pages = {str(p.relative_to(ROOT / "docs")) for p in (ROOT / "docs").rglob("*.md")}
-    assert config["not_in_nav"].split() == ["/results/*/compare*/compare.md"]
-    assert pages - nav - set(_compare_pages()) == set(), "pages missing from mkdocs.yml's nav"
+    assert config["not_in_nav"].split() == ["/results/*/compare*/compare.md", f"/{REPRO}"]
+    assert "(study/repro.md)" in (ROOT / "docs" / "results" / "reproduce.md").read_text()
+    assert pages - nav - set(_compare_pages()) - {REPRO} == set(), "pages missing from mkdocs.yml's nav"
     assert nav - pages == set(), "nav entries without a page"
     assert nav & set(_compare_pages()) == set()
 
