@@ -27,11 +27,13 @@ $(UV):
 	test -x $(VENV)/bin/python || $(PYTHON) -m venv $(VENV)
 	$(VENV)/bin/pip install -q uv==$(UV_VERSION)
 
-# exactly the lock's versions (--no-deps); the check then fails on a dependency the lock lacks (a stale lock)
+# exactly the lock's versions (--no-deps); the check then fails on a dependency the lock lacks (a stale lock).
+# --compile-bytecode: the dependencies' .pyc files are written once here (uv writes none by default), so that no
+# later process compiles torch and LeRobot again where PYTHONDONTWRITEBYTECODE is set
 $(STAMP): pyproject.toml $(LOCK) | $(UV)
 	@command -v ffmpeg >/dev/null || { command -v apt-get >/dev/null && [ "$$(id -u)" = 0 ] && \
 		(apt-get update -qq && apt-get install -y -qq ffmpeg >/dev/null) || echo "note: ffmpeg not installed (video datasets fall back to PyAV)"; }
-	$(UV) pip install -q --python $(VENV)/bin/python --no-deps -r $(LOCK) -e .
+	$(UV) pip install -q --compile-bytecode --python $(VENV)/bin/python --no-deps -r $(LOCK) -e .
 	@$(UV) pip check -q --python $(VENV)/bin/python || { echo "$(LOCK) misses a dependency of pyproject.toml: make lock"; exit 1; }
 	touch $(STAMP)
 
