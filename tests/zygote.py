@@ -20,6 +20,7 @@ real process for it).
 from __future__ import annotations
 
 import atexit
+import gc
 import json
 import os
 import signal
@@ -163,6 +164,7 @@ def _serve(sock: socket.socket) -> dict:
         request = json.loads(msg)
         if request["op"] == "start":
             sys.stdout.flush(), sys.stderr.flush()
+            gc.freeze()  # the preloaded objects stay out of the child's collections: no copy of their pages, no sweep
             with warnings.catch_warnings():  # a native thread of jemalloc (pyarrow's) takes no lock fork needs
                 warnings.simplefilter("ignore", DeprecationWarning)
                 pid = os.fork()
