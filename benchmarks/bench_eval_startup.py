@@ -1,6 +1,6 @@
 """What ``lerobot-eval`` spends before its first episode, and this plugin's share of it, side by side.
 
-Each round runs two fresh processes in turn, the same Python and LeRobot:
+Each round runs two fresh processes in turn (their order alternating by round), the same Python and LeRobot:
 
 - ``with``: ``lerobot-eval --env.type=baxter_pnp --policy.path=<pnp_lstm checkpoint>``, stopped when LeRobot's
   ``rollout`` is first called (the first episode's reset);
@@ -107,6 +107,17 @@ def run_once(mode: str, args: list[str]) -> dict[str, float]:
     return out
 
 
+def cpu_model() -> str:
+    """The processor's model name (Linux), else the platform's."""
+    try:
+        lines = Path("/proc/cpuinfo").read_text().splitlines()
+        return next(line.split(":", 1)[1].strip() for line in lines if line.startswith("model name"))
+    except (OSError, StopIteration):
+        import platform
+
+        return platform.processor() or platform.machine()
+
+
 def median_phases(runs: list[dict[str, float]]) -> dict[str, float]:
     return {p: statistics.median([r[p] for r in runs]) for p in PHASES if all(p in r for r in runs)}
 
@@ -126,14 +137,14 @@ def main() -> int:
         }
         runs: dict[str, list[dict[str, float]]] = {m: [] for m in modes}
         for i in range(args.rounds):
-            for mode, margs in modes.items():
-                runs[mode].append(run_once(mode, margs))
+            for mode in ("with", "without") if i % 2 == 0 else ("without", "with"):  # in turn, neither always first
+                runs[mode].append(run_once(mode, modes[mode]))
             print(f"round {i + 1}/{args.rounds}: with {runs['with'][-1]['total']:.2f} s to the first episode, "
                   f"without {runs['without'][-1]['total']:.2f} s to make_env", flush=True)  # fmt: skip
     med = {m: median_phases(r) for m, r in runs.items()}
     added = {p: med["with"][p] - med["without"][p] for p in ("discovery", "parse")}
     own = med["with"]["make_env"] + med["with"]["make_policy"]
-    result = {"rounds": args.rounds, "median_s": med, "plugin_adds_to_stock_s": added, "env_and_policy_s": own,
+    result = {"cpu": cpu_model(), "cores": len(os.sched_getaffinity(0)), "load_average": os.getloadavg()[0], "rounds": args.rounds, "median_s": med, "plugin_adds_to_stock_s": added, "env_and_policy_s": own,
               "plugin_share_of_first_episode": (sum(added.values()) + own) / med["with"]["total"]}  # fmt: skip
     print(f"{'phase':<12}{'with':>9}{'without':>9}")
     for p in PHASES:

@@ -53,7 +53,11 @@ def train(args, method: str, threads: int) -> float:
     from lerobot_pnp.integration.recorded_task import read_recorded
     from lerobot_pnp.report.methods import TrainContext, get_methods
 
-    torch.set_num_threads(threads)
+    pin = torch.set_num_threads
+    pin(threads)
+    # the trainers pin their own count (``support.determinism.deterministic_training``, 1 as the study runs them):
+    # here every call pins the count this run measures
+    torch.set_num_threads = lambda _n: pin(threads)
     (m,) = get_methods([method])
     cfg, root = _cfg(args), args.workdir
     roots = {"keyframe": root / "dataset", "dense": root / "dataset_dense", "phase": root / "dataset_phase"}

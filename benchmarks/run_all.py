@@ -40,6 +40,7 @@ def small_args(name: str, out: Path, dataset: Path) -> list[str] | None:
         "bench_training": [
             "--epochs", "2", "--workdir", str(out / "bench_training"), "--out", str(out / "bench_training.json"),
         ],
+        "bench_visual": ["--rounds", "2", "--sizes", "64x64"],
         "bench_planner": [
             "--config", "configs/dagger_small.json", "--sections", "dagger,latency",
             "--output_dir", str(out / "bench_planner"),

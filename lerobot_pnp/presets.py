@@ -66,6 +66,21 @@ PAPER_TASK: dict[str, Any] = {
     "obs_latency_max": 0,
     "obs_latency_jitter": 0.0,
     "carry_min_time": 0.0,
+    # Visual variation (sim/visual.py): what a camera sees, never the physics. Each is the (min, max) deviation from
+    # the scene as modelled, drawn per episode from a generator of its own; (0, 0) is the scene as modelled.
+    "light_intensity_range": (0.0, 0.0),
+    "light_direction_range": (0.0, 0.0),
+    "light_color_range": (0.0, 0.0),
+    "cube_hue_range": (0.0, 0.0),
+    "target_hue_range": (0.0, 0.0),
+    "table_hue_range": (0.0, 0.0),
+    "camera_shift_range": (0.0, 0.0),
+    "camera_tilt_range": (0.0, 0.0),
+    "wrist_camera_shift_range": (0.0, 0.0),
+    "wrist_camera_tilt_range": (0.0, 0.0),
+    "distractors_range": (0, 0),
+    "image_noise_range": (0.0, 0.0),
+    "image_blur_range": (0.0, 0.0),
 }
 # The reachable table region (IK gripper-down at hover and grasp height, any grasp yaw, clear of the table edge):
 # where a disturbed object may land in `full` so that a recovery may begin anywhere the arm can re-pick it.
@@ -111,6 +126,24 @@ FULL_TASK: dict[str, Any] = {
     "landing_low": REACHABLE_LOW,
     "landing_high": REACHABLE_HIGH,
     "carry_min_time": 0.5,
+}
+# The training ranges of the visual held-out axes (sim/visual_suites.py holds the held-out ranges beyond them):
+# a few degrees and millimetres, slight tints and hue shifts, at most one distractor, faint sensor noise. A camera
+# policy of those axes trains on `full` with these (configs/generate_full_visual.json).
+VISUAL_TRAINING: dict[str, Any] = {
+    "light_intensity_range": (0.0, 0.4),  # intensity x 0.76 .. 1.32
+    "light_direction_range": (0.0, 0.17),  # up to 10 degrees
+    "light_color_range": (0.0, 0.15),
+    "cube_hue_range": (0.0, 0.04),  # up to 14 degrees of hue
+    "target_hue_range": (0.0, 0.04),
+    "table_hue_range": (0.0, 0.04),
+    "camera_shift_range": (0.0, 0.005),  # up to 5 mm
+    "camera_tilt_range": (0.0, 0.035),  # up to 2 degrees
+    "wrist_camera_shift_range": (0.0, 0.002),  # up to 2 mm
+    "wrist_camera_tilt_range": (0.0, 0.017),  # up to 1 degree
+    "distractors_range": (0, 1),
+    "image_noise_range": (0.0, 0.02),  # std up to 2 % of full scale
+    "image_blur_range": (0.0, 0.5),  # std up to half a pixel
 }
 PRESETS: dict[str, dict[str, Any]] = {"paper": PAPER_TASK, "full": FULL_TASK}
 TASK_FIELDS = tuple(PAPER_TASK)

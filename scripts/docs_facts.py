@@ -71,6 +71,33 @@ def _demo_demos() -> str:
     return str(PRESETS["demo"]["num_episodes"])
 
 
+def _cell(study: str, suite: str, method: str) -> dict:
+    return _json(f"study/{study}/summary.json")["success"][suite][method]
+
+
+def _rate(study: str, suite: str, method: str, n: bool = False) -> str:
+    """A method's pooled success on one suite of a study, as the tables write it ("99.7 %"), with its episodes."""
+    cell = _cell(study, suite, method)
+    pct = f"{100 * cell['rate']:.1f}".removesuffix(".0")
+    return f"{pct} %" + (f" of {cell['n']} episodes" if n else "")
+
+
+def _failures(study: str, label: str, suite: str) -> tuple[dict[str, int], dict[str, int]]:
+    """(failures by cause, failures by furthest phase) of one method on one suite: the study report's
+    "Failures by cause" table (its summary.json keeps success only)."""
+    report = (RESULTS / "study" / study / "report.md").read_text()
+    row = re.search(rf"^\| {re.escape(label)} \| `{re.escape(suite)}` \| ([^|]*) \| ([^|]*) \|$", report, re.M)
+    if row is None:
+        raise SystemExit(f"docs/results/study/{study}/report.md: no failures row for {label!r} on {suite!r}")
+    return tuple({k: int(v) for k, v in re.findall(r"([\w/]+) (\d+)", row.group(i))} for i in (1, 2))
+
+
+def _failed_at(study: str, label: str, method: str, suite: str, phase: str, of: bool = True) -> str:
+    """How many of a method's episodes on ``suite`` ended with ``phase`` the furthest one reached ("129 of 150")."""
+    count = _failures(study, label, suite)[1].get(phase, 0)
+    return f"{count} of {_cell(study, suite, method)['n']}" if of else str(count)
+
+
 FACTS: dict[str, Fact] = {
     # the paper-task study's demonstrations (its summary's config) and the training split the generator makes
     "paper-demos": Fact(lambda: str(_config("report_full")["num_episodes"]),
@@ -79,11 +106,36 @@ FACTS: dict[str, Fact] = {
     "demo-demos": Fact(_demo_demos, r"the paper's [\d,]+ demonstrations"),
     "pixel-protocol-nominal": Fact(_pixel_protocol_nominal, r"(?:200|two-hundred)-episode protocol \("),
     "pixel-leaderboard-runs": Fact(_pixel_leaderboard_runs),
+    # what the numbers mean (docs/numbers.md): the lookup table on both tasks, the memoryless controls' failures
+    "lookup-paper-nominal": Fact(lambda: _rate("report_full", "nominal", "lookup_table"),
+                                 r"lookup table (?:scores|gets|reaches) [\d.]+ ?%"),
+    "lookup-paper-outside-ring": Fact(lambda: _rate("report_full", "outside_ring", "lookup_table")),
+    "lookup-full-nominal": Fact(lambda: _rate("heldout", "nominal", "lookup_table", n=True)),
+    "lookup-full-never-near": Fact(lambda: _failed_at("heldout", "lookup table", "lookup_table", "nominal",
+                                                      "pick/start")),
+    "lookup-full-dropped": Fact(lambda: str(_failures("heldout", "lookup table", "nominal")[0].get("dropped", 0))),
+    "clocked-paper-nominal": Fact(lambda: _rate("report_full", "nominal", "clocked_lstm")),
+    "clocked-reset-paper-nominal": Fact(lambda: _rate("report_full", "nominal", "memoryless")),
+    "mlp-paper-nominal": Fact(lambda: _rate("report_full", "nominal", "memoryless_mlp", n=True),
+                              r"memoryless MLP (?:scores|gets|reaches) [\d.]+ ?%"),
+    "mlp-paper-grasp": Fact(lambda: _failed_at("report_full", "memoryless MLP (matched)", "memoryless_mlp", "nominal",
+                                               "pick/grasp")),
+    "mlp-paper-retract": Fact(lambda: _failed_at("report_full", "memoryless MLP (matched)", "memoryless_mlp",
+                                                 "nominal", "pick/retract", of=False)),
+    "told-paper-nominal": Fact(lambda: _rate("report_full", "nominal", "phase_told_mlp")),
+    "told-paper-retract": Fact(lambda: _failed_at("report_full", "MLP told the phase", "phase_told_mlp", "nominal",
+                                                  "pick/retract")),
+    "told-paper-grasp": Fact(lambda: _failed_at("report_full", "MLP told the phase", "phase_told_mlp", "nominal",
+                                                "pick/grasp", of=False)),
+    "told-paper-slack": Fact(lambda: _rate("report_full", "slack", "phase_told_mlp")),
+    "recovering-paper-slack": Fact(lambda: _rate("report_full", "slack", "recovering")),
 }  # fmt: skip
 
 
 def render_facts(page: Path, text: str, cache: dict) -> str:
-    """``text`` with every fact's value regenerated; an unknown fact is an error naming the valid ones."""
+    """``text`` with every fact's value regenerated; an unknown fact is an error naming the valid ones, and so is a
+    fact that opens a line (Markdown reads a line that starts with an HTML comment as raw HTML, which ends a list
+    item or a paragraph there)."""
 
     def fill(m: re.Match) -> str:
         name = m.group(2)
@@ -93,4 +145,8 @@ def render_facts(page: Path, text: str, cache: dict) -> str:
             cache[("fact", name)] = FACTS[name].value()
         return f"{m.group(1)}{cache[('fact', name)]}{m.group(4)}"
 
-    return FACT.sub(fill, text)
+    text = FACT.sub(fill, text)
+    if m := re.search(r"^[ \t]*<!-- fact: ([\w-]+) -->", text, re.M):
+        line = text[: m.start()].count("\n") + 1
+        raise SystemExit(f"{page.relative_to(ROOT)}:{line}: fact {m.group(1)!r} opens a line; put a word before it")
+    return text

@@ -41,29 +41,35 @@ def presets_table(base: str) -> str:
 
 def suite_catalogue(base: str) -> str:
     """Every suite of ``sim/suites.py``, grouped as the studies use them, with what it changes."""
-    from lerobot_pnp.presets import FULL_TASK
-    from lerobot_pnp.sim.suites import HELD_OUT_AXES, SUITES
+    from lerobot_pnp.presets import FULL_TASK, PAPER_TASK, VISUAL_TRAINING
+    from lerobot_pnp.sim.suites import ALL_AXES, SUITES
+    from lerobot_pnp.sim.visual_suites import VISUAL_SUITES
 
     groups = {
         "The paper-task study (base: the task a policy was trained on)": [],
         "The held-out protocol (base: the `full` task)": [],
         "DAgger's suites (`quiet*`: every perturbation off, then one at a time)": [],
+        "The visual axes (`train_visual`: changes from the `paper` task; the others: from `train_visual`)": [],
     }
     titles = list(groups)
     for s in SUITES.values():
-        key = 1 if s.name.startswith(("train_", "heldout_")) else 2 if s.name.startswith("quiet") else 0
+        key = 3 if s.name in VISUAL_SUITES else 1 if s.name.startswith(("train_", "heldout_")) else 2 if (
+            s.name.startswith("quiet")) else 0  # fmt: skip
         groups[titles[key]].append(s)
     out = [
-        f"{len(SUITES)} suites. Changes shown: every field a paper-task suite sets; for the other suites, the fields "
-        "whose value differs from the `full` preset (their base)."
+        f"{len(SUITES)} suites. Changes shown: every field a paper-task suite sets; for the held-out protocol's and "
+        "DAgger's suites, the fields whose value differs from the `full` preset (their base); for the visual "
+        "suites, as their group says."
     ]
     for i, (title, suites) in enumerate(groups.items()):
         out += ["", f"### {title}", "", "| suite | what it is | env-config changes |", "|---|---|---|"]
         for s in suites:
-            changes = "; ".join(_changes(p, FULL_TASK if i else {}) for p in s.parts)
+            ref = {} if i == 0 else FULL_TASK if i < 3 else PAPER_TASK if s.name == "train_visual" else (
+                {**FULL_TASK, **VISUAL_TRAINING})  # fmt: skip
+            changes = "; ".join(_changes(p, ref) for p in s.parts)
             out.append(f"| `{s.name}` | {s.description} | {changes} |")
     out += ["", "### Held-out axes", "", "| axis | what varies | in distribution | held out |", "|---|---|---|---|"]
-    for a in HELD_OUT_AXES:
+    for a in ALL_AXES:
         ins, held = (", ".join(f"`{n}`" for n in names) for names in (a.in_distribution, a.held_out))
         out.append(f"| {a.name} | {a.description} | {ins} | {held} |")
     return "\n".join(out)
@@ -127,5 +133,73 @@ def pixels_fields(base: str) -> str:
     return "\n".join(lines)
 
 
-BLOCKS = {"presets": presets_table, "suite-catalogue": suite_catalogue, "cli-help": cli_help, "env-fields": env_fields,
+# each command's episode counts: (command, [field, ...]); the fields are read back from the command's config class
+# (cli.COMMANDS; lerobot-eval: LeRobot's EvalConfig), so a renamed field fails the render, not the reader
+EPISODE_FLAGS = (
+    ("lerobot-pnp generate", ["num_episodes"]),
+    ("lerobot-pnp demo", ["num_episodes", "cli_check_episodes"]),
+    ("lerobot-pnp report", ["num_episodes", "cli_check_episodes"]),
+    ("lerobot-pnp dagger", ["num_demos", "rollouts_per_round", "eval_episodes"]),
+    ("lerobot-pnp lookup-table", ["n_episodes"]),
+    ("lerobot-pnp expert", ["n_episodes"]),
+    ("lerobot-eval", ["n_episodes"]),
+    ("lerobot-pnp viz", ["n_rollouts"]),
+    ("lerobot-pnp leaderboard", ["episodes"]),
+)
+
+
+# what LeRobot's own field means here, where LeRobot's code gives it no description
+STOCK_DOCS = {("lerobot-eval", "n_episodes"): "episodes to run, per suite when `--env.task` names several"}
+
+
+def _config_class(command: str):
+    from lerobot_pnp import cli
+
+    if command == "lerobot-eval":
+        from lerobot.configs.default import EvalConfig
+
+        return EvalConfig
+    return cli._load(cli.COMMANDS[command.removeprefix("lerobot-pnp ")][0])
+
+
+def episode_flags(base: str) -> str:
+    """Which flag sets an episode count on each command: the names differ from command to command (LeRobot's own
+    ``--eval.n_episodes`` among them), so one table names them all, each with its field's own description."""
+    import dataclasses
+    import re
+    from pathlib import Path
+
+    from lerobot_pnp.support.cli_help import field_doc
+
+    lines = ["| command | flag | what it counts |", "|---|---|---|"]
+    for command, names in EPISODE_FLAGS:
+        cls = _config_class(command)
+        fields = {f.name for f in dataclasses.fields(cls)}
+        for name in names:
+            if name not in fields:
+                raise SystemExit(f"{command}: no field {name!r} in {cls.__name__} (docs_reference.EPISODE_FLAGS)")
+            flag = f"--eval.{name}" if command == "lerobot-eval" else f"--{name}"
+            doc = field_doc(cls, name) or STOCK_DOCS[(command, name)]
+            doc = re.split(r"\.\s+(?=[A-Z])", re.sub(r"\s+", " ", doc))[0].rstrip(".").replace("``", "`")
+            doc = doc.replace("|", "\\|")
+            lines.append(f"| `{command}` | `{flag}` | {doc} |")
+    root = Path(__file__).resolve().parents[1]
+    scripts = {}
+    for path in sorted([*root.glob("benchmarks/*.py"), *root.glob("scripts/*.py")]):
+        for flag in re.findall(r"add_argument\([\"'](--(?:eval_)?episodes)[\"']", path.read_text()):
+            scripts.setdefault(flag, []).append(f"`{path.relative_to(root)}`")
+    lines += [f"| {', '.join(paths)} | `{flag}` | the script's episodes (its `--help` says which: generated, or "
+              "evaluated per suite or per run) |" for flag, paths in sorted(scripts.items())]  # fmt: skip
+    return "\n".join(
+        [
+            *lines,
+            "",
+            "`lerobot-pnp train` and `lerobot-train` train on every episode of the dataset's training split; "
+            "`--test_episodes` (`lerobot-pnp train`) names the held-out range and `--dataset.episodes` "
+            "(`lerobot-train`) a list of episodes to train on.",
+        ]
+    )
+
+
+BLOCKS = {"episode-flags": episode_flags, "presets": presets_table, "suite-catalogue": suite_catalogue, "cli-help": cli_help, "env-fields": env_fields,
           "policy-fields": policy_fields, "pixels-fields": pixels_fields}  # fmt: skip

@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import posixpath
 import re
 import sys
 from pathlib import Path
@@ -92,7 +93,7 @@ def paper_table(base: str) -> str:
             *lines,
             "",
             f"Success %, task `paper`, {len(seeds)} training seeds pooled, {min(ns)}-{max(ns)} episodes per cell. "
-            f"Each suite is described in the [suite catalogue]({base}../benchmark/suites.md) "
+            f"Each suite is described in the [suite catalogue]({posixpath.normpath(base + '../benchmark/suites.md')}) "
             "(95 % intervals, per-seed ranges and paired tests: "
             f"[the paper-task report]({base}study/report_full/report.md)). " + study_source(),
         ]
@@ -219,13 +220,16 @@ def leaderboard_table(base: str) -> str:
 # ----------------------------------------------------------------------------------------------------- render
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from architecture import BLOCKS as ARCHITECTURE_BLOCKS  # noqa: E402  (docs/ARCHITECTURE.md's module map)
+from docs_command_costs import BLOCKS as COMMAND_COST_BLOCKS  # noqa: E402  (docs/costs.md: each command's cost)
 from docs_cost import BLOCKS as COST_BLOCKS  # noqa: E402  (what make demo and make study cost)
 from docs_facts import FACT, render_facts  # noqa: E402  (the numbers prose repeats, one line each)
 from docs_pixel_tables import BLOCKS as PIXEL_BLOCKS  # noqa: E402  (the camera planner page's blocks)
 from docs_reference import BLOCKS as REFERENCE_BLOCKS  # noqa: E402  (read from the code: CLI help, config fields)
+from docs_visual_tables import BLOCKS as VISUAL_BLOCKS  # noqa: E402  (the visual axes' ranges)
 
 BLOCKS = {
-    **PIXEL_BLOCKS, **ARCHITECTURE_BLOCKS, **REFERENCE_BLOCKS, **COST_BLOCKS, "paper-table": paper_table,
+    **PIXEL_BLOCKS, **ARCHITECTURE_BLOCKS, **REFERENCE_BLOCKS, **COST_BLOCKS, **COMMAND_COST_BLOCKS, **VISUAL_BLOCKS,
+    "paper-table": paper_table,
     "heldout-verdicts": heldout_verdicts, "heldout-suites": heldout_suites, "gate-table": gate_table,
     "memory-table": memory_table, "planner-table": planner_table, "leaderboard": leaderboard_table,
 }  # fmt: skip

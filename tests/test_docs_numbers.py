@@ -242,3 +242,11 @@ def test_the_held_out_axes_have_one_vocabulary():
     heldout = (ROOT / "docs" / "benchmark" / "heldout.md").read_text()
     for text in TEXT.values():
         assert f"**{text}**" in heldout, text
+
+
+def test_a_fact_that_opens_a_line_is_refused(facts):
+    """Markdown reads a line that starts with an HTML comment as raw HTML: a fact there would end its list item."""
+    page = ROOT / "docs" / "numbers.md"
+    with pytest.raises(SystemExit, match="numbers.md:2: fact 'paper-demos' opens a line"):
+        facts.render_facts(page, "- a list item,\n  <!-- fact: paper-demos -->1<!-- /fact --> more\n", {})
+    assert "1400" in facts.render_facts(page, "- a list item, <!-- fact: paper-demos -->1<!-- /fact -->\n", {})

@@ -23,7 +23,7 @@ from lerobot_pnp.dataset.splits import (
     train_test,
 )
 from lerobot_pnp.errors import ConfigError, DatasetError
-from lerobot_pnp.train_fast import seed_everything
+from lerobot_pnp.support.determinism import seed_everything
 
 
 def _old_parse_range(spec, n):  # train_fast/data.py

@@ -4,7 +4,7 @@ A run is one ``lerobot-eval`` output (its folder or its ``eval_info.json``), or 
 method pooled: ``NAME=PATH[,PATH...]`` (how an argument splits, paths holding ``=`` or ``,`` included:
 ``compare_runs``). Any LeRobot benchmark's ``eval_info.json`` is read (``per_task``: a suite and task id per
 entry, its ``successes`` per episode in seed order); the suites of this env's catalogue also get the control arm
-and the held-out axes.
+and the held-out axes (disturbance and visual ones, ``suites.ALL_AXES``).
 
 Pairing: ``lerobot-eval`` starts every task at ``--seed``, so episode ``i`` of every task and run is seed
 ``--seed + i``. Its ``eval_info.json`` records no seed, so runs pair by episode index: the runs compared must
@@ -40,7 +40,7 @@ from lerobot_pnp.evaluation.stats import (
 )
 from lerobot_pnp.evaluation.verdicts import MARGIN
 from lerobot_pnp.outputs import OutputFolder
-from lerobot_pnp.sim.suites import HELD_OUT_AXES
+from lerobot_pnp.sim.suites import ALL_AXES
 
 __all__ = ["CompareConfig", "Run", "analyse", "difference_text", "parse_runs", "positional_runs", "run_compare"]
 
@@ -187,7 +187,7 @@ def analyse(runs: list[Run], cfg: CompareConfig) -> dict:
                               "verdict": verdict(cmp, cfg.alpha, cfg.margin)})  # fmt: skip
     seeds = {r.name: {s: seed_agreement(cells[r.name].per_seed) for s, cells in table.items() if r.name in cells}
              for r in runs if len(r.paths) > 1}  # fmt: skip
-    axes = [res for axis in HELD_OUT_AXES for r in runs if (res := axis_result(axis, r.name, table))]
+    axes = [res for axis in ALL_AXES for r in runs if (res := axis_result(axis, r.name, table))]
     return {"runs": runs, "suites": suites, "table": table, "control_suite": control,
             "control": _control_arm(runs, arrays, control), "pairs": pairs, "seeds": seeds, "axes": axes}  # fmt: skip
 

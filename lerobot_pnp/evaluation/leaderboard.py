@@ -5,8 +5,8 @@ heldout`` run (or several, one per training seed, in sub-folders) and ``row.json
 and ``command`` (the ``lerobot-eval`` command that produced it), optionally ``name`` (a short name for compact
 tables, the README's) and ``budget`` (its data, training and time, in a few words). The page shows, per row, the
 budget, the rate on ``nominal``,
-each axis' in-distribution and held-out rates with the study's verdict, and per suite the rate with its 95 %
-interval: ``compare``'s numbers (the study's code), so a row means the same as in ``compare`` and in the study.
+each axis' in-distribution and held-out rates with the study's verdict (the visual axes in a table of their own, for
+the rows evaluated on them), and per suite the rate with its 95 % interval: ``compare``'s numbers (the study's code), so a row means the same as in ``compare`` and in the study.
 Every row is checked against the others (same suites, same episodes per suite), or the page is not written.
 Row text (``label``, ``budget``, ``name``, ``command``) reaches the page through ``markdown_text``, so a ``|``,
 a tag or a line break in it stays literal text.
@@ -139,6 +139,7 @@ def render(runs_dir: str | Path, episodes: int = 100, seed: int = 100_000) -> st
             f"| {code(name, table=True)} | {text(meta['label'])} | {text(meta.get('budget', '-'))} | "
             f"{nominal.rate if nominal else '-'} | " + " | ".join(cells) + " |"
         )
+    lines += _visual_axes(rows, axes)
     lines += ["", "## Per suite", "", "| suite | " + " | ".join(code(n, table=True) for n, _ in rows) + " |"]
     lines.append("|---|" + "---|" * len(rows))
     for suite in result["suites"]:
@@ -150,6 +151,30 @@ def render(runs_dir: str | Path, episodes: int = 100, seed: int = 100_000) -> st
     lines += ["", "## How each row was produced", ""]
     lines += [f"- {code(name)}: {code(meta['command'])}" for name, meta in rows]
     return "\n".join(lines) + "\n"
+
+
+def _visual_axes(rows: list[tuple[str, dict]], axes: dict) -> list[str]:
+    """The visual axes' table (``suites.VISUAL_AXES``), for the rows evaluated on them (none: no table)."""
+    from lerobot_pnp.sim.suites import VISUAL_AXES
+
+    held = [(name, meta) for name, meta in rows if any((a.name, name) in axes for a in VISUAL_AXES)]
+    if not held:
+        return []
+    lines = [
+        "",
+        "## Visual axes",
+        "",
+        "What a camera sees, per [visual axis](benchmark/heldout.md#visual-axes): its training condition "
+        "(`train_visual`) and held-out rates with the same verdict rule. The rows evaluated on them ran "
+        "`--env.task heldout_visual` besides the protocol above.",
+        "",
+        "| row | method | " + " | ".join(a.name for a in VISUAL_AXES) + " |",
+        "|---|---|" + "---|" * len(VISUAL_AXES),
+    ]
+    for name, meta in held:
+        cells = [_axis_cell(axes.get((a.name, name))) for a in VISUAL_AXES]
+        lines.append(f"| {code(name, table=True)} | {text(meta['label'])} | " + " | ".join(cells) + " |")
+    return lines
 
 
 NBSP = "\N{NO-BREAK SPACE}"  # inside a compact table's cell, so a narrow column does not split it

@@ -4,7 +4,7 @@
 (nothing trained) or ``"n<demos>"`` (a data-efficiency run, left out of the pooled rates). Success of a
 learned method pools its training seeds (each seed evaluated on the same eval seeds); comparisons with the
 lookup table are paired (exact McNemar per training seed; the largest p-value over seeds is reported, so
-"beats" means "beats with every training seed"). Per axis of the held-out protocol (``HELD_OUT_AXES``): each
+"beats" means "beats with every training seed"). Per axis of the held-out protocol (``ALL_AXES``): each
 side pooled over its suites and the verdict of the one rule, ``verdicts.axis_verdict`` (``axis_result``).
 """
 
@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 from lerobot_pnp.evaluation.stats import Rate, paired_comparison
 from lerobot_pnp.evaluation.verdicts import MARGIN, Verdict, axis_verdict
-from lerobot_pnp.sim.suites import HELD_OUT_AXES, SUITES, Axis
+from lerobot_pnp.sim.suites import ALL_AXES, SUITES, Axis
 
 BASELINE = "lookup_table"
 
@@ -108,8 +108,8 @@ def build_comparisons(results, methods, suite_names) -> dict[str, dict[str, Comp
 
 @dataclass(frozen=True)
 class AxisResult:
-    """A method on one disturbance axis of ``HELD_OUT_AXES``: each side pooled over its suites (and training
-    seeds), each held-out suite's own rate, and the verdict of the one rule (``verdicts.axis_verdict``)."""
+    """A method on one axis of ``ALL_AXES`` (a disturbance or a visual one): each side pooled over its suites (and
+    training seeds), each held-out suite's own rate, and the verdict of the one rule (``verdicts.axis_verdict``)."""
 
     axis: Axis
     method: str
@@ -158,6 +158,7 @@ def axis_phrase(r: AxisResult) -> str:
 
 
 def held_out_axes(table: dict[str, dict[str, Pooled]], methods) -> list[AxisResult]:
-    """Per axis of ``HELD_OUT_AXES`` (in order), each method (in order) that has every suite of the axis."""
-    found = (axis_result(axis, m.name, table) for axis in HELD_OUT_AXES for m in methods)
+    """Per axis of ``ALL_AXES`` (in order: the disturbance axes, then the visual ones), each method (in order) that
+    has every suite of the axis."""
+    found = (axis_result(axis, m.name, table) for axis in ALL_AXES for m in methods)
     return [r for r in found if r is not None]

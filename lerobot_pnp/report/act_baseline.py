@@ -43,6 +43,7 @@ import torch
 from lerobot_pnp.dataset.splits import recorded_split
 from lerobot_pnp.errors import DatasetError
 from lerobot_pnp.integration.recorded_task import copy_recorded
+from lerobot_pnp.support.determinism import deterministic_training
 
 # ACT sized to the task: an expert dense episode is ~140-160 steps (7-8 s at 20 fps) with a keyframe reached
 # every ~15-20 steps. A 20-step chunk (1 s) spans about one keyframe; executing 10 of them re-plans every
@@ -181,8 +182,15 @@ def train_act(dataset_root: Path, output_dir: Path, seed: int, budget: ActBudget
     """Train ACT on the training split of the dense dataset; returns the ``pretrained_model`` folder.
 
     Writes ``act_train.json`` (budget, wall time, train/held-out L1 on normalised actions) next to the
-    checkpoints. ``n_demos`` keeps the first ``n_demos`` training episodes.
+    checkpoints. ``n_demos`` keeps the first ``n_demos`` training episodes. The training runs seeded, on the
+    trainers' fixed thread count and torch's deterministic algorithms (``deterministic_training``): the same
+    seed and data give the same weights whatever thread count the caller runs with.
     """
+    with deterministic_training(seed):
+        return _train_act(dataset_root, output_dir, seed, budget, n_demos)
+
+
+def _train_act(dataset_root: Path, output_dir: Path, seed: int, budget: ActBudget, n_demos: int | None) -> Path:
     from lerobot.common.train_utils import get_step_checkpoint_dir, save_checkpoint, update_last_checkpoint
     from lerobot.configs.default import DatasetConfig
     from lerobot.configs.train import TrainPipelineConfig
@@ -190,10 +198,7 @@ def train_act(dataset_root: Path, output_dir: Path, seed: int, budget: ActBudget
     from lerobot.policies.act.configuration_act import ACTConfig
     from lerobot.policies.factory import make_policy, make_pre_post_processors
 
-    from lerobot_pnp.train_fast import seed_everything
-
     t0 = time.perf_counter()
-    seed_everything(seed)
     repo_id = f"local/{dataset_root.name}"
     meta = LeRobotDatasetMetadata(repo_id, root=dataset_root)
     train_eps = recorded_split(dataset_root, "train")[:n_demos]

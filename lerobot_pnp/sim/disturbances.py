@@ -106,15 +106,17 @@ class Disturbances:
         """Fire the first due event (at most one per call); returns its kind."""
         c = self.config
         obj, _ = physics.object_pose()
-        held = physics.object_in_grasp()
         lift = obj[2] - physics.object_rest_z()
+        due = {k: times[0] for k, times in self.pending.items() if times and ((times[0] == 0) == at_step_end)}
+        if at_step_end and self.pending["displace"]:  # the last moment before the episode ends on success
+            due["displace"] = self.pending["displace"][0]
+        # the grasp (a contact query) only where a check reads it: where the object was picked is tracked for
+        # a pending drop, and an event that no longer pends never pends again
+        held = bool(self.pending["drop"] or "grasp_miss" in due) and physics.object_in_grasp()
         if held and self._pick_xy is None:
             self._pick_xy = obj[:2].copy()
         elif not held and lift < _LIFTED:
             self._pick_xy = None
-        due = {k: times[0] for k, times in self.pending.items() if times and ((times[0] == 0) == at_step_end)}
-        if at_step_end and self.pending["displace"]:  # the last moment before the episode ends on success
-            due["displace"] = self.pending["displace"][0]
         if "grasp_miss" in due:
             ee, rot = physics.ee_pose()  # only where an event may fire: this check runs after every control tick
             if due["grasp_miss"] == 0:
@@ -140,9 +142,10 @@ class Disturbances:
                 if at_step_end:
                     physics.wait(0.8)  # it falls and comes to rest on the table
                 return kind
-        if "displace" in due and task.is_success(physics):
+        if "displace" in due:
             rise = physics.pad_bottom_z() - (obj[2] + physics.object_size / 2)
-            if at_step_end or rise >= due["displace"] * c.hover_height / 2:
+            # the success query last: mid-move, the gripper has not risen far enough on most ticks
+            if (at_step_end or rise >= due["displace"] * c.hover_height / 2) and task.is_success(physics):
                 return self._fire(task, physics, rng, "displace", None, c.displace_range, c.displace_spread, True)
         return None
 

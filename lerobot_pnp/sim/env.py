@@ -13,8 +13,10 @@ from gymnasium import spaces
 
 from lerobot_pnp import robot
 from lerobot_pnp.errors import ConfigError
+from lerobot_pnp.sim import visual
 from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
 from lerobot_pnp.sim.physics import BaxterPhysics
+from lerobot_pnp.sim.scene_variation import SceneVariation
 from lerobot_pnp.sim.task import PickPlaceTask
 
 
@@ -45,8 +47,10 @@ class BaxterPnPEnv(gym.Env):
         self.task = robot.TASK  # LeRobot reads the language task from these two attributes
         self.task_description = robot.TASK
         self.metadata = {**self.metadata, "render_fps": config.fps}
-        self.physics = BaxterPhysics(straight_paths=config.straight_paths)
+        self.physics = BaxterPhysics(config.straight_paths, distractor_slots=config.distractors_range[1])
         self.pnp_task = PickPlaceTask(config)
+        if visual.is_varied(config):  # what the cameras see varies per episode; the scene as modelled otherwise
+            self.pnp_task.scene = SceneVariation(config, self.physics)
         self.pnp_task.check_reachable(self.physics)
         self.physics.set_place_target(self.pnp_task.place_xy)  # before the first reset too (viewers, renders)
         self._step_count = 0
@@ -130,6 +134,8 @@ class BaxterPnPEnv(gym.Env):
             h, w = self.config.image_height, self.config.image_width
             fx = self.config.render_effects
             obs["pixels"] = {c: self.physics.render(c, h, w, fx) for c in self.config.cameras}
+            if self.pnp_task.scene is not None:  # the sensor's blur and noise (the video's frames have none)
+                obs["pixels"] = self.pnp_task.scene.images(obs["pixels"])
         return obs
 
     def _info(self, truncated: bool, success: bool | None = None) -> dict:

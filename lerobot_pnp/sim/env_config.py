@@ -150,6 +150,20 @@ class BaxterPnPEnvConfig(EnvConfig):
     obs_latency_jitter: float | None = None  # per step, the latency is redrawn in its range with this probability
     # keyframe moves carrying the object last at least this long (s; a fast carry shakes a heavy cube loose); 0 = off
     carry_min_time: float | None = None
+    # ---- visual variation (sim/visual.py; never the physics): (min, max) deviation per episode; (0, 0) = as modelled
+    light_intensity_range: tuple[float, float] | None = None  # lights' intensity x 2^(+-d) (d: log2 of the factor)
+    light_direction_range: tuple[float, float] | None = None  # lights turned about the table's centre by d (rad)
+    light_color_range: tuple[float, float] | None = None  # lights tinted toward a random hue: d = the tint's share, 0-1
+    cube_hue_range: tuple[float, float] | None = None  # the cube's hue turned by d of the hue circle (0-0.5)
+    target_hue_range: tuple[float, float] | None = None  # the place marker's hue turned by d of the hue circle
+    table_hue_range: tuple[float, float] | None = None  # the table top's hue turned by d of the hue circle
+    camera_shift_range: tuple[float, float] | None = None  # front and overhead cameras moved by d (m), any direction
+    camera_tilt_range: tuple[float, float] | None = None  # front and overhead cameras turned by d (rad), any axis
+    wrist_camera_shift_range: tuple[float, float] | None = None  # the wrist camera's mount moved by d (m)
+    wrist_camera_tilt_range: tuple[float, float] | None = None  # the wrist camera's mount turned by d (rad)
+    distractors_range: tuple[int, int] | None = None  # visual-only objects on the table (0-3), clear of pick and place
+    image_noise_range: tuple[float, float] | None = None  # Gaussian noise on camera images, std as a share of 255
+    image_blur_range: tuple[float, float] | None = None  # Gaussian blur of camera images, std in pixels (before noise)
     features: dict[str, PolicyFeature] = field(default_factory=dict)
     features_map: dict[str, str] = field(default_factory=dict)
     # The recorded task to start from (a checked record, ``read_source``; {}: none); not a field nor a flag

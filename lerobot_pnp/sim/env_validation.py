@@ -13,7 +13,7 @@ from typing import Any
 from lerobot_pnp import robot
 from lerobot_pnp.errors import ConfigError, shown
 from lerobot_pnp.presets import CAMERAS, CONTROL_MODES
-from lerobot_pnp.sim import disturbances
+from lerobot_pnp.sim import disturbances, visual
 
 KEYFRAME_FPS = robot.KEYFRAME_FPS
 BOX_PAIRS = (
@@ -33,6 +33,7 @@ def validate(cfg: Any) -> None:
     validate_scalars(cfg)
     validate_physical(cfg)
     disturbances.validate(cfg)
+    visual.validate(cfg)
 
 
 def validate_control(cfg: Any) -> None:

@@ -23,6 +23,7 @@ check_mujoco_gl()  # a value MuJoCo rejects is one line, not a traceback from in
 
 import mujoco  # noqa: E402
 
+from lerobot_pnp.sim.distractors import scene_model  # noqa: E402  (imports MuJoCo too)
 from lerobot_pnp.sim.ik import ArmIK  # noqa: E402  (imports MuJoCo too)
 
 CONTROL_DT = 0.01  # interpolator update period in keyframe mode (100 Hz)
@@ -40,8 +41,9 @@ def _as_slice(index: np.ndarray) -> slice | np.ndarray:
 class BaxterPhysics:
     """The simulated scene. ``straight_paths`` makes keyframe moves follow straight Cartesian segments."""
 
-    def __init__(self, straight_paths: bool = True):
-        self.model = mujoco.MjModel.from_xml_path(str(robot.scene_path()))
+    def __init__(self, straight_paths: bool = True, distractor_slots: int = 0):
+        # ``distractor_slots``: visual-only distractor geoms added to the scene (``distractors.scene_model``)
+        self.model = scene_model(distractor_slots)
         self.data = mujoco.MjData(self.model)
         self.ik = ArmIK(self.model)
         self.path_ik = self.ik if straight_paths else None

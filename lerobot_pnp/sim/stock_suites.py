@@ -7,8 +7,9 @@ are paired by seed, and writes ``per_task``, ``per_group`` (one entry per suite)
 ``eval_info.json``. Here every suite is one task (``task_id`` 0).
 
 ``--env.task`` takes comma-separated names (as LIBERO does): a suite of ``suites.SUITES``, a sweep group of it
-(``nudge``), one axis of the held-out protocol (``heldout_<axis>``: its in-distribution and held-out suites), or an
-alias of a whole set: ``heldout`` (the held-out study's suites: ``nominal`` and every axis) and ``paper`` (the
+(``nudge``), one axis of the held-out protocol (``heldout_<axis>``: its in-distribution and held-out suites, a
+disturbance axis or a visual one), or an alias of a whole set: ``heldout`` (the held-out study's suites: ``nominal``
+and every disturbance axis), ``heldout_visual`` (``nominal`` and every visual axis' suites) and ``paper`` (the
 paper study's). The default, ``BaxterPnP-v0`` (the gymnasium id's suffix), is the one task of the config as given.
 
 Each suite is ``Suite.env_configs`` of the resolved config (the task recorded with the checkpoint, with any
@@ -46,17 +47,27 @@ def _study_suites(preset: str) -> list[str]:
     return [s.name for name in STUDY_SUITES[preset] for s in get_suites([name])]
 
 
+def _visual_suites() -> list[str]:
+    from lerobot_pnp.sim.visual_suites import VISUAL_SUITES
+
+    return ["nominal", *VISUAL_SUITES]
+
+
 # alias -> (what it is, its suites); the study's presets are the one list of what each study evaluates
 ALIASES = {
-    "heldout": ("the held-out protocol: nominal and every axis", functools.partial(_study_suites, "heldout")),
+    "heldout": (
+        "the held-out protocol: nominal and every disturbance axis",
+        functools.partial(_study_suites, "heldout"),
+    ),
+    "heldout_visual": ("the visual axes of the held-out protocol: nominal and every visual suite", _visual_suites),
     "paper": ("the paper study's suites", functools.partial(_study_suites, "full")),
 }
 
 
 def _axes() -> dict[str, list[str]]:
-    from lerobot_pnp.sim.suites import HELD_OUT_AXES
+    from lerobot_pnp.sim.suites import ALL_AXES
 
-    return {f"{AXIS_PREFIX}{a.name}": list(a.in_distribution + a.held_out) for a in HELD_OUT_AXES}
+    return {f"{AXIS_PREFIX}{a.name}": list(a.in_distribution + a.held_out) for a in ALL_AXES}
 
 
 def valid_names() -> list[str]:

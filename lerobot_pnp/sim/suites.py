@@ -20,44 +20,18 @@ trained. ``nominal`` (the training task unchanged) is what DAgger called ``full`
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from typing import Any
 
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.presets import FULL_TASK, PAPER_TASK
 from lerobot_pnp.sim.disturbances import KINDS
+from lerobot_pnp.sim.suite_types import Axis, Suite
+from lerobot_pnp.sim.visual_suites import VISUAL_AXES, visual_suites
+
+__all__ = ["ALL_AXES", "HELD_OUT_AXES", "SUITES", "VISUAL_AXES", "Axis", "Suite", "get_suites"]
 
 RECOVERY_BUDGET = 20  # keyframe steps: two full pick-and-place attempts
 EDGE_WIDTH = 0.03  # m: width of the inside strip and of the outside ring
-
-
-@dataclass(frozen=True)
-class Suite:
-    """A named evaluation condition: env-config ``changes`` per part, with the share of episodes of each."""
-
-    name: str
-    description: str
-    parts: tuple[dict[str, Any], ...] = ({},)
-    group: str = ""  # suites of one sweep share a group (a robustness curve)
-    x: float | None = None  # the swept value in that group
-    x_label: str = ""
-    x_scale: float = 1.0  # x in the unit of x_label (a figure's axis): 100 for cm, 1000 for mm
-
-    def part_episodes(self, n_episodes: int) -> list[int]:
-        """Episodes of each part (as equal as possible, summing to ``n_episodes``)."""
-        k = len(self.parts)
-        return [n_episodes // k + (1 if i < n_episodes % k else 0) for i in range(k)]
-
-    def env_configs(self, base: Any) -> list[Any]:
-        """The env config of each part: ``base`` (the training task, a ``BaxterPnPEnvConfig``) with this suite's
-        changes. The catalogue imports no env config: the env config checks ``--env.task``'s names against it."""
-        out = []
-        for changes in self.parts:
-            try:  # with_changes lets the episode length follow a changed keyframe budget
-                out.append(base.with_changes(**changes))
-            except ConfigError as err:
-                raise ConfigError(f"suite {self.name!r}: {err}") from None
-        return out
 
 
 def band(low, high, width: float, outside: bool) -> dict[str, Any]:
@@ -152,7 +126,7 @@ def _catalogue() -> dict[str, Suite]:
             ({"place_low": (0.50, -0.20), "place_high": (0.70, -0.05)},),
         ),
     ]
-    return {s.name: s for s in [*suites, *_held_out_protocol(), *_quiet_suites()]}
+    return {s.name: s for s in [*suites, *_held_out_protocol(), *_quiet_suites(), *visual_suites()]}
 
 
 # Every perturbation off: no events (nudge, missed grasp, drop, displacement), exact and current observations.
@@ -188,17 +162,6 @@ def _quiet_suites() -> list[Suite]:
 
 
 # ---------------------------------------------------------------------------------------------- held-out protocol
-@dataclass(frozen=True)
-class Axis:
-    """One disturbance axis of the held-out protocol: suites drawn from the training condition (the `full`
-    preset's distributions) and suites beyond it on this axis only (the report prints the two side by side)."""
-
-    name: str
-    description: str
-    in_distribution: tuple[str, ...]
-    held_out: tuple[str, ...]
-
-
 def _kind(kind: str, **changes) -> dict[str, Any]:
     """Every field of one perturbation kind, from the training condition, with ``changes``; the kind fires in
     every episode and the budget leaves room for one more attempt per event and a spare one (the training task's
@@ -308,7 +271,10 @@ HELD_OUT_AXES: tuple[Axis, ...] = (
 )
 
 
-# Every suite of the held-out protocol's axes, each once, in axis order
+# The disturbance axes and the visual axes (``visual_suites``): every axis a verdict is given on
+ALL_AXES: tuple[Axis, ...] = (*HELD_OUT_AXES, *VISUAL_AXES)
+
+# Every suite of the held-out protocol's disturbance axes, each once, in axis order
 PROTOCOL_SUITES = tuple(dict.fromkeys(n for axis in HELD_OUT_AXES for n in axis.in_distribution + axis.held_out))
 # What each study evaluates (suites or sweep groups): the held-out protocol's (``heldout``) and the paper study's
 # (``full``); the study's presets (``report.config.PRESETS``) give each its episodes, ``--env.task=heldout`` /

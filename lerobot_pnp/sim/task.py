@@ -39,6 +39,9 @@ class PickPlaceTask:
         self.latest_observation: dict[str, np.ndarray] | None = None
         self._furthest = 0
         self._was_grasped = False
+        # The episode's visual variation (``scene_variation.SceneVariation``), set by the env when its task varies
+        # what the cameras see; drawn from generators spawned from ``rng``, so it takes no draw from it.
+        self.scene = None
 
     @property
     def perturbations_fired(self) -> list[str]:
@@ -130,6 +133,8 @@ class PickPlaceTask:
         self._history, self._furthest, self._was_grasped = [], 0, False
         physics.set_place_target(self.place_xy)
         physics.disturb, physics.carry_min_time = None, c.carry_min_time
+        if self.scene is not None:  # before the reset: its forward pass places the moved cameras and lights
+            self.scene.reset(rng, object_pos[:2], self.place_xy)
         physics.reset(q, object_pos, yaw)
         self.disturbances.attach(self, physics)
 

@@ -31,7 +31,7 @@ Command line: ``lerobot-pnp train --dataset_root=... --epochs=300 --policy.hidde
 
 from .config import TrainFastConfig, normalize_episode_range, policy_config_from_dict
 from .data import KeyframeData, load_keyframe_data, validate_keyframe_dataset
-from .loop import TrainFastResult, seed_everything, train_fast
+from .loop import TrainFastResult, train_fast
 from .summary import keyframe_error
 
 __all__ = [
@@ -42,7 +42,6 @@ __all__ = [
     "load_keyframe_data",
     "normalize_episode_range",
     "policy_config_from_dict",
-    "seed_everything",
     "train_fast",
     "validate_keyframe_dataset",
 ]

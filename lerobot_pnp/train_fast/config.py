@@ -71,7 +71,9 @@ class TrainFastConfig:
     """A ``pretrained_model`` folder of the same architecture to continue from: its weights and normalisation
     statistics (so the weights keep their meaning), a fresh optimiser schedule. ``None``: train from scratch."""
     num_threads: int | None = 1
-    """``torch.set_num_threads``; this model is far faster on 1 thread."""
+    """torch's thread count for the training, restored after (None: the count it has); a fixed count keeps a
+    seed's weights the same from run to run (a CPU kernel's sums follow its threads), and this model is far faster
+    on 1 thread."""
     progress: bool = True
     """tqdm progress bar."""
 

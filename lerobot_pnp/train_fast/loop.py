@@ -11,7 +11,6 @@ import io
 import json
 import logging
 import math
-import random
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -26,6 +25,7 @@ from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.integration.registration import register_task_record
 from lerobot_pnp.outputs import OutputFolder
 from lerobot_pnp.policy import PnpLstmPolicy, PnpPixelsConfig
+from lerobot_pnp.support.determinism import deterministic_training
 from lerobot_pnp.support.progress import log_friendly_tqdm
 
 from .config import TrainFastConfig
@@ -126,14 +126,6 @@ class _Run:
         self.policy.push_model_to_hub(self.train_config(step))
         self.preprocessor.push_to_hub(repo_id)
         self.postprocessor.push_to_hub(repo_id)
-
-
-def seed_everything(seed: int) -> None:
-    """Seed Python's, numpy's and torch's global generators (LeRobot's ``set_seed``, with numpy's seed taken
-    modulo 2**32: numpy accepts 32 bits, the configs accept seeds up to 2**63). The trainers call it first."""
-    random.seed(seed)
-    np.random.seed(seed % 2**32)
-    torch.manual_seed(seed)
 
 
 @torch.no_grad()
@@ -270,11 +262,11 @@ def train_fast(cfg: TrainFastConfig) -> TrainFastResult:
     """Train ``pnp_lstm`` on whole keyframe episodes; see the package docstring for what is written.
 
     The output folder is held for the whole run (``output.run_folder``: a second run into it fails at once) and
-    a previous run there is deleted once the data and the policy are ready (``--overwrite``)."""
+    a previous run there is deleted once the data and the policy are ready (``--overwrite``). The training runs
+    seeded, on ``cfg.num_threads`` threads and torch's deterministic algorithms
+    (``support.determinism.deterministic_training``): the same seed and data give the same weights."""
     register_task_record()  # its checkpoints record the dataset's task, as under stock lerobot-train
-    if cfg.num_threads is not None:
-        torch.set_num_threads(cfg.num_threads)
-    with run_folder(Path(cfg.output_dir), cfg.overwrite) as folder:
+    with run_folder(Path(cfg.output_dir), cfg.overwrite) as folder, deterministic_training(cfg.seed, cfg.num_threads):
         return _train(cfg, folder)
 
 
@@ -295,7 +287,6 @@ def _policy_and_processors(cfg: TrainFastConfig, ds) -> tuple[PnpLstmPolicy, Any
 
 
 def _train(cfg: TrainFastConfig, folder: OutputFolder) -> TrainFastResult:
-    seed_everything(cfg.seed)
     max_length = cfg.policy.max_episode_length if cfg.policy.recovering else None
     with_images = isinstance(cfg.policy, PnpPixelsConfig)
     ds, data = load_keyframe_data(cfg.dataset_repo_id, cfg.dataset_root, cfg.test_episodes, max_length, with_images)
