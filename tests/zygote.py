@@ -112,7 +112,8 @@ def start(cmd: list[str], cwd: Path | str = "/", env: dict | None = None, *, new
     """Start ``cmd`` in a child of the zygote: ``[<console script>, *args]`` (a path or a name of this venv's
     bin), ``[sys.executable, "-c", code, *args]`` or ``[sys.executable, "-m", module, *args]``. ``new_session``:
     its own session and process group; ``sigint``: Python's KeyboardInterrupt on SIGINT (a terminal's child; a
-    background job's children ignore it); ``max_file_size``: RLIMIT_FSIZE in bytes."""
+    background job's children ignore it); ``max_file_size``: RLIMIT_FSIZE in bytes (the files that take the child's
+    standard output and error are under it too)."""
     global _zygote
     env = ENV if env is None else env
     differ = [
