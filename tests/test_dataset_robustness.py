@@ -108,7 +108,7 @@ def test_resume_after_kill_keeps_unrelated_files_and_finishes(tmp_path, capsys):
     proc = zygote.start(_args(root, 8, "--tasks=4", "--workers=1"))
     _wait_for(_first_shard_done(root), proc)
     os.kill(proc.pid, signal.SIGKILL)
-    proc.wait(60)
+    proc.communicate()
     # The kill may land between a shard's rename and datatrove's completion record: drop every record so that
     # the resume must recognise the whole shards on their own (and adopt them rather than simulate them again).
     shutil.rmtree(root / ".pnp_work" / "logs" / "completions", ignore_errors=True)

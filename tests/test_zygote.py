@@ -43,6 +43,14 @@ def test_exit_status_exceptions_and_signals_are_the_interpreters(tmp_path):
     assert zygote.run([sys.executable, "-c", code], tmp_path, sigint=True).stdout.strip() == "True"
 
 
+def test_communicate_waits_for_every_holder_of_the_streams(tmp_path):
+    """As with ``subprocess.Popen``: a child's own child that outlives it (a pool's manager) still holds the pipes,
+    so ``communicate`` returns after it is done (a test that resumes a killed run relies on it)."""
+    code = "import os, time\nif os.fork() == 0:\n    time.sleep(1)\n    print('late', flush=True)\n    os._exit(0)\n"
+    out, _ = zygote.start([sys.executable, "-c", code], tmp_path).communicate(timeout=60)
+    assert out == "late\n"
+
+
 def test_a_console_script_prints_what_its_executable_prints(tmp_path):
     real = run_executable([exe("lerobot-pnp"), "--help"], tmp_path, timeout=60)
     forked = zygote.run([exe("lerobot-pnp"), "--help"], tmp_path, timeout=60)

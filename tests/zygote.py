@@ -28,6 +28,7 @@ import socket
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 import warnings
 from pathlib import Path
@@ -51,12 +52,18 @@ ENV = {
 
 # ---------------------------------------------------------------------------------------------- the test's side
 class Forked:
-    """A running child: ``pid``, ``poll``, ``wait``, ``send_signal``, ``kill``, ``communicate`` (its standard
-    output and error, read from the files they were written to), as ``subprocess.Popen``."""
+    """A running child: ``pid``, ``poll``, ``wait``, ``send_signal``, ``kill``, ``communicate``, as
+    ``subprocess.Popen`` with its standard output and error on pipes: ``communicate`` returns once every process
+    that holds them (the child's own children too) has closed them."""
 
-    def __init__(self, zygote: _Zygote, args: list[str], pid: int, out: Path, err: Path):
+    def __init__(self, zygote: _Zygote, args: list[str], pid: int, pipes: tuple[int, int]):
         self.args, self.pid, self.returncode = args, pid, None
-        self._zygote, self._out, self._err = zygote, out, err
+        self._zygote, self._read = zygote, [bytearray(), bytearray()]
+        self._readers = [
+            threading.Thread(target=_drain, args=(fd, buf), daemon=True) for fd, buf in zip(pipes, self._read)
+        ]
+        for reader in self._readers:
+            reader.start()
 
     def poll(self) -> int | None:
         return self.wait(timeout=0, check=False)
@@ -76,11 +83,22 @@ class Forked:
         self.send_signal(signal.SIGKILL)
 
     def stderr_so_far(self) -> str:
-        return self._err.read_text(errors="replace")
+        return bytes(self._read[1]).decode(errors="replace")
 
     def communicate(self, timeout: float | None = None) -> tuple[str, str]:
+        deadline = None if timeout is None else time.monotonic() + timeout
         self.wait(timeout)
-        return self._out.read_text(errors="replace"), self._err.read_text(errors="replace")
+        for reader in self._readers:
+            reader.join(None if deadline is None else max(0.0, deadline - time.monotonic()))
+            if reader.is_alive():
+                raise subprocess.TimeoutExpired(self.args, timeout)
+        return tuple(bytes(buf).decode(errors="replace") for buf in self._read)
+
+
+def _drain(fd: int, buf: bytearray) -> None:
+    with os.fdopen(fd, "rb", buffering=0) as pipe:
+        while chunk := pipe.read(1 << 16):
+            buf.extend(chunk)
 
 
 class _Zygote:
@@ -89,8 +107,6 @@ class _Zygote:
         self.proc = subprocess.Popen([sys.executable, __file__, str(theirs.fileno())], pass_fds=[theirs.fileno()],
                                      env=ENV, cwd="/", stdin=subprocess.DEVNULL)  # fmt: skip
         theirs.close()
-        self.files = Path(tempfile.mkdtemp(prefix="zygote-"))
-        self.runs = 0
         atexit.register(self.close)
 
     def ask(self, request: dict, fds: list[int] = ()) -> dict:
@@ -112,8 +128,7 @@ def start(cmd: list[str], cwd: Path | str = "/", env: dict | None = None, *, new
     """Start ``cmd`` in a child of the zygote: ``[<console script>, *args]`` (a path or a name of this venv's
     bin), ``[sys.executable, "-c", code, *args]`` or ``[sys.executable, "-m", module, *args]``. ``new_session``:
     its own session and process group; ``sigint``: Python's KeyboardInterrupt on SIGINT (a terminal's child; a
-    background job's children ignore it); ``max_file_size``: RLIMIT_FSIZE in bytes (the files that take the child's
-    standard output and error are under it too)."""
+    background job's children ignore it); ``max_file_size``: RLIMIT_FSIZE in bytes."""
     global _zygote
     env = ENV if env is None else env
     differ = [
@@ -123,21 +138,19 @@ def start(cmd: list[str], cwd: Path | str = "/", env: dict | None = None, *, new
         raise ValueError(f"{differ} differ from the zygote's environment: start a real process for this run")
     if _zygote is None:
         _zygote = _Zygote()
-    _zygote.runs += 1
-    out, err = (_zygote.files / f"{_zygote.runs}.{name}" for name in ("out", "err"))
-    streams = [
-        os.open(os.devnull, os.O_RDONLY),
-        os.open(out, os.O_WRONLY | os.O_CREAT),
-        os.open(err, os.O_WRONLY | os.O_CREAT),
-    ]
+    (out_r, out_w), (err_r, err_w) = os.pipe(), os.pipe()
+    streams = [os.open(os.devnull, os.O_RDONLY), out_w, err_w]
     request = {"op": "start", "cmd": [str(c) for c in cmd], "cwd": str(cwd), "env": env, "new_session": new_session,
                "sigint": sigint, "max_file_size": max_file_size}  # fmt: skip
     try:
         pid = _zygote.ask(request, streams)["pid"]
+    except BaseException:
+        os.close(out_r), os.close(err_r)
+        raise
     finally:
         for fd in streams:
             os.close(fd)
-    return Forked(_zygote, [str(c) for c in cmd], pid, out, err)
+    return Forked(_zygote, [str(c) for c in cmd], pid, (out_r, err_r))
 
 
 def run(cmd: list[str], cwd: Path | str = "/", timeout: float = 300, env: dict | None = None,
