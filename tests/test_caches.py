@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import zygote
 
 from lerobot_pnp import cli
 from lerobot_pnp.cache import Stage
@@ -421,9 +422,7 @@ def test_7_stock_lerobot_train_checkpoints_carry_their_task(dagger_run, tmp_path
             "--policy.push_to_hub=false", "--policy.device=cpu", "--dataset.repo_id=local/x", f"--dataset.root={root}",
             "--dataset.video_backend=pyav", "--steps=2", "--batch_size=2", "--num_workers=0", "--save_freq=2",
             "--wandb.enable=false", f"--output_dir={tmp_path / 'run'}"]  # fmt: skip
-    proc = subprocess.run(
-        [str(train), *args], capture_output=True, text=True, env={**os.environ, "OMP_NUM_THREADS": "1"}
-    )
+    proc = zygote.run([str(train), *args])  # its entry point, in a process forked from a warm interpreter
     assert proc.returncode == 0, proc.stderr[-2000:]
     pretrained = tmp_path / "run/checkpoints/last/pretrained_model"
     assert json.loads((pretrained / "baxter_pnp_env.json").read_text()) == task

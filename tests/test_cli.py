@@ -10,6 +10,7 @@ import json
 from pathlib import Path
 
 import pytest
+import zygote
 from clis import ENV
 from clis import exe as _exe
 from clis import run as _run
@@ -185,8 +186,9 @@ def test_bad_config_value_fails_naming_the_field(argv, field, tmp_path, monkeypa
 
 
 def test_bad_config_value_subprocess_message(tmp_path):
-    """The installed script exits 2 with one line naming the field, not a traceback."""
-    proc = _run([_exe("lerobot-pnp"), "generate", "--num_episodes=-1", f"--root={tmp_path / 'ds'}"], tmp_path, 60)
+    """The console script, in a process of its own (forked from a warm interpreter, tests/zygote.py), exits 2 with
+    one line naming the field, not a traceback."""
+    proc = zygote.run([_exe("lerobot-pnp"), "generate", "--num_episodes=-1", f"--root={tmp_path / 'ds'}"], tmp_path, 60)
     assert proc.returncode == 2
     assert "num_episodes must be an integer >= 1" in proc.stderr
     assert "Traceback" not in proc.stderr, proc.stderr
@@ -253,7 +255,7 @@ def test_stock_lerobot_train_help_documents_the_policy_fields(tmp_path):
     """Our field docs are attribute docstrings or field comments, the forms draccus (LeRobot's parser) shows: the
     policy's and the env's task fields (one description each, the same as ``lerobot-pnp --help``); no '%' crash."""
     cmd = [_exe("lerobot-train"), "--policy.type=pnp_lstm", "--env.type=baxter_pnp", "--help"]
-    proc = _run(cmd, tmp_path, timeout=120)
+    proc = zygote.run(cmd, tmp_path, timeout=120)  # lerobot-train's entry point in a process forked from a warm one
     assert proc.returncode == 0, proc.stderr[-2000:]
     out = " ".join(proc.stdout.split())  # argparse wraps to the terminal
     assert "LSTM hidden units." in out and "Recovering mode: the longest episode" in out

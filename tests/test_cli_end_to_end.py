@@ -11,6 +11,7 @@ import pytest
 from clis import ENV
 from clis import exe as _exe
 from clis import run as _run
+from zygote import run as _forked
 
 from lerobot_pnp import cli
 
@@ -114,7 +115,8 @@ def test_end_to_end_real_clis(tmp_path, capsys, monkeypatch):
 
 @pytest.mark.slow
 def test_lerobot_eval_refuses_a_contradicting_flag_and_a_checkpoint_of_other_features(tmp_path):
-    """The real lerobot-eval, on untrained checkpoints (both refusals come before any rollout)."""
+    """lerobot-eval's entry point in processes of their own (forked from a warm interpreter, tests/zygote.py), on
+    untrained checkpoints (both refusals come before any rollout)."""
     from lerobot_pnp.integration.recorded_task import write_checkpoint_task
     from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
 
@@ -122,7 +124,7 @@ def test_lerobot_eval_refuses_a_contradicting_flag_and_a_checkpoint_of_other_fea
     bad = tmp_path / "bad_ckpt"
     _write_mismatched_checkpoint(bad)
     bad_out = tmp_path / "eval_bad"
-    proc = _run(_eval_cmd(bad, bad_out), tmp_path)
+    proc = _forked(_eval_cmd(bad, bad_out), tmp_path)
     assert proc.returncode != 0
     assert not (bad_out / "eval_info.json").exists()
     # One line naming the feature and both shapes (not a bare tensor-size error, no traceback).
@@ -133,7 +135,7 @@ def test_lerobot_eval_refuses_a_contradicting_flag_and_a_checkpoint_of_other_fea
     keyframe = tmp_path / "keyframe_ckpt"
     _write_mismatched_checkpoint(keyframe)
     write_checkpoint_task({"type": "baxter_pnp", **BaxterPnPEnvConfig(preset="paper").to_dict()}, keyframe)
-    proc = _run([*_eval_cmd(keyframe, tmp_path / "eval_dense"), "--env.control_mode=dense"], tmp_path)
+    proc = _forked([*_eval_cmd(keyframe, tmp_path / "eval_dense"), "--env.control_mode=dense"], tmp_path)
     assert proc.returncode != 0 and "contradicts the recorded task ('keyframe'" in proc.stderr, proc.stderr[-2000:]
     assert not (tmp_path / "eval_dense" / "eval_info.json").exists()
 

@@ -10,6 +10,7 @@ import time
 from pathlib import Path
 
 import pytest
+import zygote
 
 from lerobot_pnp import cli
 
@@ -44,23 +45,15 @@ def test_interrupt_is_one_line_and_exit_2(sig, tmp_path):
     exe = BIN / "lerobot-pnp"
     if not exe.exists():
         pytest.skip(f"lerobot-pnp is not installed next to {sys.executable}")
-    proc = subprocess.Popen(
-        [str(exe), "expert", "--n_episodes", "100000"],
-        cwd=tmp_path,
-        env=ENV,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        # a background job (``cmd &``, CI runners) starts its children with SIGINT ignored; a terminal does not
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
-    )
-    seen = b""
+    # in a process of its own forked from a warm interpreter (tests/zygote.py), with SIGINT as in a terminal (a
+    # background job, ``cmd &`` or a CI runner, starts its children with it ignored)
+    proc = zygote.start([str(exe), "expert", "--n_episodes", "100000"], tmp_path, sigint=True)
     deadline = time.monotonic() + 120
-    while b"expert episodes" not in seen and time.monotonic() < deadline:  # the progress bar: inside the loop
-        seen += os.read(proc.stderr.fileno(), 4096)
+    while "expert episodes" not in proc.stderr_so_far() and time.monotonic() < deadline:  # the progress bar
+        time.sleep(0.05)
     time.sleep(0.5)
     proc.send_signal(sig)
-    _, rest = proc.communicate(timeout=60)
-    err = (seen + rest).decode(errors="replace")
+    _, err = proc.communicate(timeout=60)
     assert proc.returncode == 2, err
     assert "interrupted" in err and "Traceback" not in err, err
 
@@ -93,17 +86,16 @@ def test_viz_of_a_dataset_with_nan_is_one_line_naming_episode_and_frame(tmp_path
 
 
 def test_lerobot_eval_rejects_bad_env_flags_before_loading_the_policy(tmp_path):
-    """Through the real lerobot-eval: the env config fails first, naming the flag."""
+    """Through lerobot-eval's entry point (in a process forked from a warm interpreter, tests/zygote.py): the env
+    config fails first, naming the flag."""
     exe = BIN / "lerobot-eval"
     if not exe.exists():
         pytest.skip(f"lerobot-eval is not installed next to {sys.executable}")
     policy = tmp_path / "no_such_checkpoint"  # never reached: the env config is parsed first
     for flag, message in (("--env.nudge_max=-1", "env.nudge_max must be in [0, 1)"),
                           ("--env.preset=hard", "env.preset must be one of")):  # fmt: skip
-        proc = subprocess.run(
-            [str(exe), f"--policy.path={policy}", "--env.type=baxter_pnp", flag, f"--output_dir={tmp_path / 'o'}"],
-            cwd=tmp_path, env=ENV, capture_output=True, text=True, timeout=120,
-        )  # fmt: skip
+        cmd = [str(exe), f"--policy.path={policy}", "--env.type=baxter_pnp", flag, f"--output_dir={tmp_path / 'o'}"]
+        proc = zygote.run(cmd, tmp_path, timeout=120)
         assert proc.returncode != 0 and message in proc.stderr, proc.stderr[-2000:]
         assert not (tmp_path / "o" / "eval_info.json").exists()
 
@@ -155,7 +147,7 @@ def test_lerobot_train_on_a_missing_dataset_offline_is_one_line(tmp_path):
     missing = tmp_path / "no_dataset"
     cmd = [str(exe), "--dataset.repo_id=local/nothing", f"--dataset.root={missing}", "--policy.type=pnp_lstm"]
     cmd += ["--policy.push_to_hub=false", "--steps=1", f"--output_dir={tmp_path / 'out'}"]
-    proc = subprocess.run(cmd, cwd=tmp_path, env=ENV, capture_output=True, text=True, timeout=120)
+    proc = zygote.run(cmd, tmp_path, timeout=120)  # lerobot-train's entry point in a process forked from a warm one
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr and "OfflineModeIsEnabled" not in proc.stderr, proc.stderr[-3000:]
     assert f"--dataset.root '{missing}' holds no dataset" in proc.stderr

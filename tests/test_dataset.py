@@ -15,6 +15,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+import zygote
 
 from lerobot_pnp import robot
 from lerobot_pnp.dataset import (
@@ -84,9 +85,7 @@ def test_keyframe_dataset_loads_with_stock_loader(kf):
         " 'done': bool(item['next.done']), 'phase': int(item['phase.index']), 'task': item['task'],"
         " 'names': ds.features['observation.state']['names'], 'splits': ds.meta.info.splits}))\n"
     )
-    res = subprocess.run(
-        [sys.executable, "-c", code], capture_output=True, text=True, env=_cli_env(HF_HUB_OFFLINE="1"), timeout=120
-    )
+    res = zygote.run([sys.executable, "-c", code], timeout=120)  # a process of its own (tests/zygote.py)
     assert res.returncode == 0, res.stderr
     assert "libtorchcodec" not in res.stderr  # video_backend="pyav": no torchcodec traceback
     out = json.loads(res.stdout.strip().splitlines()[-1])
@@ -279,12 +278,8 @@ def test_kill_9_then_resume(tmp_path, capsys):
     root = tmp_path / "crash"
     n = 12  # 4 tasks of 3 episodes: 2 finished, others being written when it is killed
     args = [f"--repo_id={REPO}", f"--root={root}", f"--num_episodes={n}", "--tasks=4", "--progress=false"]
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "lerobot_pnp.cli", "generate", *args, "--workers=2"],
-        env=_cli_env(HF_HUB_OFFLINE="1"),
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-    )
+    # a process of its own (forked from a warm interpreter, tests/zygote.py), killed below
+    proc = zygote.start([sys.executable, "-m", "lerobot_pnp.cli", "generate", *args, "--workers=2"])
     shards = root / ".pnp_work" / "shards"
     completions = root / ".pnp_work" / "logs" / "completions"
     deadline = time.time() + 90

@@ -1,13 +1,14 @@
-"""Nothing lost, nothing silent (the dataset side), through the real `lerobot-pnp` console script.
+"""Nothing lost, nothing silent (the dataset side), through the `lerobot-pnp` console script.
 
-Each case asserts the data kept (or the dataset completed) and a one-line error with no traceback.
+Each case asserts the data kept (or the dataset completed) and a one-line error with no traceback. The script runs
+in a process of its own forked from a warm interpreter (tests/zygote.py); the absurd size runs the installed
+executable itself.
 """
 
 from __future__ import annotations
 
 import json
 import os
-import resource
 import shutil
 import signal
 import subprocess
@@ -17,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import zygote
 
 from lerobot_pnp.dataset import GenerateConfig, data_hash, generate, validate_dataset, verify_dataset
 from lerobot_pnp.errors import DatasetError
@@ -36,10 +38,8 @@ def _args(root: Path, n: int, *extra: str) -> list[str]:
     return [PNP, "generate", f"--repo_id={REPO}", f"--root={root}", f"--num_episodes={n}", "--progress=false", *extra]
 
 
-def _run(args: list[str], preexec_fn=None, timeout: float = 240) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        args, capture_output=True, text=True, env=_env(), timeout=timeout, preexec_fn=preexec_fn, cwd="/"
-    )
+def _run(args: list[str], timeout: float = 240) -> subprocess.CompletedProcess:
+    return subprocess.run(args, capture_output=True, text=True, env=_env(), timeout=timeout, cwd="/")
 
 
 def _one_line_error(res: subprocess.CompletedProcess, *needles: str) -> str:
@@ -78,7 +78,7 @@ def test_overwrite_and_resume_refuse_a_running_generation(tmp_path, capsys):
     from lerobot_pnp.cli import main
 
     root = tmp_path / "running"
-    proc = subprocess.Popen(_args(root, 12, "--tasks=4", "--workers=1"), env=_env(), stderr=subprocess.PIPE, text=True)
+    proc = zygote.start(_args(root, 12, "--tasks=4", "--workers=1"))
     try:
         _wait_for(_first_shard_done(root), proc)
         os.kill(proc.pid, signal.SIGSTOP)  # a generation that is still running (paused, so the test is not a race)
@@ -91,7 +91,7 @@ def test_overwrite_and_resume_refuse_a_running_generation(tmp_path, capsys):
             )
         assert sorted(p.name for p in (root / ".pnp_work" / "shards").iterdir()) == before  # nothing deleted
         os.kill(proc.pid, signal.SIGCONT)
-        assert proc.wait(timeout=240) == 0, proc.stderr.read()
+        assert proc.wait(timeout=240) == 0, proc.communicate()[1]
     finally:
         if proc.poll() is None:
             os.kill(proc.pid, signal.SIGCONT)
@@ -105,7 +105,7 @@ def test_resume_after_kill_keeps_unrelated_files_and_finishes(tmp_path, capsys):
 
     root = tmp_path / "killed"
     root.mkdir()
-    proc = subprocess.Popen(_args(root, 8, "--tasks=4", "--workers=1"), env=_env(), stderr=subprocess.PIPE)
+    proc = zygote.start(_args(root, 8, "--tasks=4", "--workers=1"))
     _wait_for(_first_shard_done(root), proc)
     os.kill(proc.pid, signal.SIGKILL)
     proc.communicate()
@@ -140,17 +140,10 @@ def test_resume_waits_for_a_committed_run_to_let_go_of_the_lock(small, monkeypat
         generate(GenerateConfig(repo_id=REPO, root=str(small), num_episodes=3, resume=True, progress=False))
 
 
-def _sigint_as_in_a_terminal() -> None:
-    """A background job (``cmd &``, CI runners) starts its children with SIGINT ignored; a terminal does not."""
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
-
-
 def test_ctrl_c_is_one_line_and_resume_finishes(tmp_path):
     root = tmp_path / "sigint"
-    proc = subprocess.Popen(
-        _args(root, 8, "--tasks=4", "--workers=1"), env=_env(), stderr=subprocess.PIPE, text=True,
-        start_new_session=True, preexec_fn=_sigint_as_in_a_terminal,
-    )  # fmt: skip
+    # SIGINT as in a terminal (a background job, ``cmd &`` or a CI runner, starts its children with it ignored)
+    proc = zygote.start(_args(root, 8, "--tasks=4", "--workers=1"), new_session=True, sigint=True)
     _wait_for(_first_shard_done(root), proc)
     os.killpg(proc.pid, signal.SIGINT)  # Ctrl-C in a terminal: the whole process group
     _, err = proc.communicate(timeout=120)
@@ -182,7 +175,7 @@ def test_validation_rejects_nan_shapes_and_removed_rows(small, tmp_path):
         return table.set_column(i, "observation.state", pa.array(state, type=table.schema.field(i).type))
 
     _rewrite_data(nan, poison)
-    res = _run(_args(nan, 3, "--resume"))
+    res = zygote.run(_args(nan, 3, "--resume"))
     _one_line_error(res, "observation.state holds non-finite values", "episode 1, frame 3")
 
     # info.json feature shape that disagrees with the data
@@ -249,10 +242,8 @@ def test_bad_flags_are_one_line(tmp_path, flags, needle, capsys):
 def test_disk_full_is_one_line_and_resume_finishes(tmp_path):
     root = tmp_path / "full"
 
-    def small_files():  # a file-size limit stands in for a full disk (Python ignores SIGXFSZ: writes get EFBIG)
-        resource.setrlimit(resource.RLIMIT_FSIZE, (40 * 1024, 40 * 1024))
-
-    res = _run(_args(root, 6, "--tasks=2", "--workers=1"), preexec_fn=small_files)
+    # a file-size limit stands in for a full disk (Python ignores SIGXFSZ: writes get EFBIG)
+    res = zygote.run(_args(root, 6, "--tasks=2", "--workers=1"), max_file_size=40 * 1024)
     line = _one_line_error(res, "cannot write the dataset", "--resume")
     assert str(root) in line
     generate(GenerateConfig(repo_id=REPO, root=str(root), num_episodes=6, workers=1, resume=True, progress=False))
@@ -266,7 +257,7 @@ def test_read_only_root_is_one_line(tmp_path):
     if ok.returncode != 0:
         pytest.skip(f"cannot mount a read-only tmpfs here: {ok.stderr.decode().strip()}")
     try:
-        res = _run(_args(mnt / "ds", 2))
+        res = zygote.run(_args(mnt / "ds", 2))
         _one_line_error(res, "read-only", "--resume")
     finally:
         subprocess.run(["umount", str(mnt)], check=False)

@@ -1,33 +1,27 @@
 """The documentation's Python snippets run as written.
 
-Every ```python block of the pages in PAGES is executed in a fresh Python process of its own, in an empty folder,
-with this checkout first on the import path and the project's environment (one thread, headless EGL rendering,
-the Hub offline): each block stands alone, imports included. Every page with a ```python block must be in PAGES,
-so a new snippet cannot go unexecuted. The quick check (every block compiles and its ``from X import Y`` names
-exist) runs in the default loop; running the blocks is marked ``slow`` (``make test`` and CI run it).
+Every ```python block of the pages in PAGES is executed in a Python process of its own, in an empty folder, with
+this checkout first on the import path and the project's environment (one thread, headless EGL rendering, the Hub
+offline): each block stands alone, imports included. The process is forked from an interpreter that has imported
+torch and LeRobot and nothing of this project (tests/zygote.py); the block still imports every name it uses.
+Every page with a ```python block must be in PAGES, so a new snippet cannot go unexecuted. The quick check (every
+block compiles and its ``from X import Y`` names exist) runs in the default loop; running the blocks is marked
+``slow`` (``make test`` and CI run it).
 """
 
 from __future__ import annotations
 
 import ast
 import importlib
-import os
 import re
-import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+import zygote
 
 ROOT = Path(__file__).resolve().parents[1]
 PAGES = ("docs/guides/python.md", "docs/getting-started.md")
-ENV = {
-    **os.environ,
-    "OMP_NUM_THREADS": "1",
-    "MUJOCO_GL": "egl",
-    "HF_HUB_OFFLINE": "1",
-    "PYTHONPATH": os.pathsep.join([str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])]),
-}
 
 
 def python_blocks(text: str) -> list[tuple[int, str]]:
@@ -61,14 +55,12 @@ def test_a_snippet_compiles_and_imports_names_that_exist(where, code):
 @pytest.mark.slow
 @pytest.mark.parametrize("where, code", SNIPPETS, ids=[w for w, _ in SNIPPETS])
 def test_a_snippet_runs_as_written(where, code, tmp_path):
-    proc = subprocess.run(
-        [sys.executable, "-c", code], cwd=tmp_path, env=ENV, capture_output=True, text=True, timeout=300
-    )
+    proc = zygote.run([sys.executable, "-c", code], tmp_path, timeout=300)
     assert proc.returncode == 0, f"{where} failed:\n{code}\n{proc.stdout[-2000:]}\n{proc.stderr[-3000:]}"
 
 
 def test_a_failing_snippet_fails(tmp_path):
     """The runner reports a snippet that raises (a renamed field, a missing import)."""
     code = 'import gymnasium as gym\nimport lerobot_pnp\ngym.make("lerobot_pnp/BaxterPnP-v0", no_such_field=1)\n'
-    proc = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env=ENV, capture_output=True, text=True)
+    proc = zygote.run([sys.executable, "-c", code], tmp_path)
     assert proc.returncode != 0 and "no_such_field" in proc.stderr

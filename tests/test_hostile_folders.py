@@ -20,14 +20,14 @@ from __future__ import annotations
 import hashlib
 import os
 import signal
-import subprocess
 import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
-from clis import ENV, exe
+import zygote
+from clis import exe
 
 from lerobot_pnp import cli
 from lerobot_pnp.outputs import FolderLock
@@ -190,8 +190,7 @@ def test_killed_mid_run_then_run_again_beside_a_users_file(tmp_path, inputs, cap
     out.mkdir()
     (out / "NOTES.txt").write_text("the user's notes")
     before = _sums(tmp_path, *inputs.values())
-    proc = subprocess.Popen([exe("lerobot-pnp"), *ROWS[row].args(out, inputs)], env=ENV, stderr=subprocess.DEVNULL,
-                            stdout=subprocess.DEVNULL)  # fmt: skip
+    proc = zygote.start([exe("lerobot-pnp"), *ROWS[row].args(out, inputs)])  # a process of its own, killed below
     deadline = time.monotonic() + 120
     while proc.poll() is None and time.monotonic() < deadline:
         if any(p.name != "NOTES.txt" for p in out.iterdir()):

@@ -9,14 +9,12 @@ configs/train_act_images.json`` (a few steps, in-training eval included) -> ``le
 from __future__ import annotations
 
 import json
-import os
-import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+import zygote
 from clis import exe as _exe
-from clis import run
 
 from lerobot_pnp.integration.registration import hand_over_command_line
 from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
@@ -24,18 +22,7 @@ from lerobot_pnp.sim.env_validation import MAX_IMAGE_SIDE, MIN_IMAGE_HEIGHT, MIN
 from lerobot_pnp.sim.recorded_files import write_recorded
 
 REPO = Path(__file__).resolve().parents[1]
-ENV = {
-    **os.environ,
-    "OMP_NUM_THREADS": "1",
-    "HF_HUB_OFFLINE": "1",
-    "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl"),
-    "PYTHONPATH": os.pathsep.join(p for p in (str(REPO), os.environ.get("PYTHONPATH")) if p),
-}
 IMAGE_CONFIGS = ("train_act_images.json", "train_diffusion_images.json")
-
-
-def _run(cmd: list[str], cwd: Path, timeout: float = 180) -> subprocess.CompletedProcess:
-    return run(cmd, cwd, timeout, env=ENV)
 
 
 # ---------------------------------------------------------------------------------------------- fast
@@ -104,7 +91,7 @@ def test_a_camera_dataset_at_the_smallest_image_size(tmp_path):
     root = tmp_path / "ds"
     size = [f"--env.image_height={MIN_IMAGE_HEIGHT}", f"--env.image_width={MIN_IMAGE_WIDTH}"]
     cmd = [_exe("lerobot-pnp"), "generate", f"--root={root}", "--num_episodes=2", "--env.cameras=[front]", *size]
-    proc = _run([*cmd, "--progress=false"], tmp_path)
+    proc = zygote.run([*cmd, "--progress=false"], tmp_path)  # the script, forked from a warm interpreter
     assert proc.returncode == 0, proc.stderr[-3000:]
     frame = open_local_dataset("local/ds", root)[0]["observation.images.front"]
     assert tuple(frame.shape) == (3, MIN_IMAGE_HEIGHT, MIN_IMAGE_WIDTH)
@@ -140,7 +127,7 @@ def test_act_on_images_stock_train_then_eval_without_camera_flags(tmp_path):
     assert cli.main([*gen, *cams]) == 0
 
     out = tmp_path / "train"
-    proc = _run(
+    proc = zygote.run(  # the stock entry points, in processes forked from a warm interpreter (tests/zygote.py)
         [
             train,
             f"--config_path={REPO / 'configs' / 'train_act_images.json'}",  # no dataset or camera flag
@@ -166,7 +153,7 @@ def test_act_on_images_stock_train_then_eval_without_camera_flags(tmp_path):
 
     ev = tmp_path / "eval"
     cmd = [evaluate, f"--policy.path={ckpt}", "--env.type=baxter_pnp", "--eval.n_episodes=1"]
-    proc = _run([*cmd, "--eval.batch_size=1", "--policy.device=cpu", f"--output_dir={ev}"], tmp_path)
+    proc = zygote.run([*cmd, "--eval.batch_size=1", "--policy.device=cpu", f"--output_dir={ev}"], tmp_path)
     assert proc.returncode == 0, proc.stderr[-3000:]
     overall = json.loads((ev / "eval_info.json").read_text())["overall"]
     assert overall["n_episodes"] == 1  # the camera env was built from the checkpoint's own task

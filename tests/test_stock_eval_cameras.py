@@ -4,12 +4,12 @@ before any rollout (nothing written); likewise the strict loader given the env c
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
 import pytest
-from clis import ENV, exe, run
+from clis import exe
+from zygote import run
 
 from lerobot_pnp.evaluation.checkpoints import IncompatiblePolicyError, load_policy
 from lerobot_pnp.integration.recorded_task import write_checkpoint_task
@@ -17,7 +17,6 @@ from lerobot_pnp.sim.env_config import BaxterPnPEnvConfig
 
 SIZE = 32
 REPO = Path(__file__).resolve().parents[1]
-SCRIPT_ENV = {**ENV, "PYTHONPATH": os.pathsep.join(p for p in (str(REPO), os.environ.get("PYTHONPATH")) if p)}
 MISMATCHES = [  # (env changes, flag, what the one line says)
     ({"image_height": 48}, "--env.image_height=48", "is 32x32; the env renders it at 48x32"),
     ({"cameras": ["wrist"]}, "--env.cameras=[wrist]", "is 32x32; the env does not render it (--env.cameras ['wrist'])"),
@@ -87,7 +86,8 @@ def test_the_strict_loader_refuses_other_cameras(pixels_checkpoint, changes, fla
 
 @pytest.mark.slow
 def test_lerobot_eval_refuses_other_cameras_and_threads_in_one_line_writing_nothing(pixels_checkpoint, tmp_path):
-    """The real lerobot-eval: one error line, exit 2, no output folder (no empty videos/ left behind)."""
+    """lerobot-eval's entry point (in processes forked from a warm interpreter, tests/zygote.py): one error line,
+    exit 2, no output folder (no empty videos/ left behind)."""
     evaluate = exe("lerobot-eval")
     args = [evaluate, f"--policy.path={pixels_checkpoint}", "--env.type=baxter_pnp", "--eval.n_episodes=1"]
     args += ["--eval.batch_size=1", "--policy.device=cpu"]
@@ -97,7 +97,7 @@ def test_lerobot_eval_refuses_other_cameras_and_threads_in_one_line_writing_noth
     )
     for i, (flag, message) in enumerate(cases):
         out = tmp_path / f"out{i}"
-        proc = run([*args, flag, f"--output_dir={out}"], tmp_path, timeout=180, env=SCRIPT_ENV)
+        proc = run([*args, flag, f"--output_dir={out}"], tmp_path, timeout=180)
         errors = [line for line in proc.stderr.splitlines() if ": error: " in line]
         assert proc.returncode == 2 and len(errors) == 1 and message in errors[0], proc.stderr[-3000:]
         assert "Traceback" not in proc.stderr and not out.exists(), proc.stderr[-3000:]

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import zygote
 
 from lerobot_pnp.errors import ConfigError
 from lerobot_pnp.integration.recorded_task import write_checkpoint_task
@@ -162,7 +163,7 @@ def _eval(ckpt: Path, out: Path, task: str, tmp_path: Path) -> subprocess.Comple
         pytest.skip("lerobot-eval is not installed next to the interpreter")
     cmd = [str(exe), f"--policy.path={ckpt}", "--env.type=baxter_pnp", f"--env.task={task}", "--eval.n_episodes=1",
            "--eval.batch_size=1", "--policy.device=cpu", f"--output_dir={out}"]  # fmt: skip
-    return subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    return zygote.run(cmd, tmp_path, timeout=300)  # its entry point, in a process forked from a warm interpreter
 
 
 @pytest.mark.slow

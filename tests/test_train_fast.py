@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 import torch
+import zygote
 
 torch.set_num_threads(1)
 
@@ -301,9 +302,10 @@ def test_lerobot_train_cli(dataset_root, tmp_path):
     obs = {OBS_STATE: torch.zeros(2, 8), OBS_ENV: torch.zeros(2, 3)}
     assert torch.isfinite(policy.select_action(obs)).all()
 
-    # Resume, as LeRobot documents it, continues the same run to a larger step budget.
+    # Resume, as LeRobot documents it, continues the same run to a larger step budget (the entry point again, in a
+    # process forked from a warm interpreter: tests/zygote.py).
     resume = [cmd[0], f"--config_path={pm / 'train_config.json'}", "--resume=true", "--steps=5"]
-    proc = subprocess.run(resume, capture_output=True, text=True, env=env, timeout=300, cwd=tmp_path)
+    proc = zygote.run(resume, tmp_path, timeout=300)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     assert (out / "checkpoints" / "000005" / "pretrained_model" / "model.safetensors").is_file()
     assert json.loads((out / "checkpoints" / "last" / "training_state" / "training_step.json").read_text())["step"] == 5

@@ -14,8 +14,8 @@ from lerobot_pnp.report import adapters
 N = 8  # demonstrations of each recording
 SEEDS = (1000, 1001)
 
-# One process: set the caller's torch thread count, train the study's method for each seed in turn, print a digest
-# of each checkpoint's weights. DAgger and DART run 2 rollouts a round, not the study's 300.
+# One process: set the caller's torch thread count, train each of the study's methods for each seed in turn, print
+# a digest of each checkpoint's weights. DAgger and DART run 2 rollouts a round, not the study's 300.
 WORKER = """
 import hashlib, json, sys
 from dataclasses import replace
@@ -27,21 +27,23 @@ register_all()
 from lerobot_pnp.report import methods
 from lerobot_pnp.report.method_spec import TrainContext
 
-root, out, name, threads = Path(sys.argv[1]), Path(sys.argv[2]), sys.argv[3], int(sys.argv[4])
+root, out, threads = Path(sys.argv[1]), Path(sys.argv[2]), int(sys.argv[4])
 torch.set_num_threads(threads)
-method = methods.METHODS[name]
-if method.schedule:
-    methods.METHODS[name] = method = replace(method, schedule={**method.schedule, "rollouts_per_round": 2})
-data = root / ("dataset_phase" if method.data == "phase" else "dataset")
 digests = {}
-for seed in map(int, sys.argv[5].split(",")):
-    ctx = TrainContext(data, out / name / f"seed{seed}", seed, epochs=10, dense_root=root / "dataset_dense",
-                       act_steps=30, task_budget=10, recipe_changes={"num_layers": 1})
-    weights = load_file(str(Path(method.train(ctx)) / "model.safetensors"))
-    digest = hashlib.sha256()
-    for key in sorted(weights):
-        digest.update(key.encode() + weights[key].contiguous().numpy().tobytes())
-    digests[seed] = digest.hexdigest()
+for name in sys.argv[3].split(","):
+    method = methods.METHODS[name]
+    if method.schedule:
+        methods.METHODS[name] = method = replace(method, schedule={**method.schedule, "rollouts_per_round": 2})
+    data = root / ("dataset_phase" if method.data == "phase" else "dataset")
+    digests[name] = {}
+    for seed in map(int, sys.argv[5].split(",")):
+        ctx = TrainContext(data, out / name / f"seed{seed}", seed, epochs=10, dense_root=root / "dataset_dense",
+                           act_steps=30, task_budget=10, recipe_changes={"num_layers": 1})
+        weights = load_file(str(Path(method.train(ctx)) / "model.safetensors"))
+        digest = hashlib.sha256()
+        for key in sorted(weights):
+            digest.update(key.encode() + weights[key].contiguous().numpy().tobytes())
+        digests[name][seed] = digest.hexdigest()
 print("DIGESTS " + json.dumps(digests))
 """
 
@@ -56,33 +58,39 @@ def recordings(tmp_path_factory):
     return root
 
 
-def _start(recordings, out, method: str, threads: int, hash_seed: str, seeds) -> subprocess.Popen:
-    """A fresh process training ``method`` for ``seeds`` in turn on ``threads`` torch threads."""
-    args = [str(recordings), str(out), method, str(threads), ",".join(map(str, seeds))]
+def _start(recordings, out, names, threads: int, hash_seed: str, seeds) -> subprocess.Popen:
+    """A fresh process training each method of ``names`` for ``seeds`` in turn on ``threads`` torch threads."""
+    args = [str(recordings), str(out), ",".join(names), str(threads), ",".join(map(str, seeds))]
     env = {**os.environ, "PYTHONHASHSEED": hash_seed}
     return subprocess.Popen([sys.executable, "-c", WORKER, *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True, env=env)  # fmt: skip
 
 
-def _digests_of_two_processes(recordings, tmp_path, method: str) -> list[dict[int, str]]:
-    """Each seed's weights digest from two fresh processes run side by side: one on 1 thread with the seeds in
-    order, one on 2 threads with another hash seed and the seeds in reverse."""
+METHODS = ["phase_told_mlp", "act", "recovering_dagger", "recovering_dart"]
+
+
+@pytest.fixture(scope="module")
+def two_processes(recordings, tmp_path_factory) -> list[dict[str, dict[int, str]]]:
+    """Each method's and seed's weights digest from two fresh processes run side by side: one on 1 thread with the
+    methods and seeds in order, one on 2 threads with another hash seed and the methods and seeds in reverse."""
+    tmp = tmp_path_factory.mktemp("trainings")
     procs = [
-        _start(recordings, tmp_path / "first", method, 1, "1", SEEDS),
-        _start(recordings, tmp_path / "second", method, 2, "2", SEEDS[::-1]),
+        _start(recordings, tmp / "first", METHODS, 1, "1", SEEDS),
+        _start(recordings, tmp / "second", METHODS[::-1], 2, "2", SEEDS[::-1]),
     ]
     digests = []
     for proc in procs:
-        out, err = proc.communicate(timeout=600)
+        out, err = proc.communicate(timeout=900)
         assert proc.returncode == 0, err[-3000:]
         line = next(x for x in out.splitlines() if x.startswith("DIGESTS "))
-        digests.append({int(k): v for k, v in json.loads(line.removeprefix("DIGESTS ")).items()})
+        found = json.loads(line.removeprefix("DIGESTS "))
+        digests.append({name: {int(k): v for k, v in seeds.items()} for name, seeds in found.items()})
     return digests
 
 
-@pytest.mark.parametrize("method", ["phase_told_mlp", "act", "recovering_dagger", "recovering_dart"])
-def test_a_seed_trains_the_same_weights_in_fresh_processes_and_another_seed_other_ones(recordings, tmp_path, method):
-    first, second = _digests_of_two_processes(recordings, tmp_path, method)
+@pytest.mark.parametrize("method", METHODS)
+def test_a_seed_trains_the_same_weights_in_fresh_processes_and_another_seed_other_ones(two_processes, method):
+    first, second = (digests[method] for digests in two_processes)
     assert first == second  # per seed: bit-identical weights, whatever the thread count, hash seed or order
     assert first[SEEDS[0]] != first[SEEDS[1]]
 

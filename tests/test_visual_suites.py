@@ -8,7 +8,7 @@ import json
 from pathlib import Path
 
 import pytest
-from test_stock_eval_cameras import SCRIPT_ENV, pixels_checkpoint  # noqa: F401  (a tiny camera checkpoint)
+from test_stock_eval_cameras import pixels_checkpoint  # noqa: F401  (a tiny camera checkpoint)
 
 from lerobot_pnp import cli
 from lerobot_pnp.evaluation.verdicts import axis_verdict
@@ -167,16 +167,17 @@ def test_stock_lerobot_eval_runs_a_visual_axis_on_a_camera_checkpoint_and_compar
     tmp_path,
     capsys,
 ):
-    """The real ``lerobot-eval`` process on a (tiny, untrained) camera checkpoint with ``--env.task heldout_sensor``:
-    one entry per suite of the axis, and ``compare`` gives the axis its verdict (none: far below 90 % in
-    distribution)."""
-    from clis import exe, run
+    """``lerobot-eval``'s entry point (in a process forked from a warm interpreter, tests/zygote.py) on a (tiny,
+    untrained) camera checkpoint with ``--env.task heldout_sensor``: one entry per suite of the axis, and ``compare``
+    gives the axis its verdict (none: far below 90 % in distribution)."""
+    from clis import exe
+    from zygote import run
 
     out = tmp_path / "eval"
     args = [exe("lerobot-eval"), f"--policy.path={pixels_checkpoint}", "--env.type=baxter_pnp", "--env.task=heldout_sensor",
             "--eval.n_episodes=2", "--eval.batch_size=2", "--eval.use_async_envs=false", "--policy.device=cpu",
             "--seed=100000", f"--output_dir={out}"]  # fmt: skip
-    proc = run(args, tmp_path, timeout=600, env=SCRIPT_ENV)
+    proc = run(args, tmp_path, timeout=600)
     assert proc.returncode == 0, proc.stderr[-2000:]
     info = json.loads((out / "eval_info.json").read_text())
     assert [t["task_group"] for t in info["per_task"]] == suite_names("heldout_sensor")
