@@ -43,6 +43,23 @@ def test_exit_status_exceptions_and_signals_are_the_interpreters(tmp_path):
     assert zygote.run([sys.executable, "-c", code], tmp_path, sigint=True).stdout.strip() == "True"
 
 
+def test_a_run_ends_as_the_interpreter_ends_it(tmp_path):
+    """Non-daemon threads finish, then the ``atexit`` functions run and the streams flush; a ``SystemExit``
+    message goes to the standard error with status 1."""
+    code = (
+        "import atexit, sys, threading, time\n"
+        "atexit.register(lambda: print('atexit', flush=False))\n"
+        "threading.Thread(target=lambda: (time.sleep(0.3), print('thread'))).start()\n"
+        "sys.stdout.write('unflushed ')\n"
+    )
+    proc = zygote.run([sys.executable, "-c", code], tmp_path)
+    assert (proc.returncode, proc.stdout) == (0, "unflushed thread\natexit\n")
+    proc = zygote.run([sys.executable, "-c", "raise SystemExit('stopped here')"], tmp_path)
+    assert (proc.returncode, proc.stderr) == (1, "stopped here\n")
+    proc = zygote.run([sys.executable, "-c", "raise KeyboardInterrupt"], tmp_path)
+    assert proc.returncode == -signal.SIGINT and proc.stderr.rstrip().endswith("KeyboardInterrupt")
+
+
 def test_communicate_waits_for_every_holder_of_the_streams(tmp_path):
     """As with ``subprocess.Popen``: a child's own child that outlives it (a pool's manager) still holds the pipes,
     so ``communicate`` returns after it is done (a test that resumes a killed run relies on it)."""
