@@ -32,6 +32,7 @@ import json
 import os
 import re
 import shlex
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -111,11 +112,13 @@ class TreeSampler(threading.Thread):
         return round(self.peak / _MB, 1), round(sum(self.ticks.values()) / os.sysconf("SC_CLK_TCK"), 1)
 
 
-def run_command(argv: list[str], cwd: Path, log: Path) -> dict:
-    """Run one command in ``cwd`` (its output to ``log``) and measure it."""
-    exe = BIN / argv[0]
+def run_command(argv: list[str], cwd: Path, log: Path, executable: str | None = None) -> dict:
+    """Run one command in ``cwd`` (its output to ``log``) and measure it: ``argv[0]`` is an executable next to this
+    Python, or ``executable``, found on the ``PATH``."""
+    exe = BIN / argv[0] if executable is None else Path(shutil.which(executable) or executable)
     if not exe.exists():
-        raise SystemExit(f"{argv[0]} is not installed next to {sys.executable}")
+        raise SystemExit(f"{argv[0]} is not installed next to {sys.executable}" if executable is None
+                         else f"{executable} is not on the PATH")  # fmt: skip
     before, load = disk_mb(cwd), os.getloadavg()[0]
     start = time.perf_counter()
     with log.open("w") as out:
