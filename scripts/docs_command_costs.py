@@ -3,9 +3,9 @@ them (``docs_tables.py`` renders them; ``--check`` keeps the page equal to the r
 
 - ``command-costs``: ``docs/results/command_costs.json``, written by ``benchmarks/command_costs.py`` (one machine,
   one run of the README's quick start, each command's wall time, CPU time, peak memory and disk);
-- ``make-costs``: ``make demo`` from its timed run (``docs/results/sources.json``'s ``demo``), ``make study`` from
-  the study's own from-scratch cost record (``study_cost``, through ``docs_cost``), ``make test`` from nothing:
-  no run of it is recorded.
+- ``make-costs``: ``make install``, ``make test`` and ``make demo`` from ``docs/results/make_costs.json`` (written by
+  ``benchmarks/make_costs.py`` from a fresh clone), ``make study`` from the study's own from-scratch cost record
+  (``study_cost``, through ``docs_cost``).
 """
 
 from __future__ import annotations
@@ -108,27 +108,54 @@ def study_cost() -> tuple[str, str, str, str] | None:
 
 
 def make_costs(base: str) -> str:
-    """The make targets: each one's measured cost where a committed record holds it, else where to find it."""
-    demo = _json("sources.json")["demo"]
-    lines = ["| target | wall time | peak memory | disk | measured by |", "|---|---|---|---|---|"]
-    lines.append(
-        f"| `make demo` | {demo['wall']} | not measured | not measured | {demo['how']}, on {demo['machine']} "
-        f"(commit `{demo['commit']}`, {demo['date']}; `docs/results/sources.json`) |"
-    )
+    """The make targets: ``make install``, ``make test`` and ``make demo`` as measured one after the other from a
+    fresh clone (``docs/results/make_costs.json``), ``make study`` from the study's own from-scratch record."""
+    import docs_cost
+
+    record = _json("make_costs.json")
+    lines = [
+        "| target | wall time | CPU time | peak memory | disk written | what it ran |",
+        "|---|---|---|---|---|---|",
+    ]
+    ran = {
+        "make install": "the venv and the locked dependencies (uv, byte-code compiled)",
+        "make test": "ruff, the import layers, the test suite on both cores, the strict docs build",
+        "make demo": "the end-to-end job, from empty output folders",
+    }
+    for target, row in record["targets"].items():
+        what = ran.get(target, "")
+        if row.get("tests"):
+            what += f" ({row['tests'].split(',')[0]}, {'none skipped' if 'skipped' not in row['tests'] else 'some skipped'})"
+        lines.append(
+            f"| `{target}` | {duration(row['wall_s'])} | {duration(row['cpu_s'])} | {size(row['peak_tree_rss_mb'])} | "
+            f"{size(row['disk_mb'])} | {what} |"
+        )
     study = study_cost()
     if study is None:
         lines.append(
-            "| `make study` | not measured from scratch | not measured | not measured | the committed study summaries "
-            "hold no from-scratch cost record (a run writes one into each `summary.json`, `cost`); what they hold, "
-            f"their job times replayed: [results, what it costs]({base}index.md#what-it-costs) |"
+            "| `make study` | not measured from scratch | - | - | - | the committed study summaries hold no "
+            f"from-scratch cost record: their job times replayed, [results, what it costs]({base}index.md#what-it-costs) |"
         )
     else:
-        lines.append("| `make study` | " + " | ".join(study) + " |")
-    lines.append(
-        "| `make test` | not measured here | not measured | not measured | no committed record; it runs the whole "
-        "test suite on both cores, the slow end-to-end tests included, and the strict documentation build |"
+        time_, memory, disk, _ = study
+        cpu = docs_cost.measured(docs_cost._study()[1]).get("cpu_s")
+        lines.append(
+            f"| `make study` | {time_} | {'-' if cpu is None else duration(cpu)} | {memory} | {disk} | both studies, "
+            "from scratch: its own record |"
+        )
+    m = record["machine"]
+    return "\n".join(
+        [
+            *lines,
+            "",
+            f"`make install`, `make test` and `make demo`: measured one after the other in a fresh clone by "
+            f"`benchmarks/make_costs.py` ({docs_cost._machine(m)}; commit `{m['commit'][:7]}`, {m['date']}; "
+            f"SLURM {'up, so its tests ran' if record['slurm'] else 'absent, so its tests skipped'}); peak memory: "
+            "the target's processes together, sampled; disk written: what the target added to the clone (the "
+            "venv's files are hard links into uv's cache where the file system allows, so the disk they newly "
+            "take can be much less). `make study`: `docs/results/study/*/summary.json`, `cost`.",
+        ]
     )
-    return "\n".join(lines)
 
 
 def eval_startup(base: str = "") -> str:

@@ -1,6 +1,9 @@
 """The docs' statements of what `make demo` and `make study` cost (the ``cost`` and ``study-cost`` blocks of
 ``docs_tables.py``).
 
+`make demo`'s cost comes from ``docs/results/make_costs.json``: ``benchmarks/make_costs.py`` runs it (after `make
+install` and `make test`) in a fresh clone and measures it.
+
 The study's cost comes from its own record: the ``cost`` block that a run writes into every study's
 ``summary.json`` (``lerobot_pnp.report.cost``). A record counts as the study's cost only when that run did every
 stage itself (``from_scratch``); a resumed run's wall clock is not. Where the committed summaries hold no such
@@ -88,13 +91,31 @@ def study_line() -> str:
     )
 
 
+def make_target(target: str) -> tuple[dict, dict]:
+    """``make <target>``'s measurement from a fresh clone and the machine and commit that measured it
+    (``docs/results/make_costs.json``, written by ``benchmarks/make_costs.py``)."""
+    record = _json("make_costs.json")
+    return record["targets"][f"make {target}"], record["machine"]
+
+
+def minutes_seconds(seconds: float) -> str:
+    """A target's time as "9 min 48 s"."""
+    s = round(seconds)
+    return f"{s // 60} min {s % 60} s" if s >= 60 else f"{s} s"
+
+
+def demo_line() -> str:
+    """The one statement of `make demo`'s cost."""
+    demo, m = make_target("demo")
+    return (
+        f"- `make demo`: **{minutes_seconds(demo['wall_s'])}** from a fresh clone, the venv installed, on "
+        f"{_machine(m)} (`benchmarks/make_costs.py`; commit `{m['commit'][:7]}`, {m['date']})."
+    )
+
+
 def cost_lines(base: str) -> str:
     """What `make demo` and `make study` cost, on the machine that measured them."""
-    demo = _json("sources.json")["demo"]
-    return (
-        f"- `make demo`: **{demo['wall']}** on {demo['machine']} ({demo['how']}; commit `{demo['commit']}`, "
-        f"{demo['date']}).\n" + study_line()
-    )
+    return demo_line() + "\n" + study_line()
 
 
 def cost_table(base: str) -> str:

@@ -73,8 +73,27 @@ def test_make_study_is_filled_from_the_studys_cost_record_once_it_has_one(tables
     summary.pop("cost", None)
     assert tables.study_cost() is None
     assert "| `make study` | not measured from scratch |" in tables.make_costs("results/")
-    summary["cost"] = {"wall_s": 4000.0, "peak_rss_mb": 12900.0, "disk_mb": 2048.0, "from_scratch": False}
+    summary["cost"] = {
+        "wall_s": 4000.0,
+        "cpu_s": 7500.0,
+        "peak_rss_mb": 12900.0,
+        "disk_mb": 2048.0,
+        "from_scratch": False,
+    }
     assert tables.study_cost() is None  # a resumed run's wall clock is not the study's cost
     summary["cost"]["from_scratch"] = True
     assert tables.study_cost()[:3] == ("1 h 07 min", "12.6 GB", "2.0 GB")
-    assert "| `make study` | 1 h 07 min | 12.6 GB | 2.0 GB |" in tables.make_costs("results/")
+    assert "| `make study` | 1 h 07 min | 2 h 5 min | 12.6 GB | 2.0 GB |" in tables.make_costs("results/")
+
+
+def test_the_make_targets_come_from_their_fresh_clone_record(tables, monkeypatch, tmp_path):
+    """`make install`, `make test` and `make demo`: one row each from ``make_costs.json``, with the test summary and
+    whether SLURM's tests ran; a changed record changes the table."""
+    record = json.loads((ROOT / "docs/results/make_costs.json").read_text())
+    record["targets"]["make test"].update(wall_s=299.6, tests="1000 passed, 3 skipped")
+    record["slurm"] = False
+    (tmp_path / "make_costs.json").write_text(json.dumps(record))
+    monkeypatch.setattr(tables, "RESULTS", tmp_path)
+    table = tables.make_costs("results/")
+    assert "| `make test` | 5 min 0 s |" in table and "(1000 passed, some skipped)" in table
+    assert "SLURM absent, so its tests skipped" in table and "| `make install` |" in table

@@ -107,11 +107,14 @@ def test_the_benchmark_puts_the_measured_pool_beside_its_replay_and_refuses_a_re
 def test_the_docs_state_the_cost_from_the_record_and_say_when_there_is_none(tmp_path, monkeypatch):
     docs = load_script("scripts/docs_cost.py")
     monkeypatch.setattr(docs, "RESULTS", tmp_path)
-    demo = {"wall": "8 min", "machine": "AMD EPYC, 2 cores", "how": "time", "commit": "1234567", "date": "2027-01-01"}
-    (tmp_path / "sources.json").write_text(json.dumps({"demo": demo, "study": {
+    machine = {"cpu": "AMD EPYC", "cores_available": 2, "lerobot": "0.6.1", "torch": "2", "mujoco": "3",
+               "commit": "1234567abc", "date": "2027-01-01"}  # fmt: skip
+    (tmp_path / "make_costs.json").write_text(json.dumps({"machine": machine, "targets": {"make demo": {"wall_s": 466}}}))
+    (tmp_path / "sources.json").write_text(json.dumps({"study": {
         "files": ["study/summary.json"], "commit": "0000000", "date": "2026-01-01"}}))  # fmt: skip
     _summary(tmp_path / "study" / "summary.json", True)
     line, table = docs.cost_lines(""), docs.cost_table("")
+    assert "`make demo`: **7 min 46 s** from a fresh clone" in line and "commit `1234567`, 2027-01-01" in line
     assert (
         "`make study`: **4 min** from scratch on AMD EPYC, 2 cores" in line and "commit `abcdef1`, 2027-01-02" in line
     )
