@@ -21,8 +21,8 @@ def pytest_collection_modifyitems(config, items):
     """On an xdist worker, the files that hold a ``slow`` test first (each file in its place otherwise).
 
     ``make test`` hands out whole files (``--dist loadfile``) in collection order (``--no-loadscope-reorder``):
-    the long files start first, and the many short ones fill in the end, so that the two workers finish together
-    instead of one starting a long file while the other runs out of work.
+    the long files start first, and the many short ones fill in the end, so that the workers finish together
+    instead of one starting a long file while another runs out of work.
     """
     if not hasattr(config, "workerinput"):
         return

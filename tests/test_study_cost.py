@@ -109,7 +109,9 @@ def test_the_docs_state_the_cost_from_the_record_and_say_when_there_is_none(tmp_
     monkeypatch.setattr(docs, "RESULTS", tmp_path)
     machine = {"cpu": "AMD EPYC", "cores_available": 2, "lerobot": "0.6.1", "torch": "2", "mujoco": "3",
                "commit": "1234567abc", "date": "2027-01-01"}  # fmt: skip
-    (tmp_path / "make_costs.json").write_text(json.dumps({"machine": machine, "targets": {"make demo": {"wall_s": 466}}}))
+    (tmp_path / "make_costs.json").write_text(
+        json.dumps({"machine": machine, "targets": {"make demo": {"wall_s": 466}}})
+    )
     (tmp_path / "sources.json").write_text(json.dumps({"study": {
         "files": ["study/summary.json"], "commit": "0000000", "date": "2026-01-01"}}))  # fmt: skip
     _summary(tmp_path / "study" / "summary.json", True)
