@@ -50,13 +50,11 @@ demo: $(STAMP)
 study: $(STAMP)
 	$(VENV)/bin/lerobot-pnp report --config_path configs/report_full.json --alongside configs/report_heldout.json
 
-# three test workers on two cores: the tests wait for their console scripts, SLURM and kills part of the time,
-# and the third worker runs meanwhile
 test: $(STAMP)
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/ruff format --check .
 	$(VENV)/bin/lint-imports  # the layers of pyproject.toml: no module imports a layer above its own
-	$(VENV)/bin/python -m pytest -q -n 3 --dist loadfile --no-loadscope-reorder -m ""  # every test, the slow end-to-end ones too; a file on one worker, long files first (tests/conftest.py)
+	$(VENV)/bin/python -m pytest -q -n 2 --dist loadfile --no-loadscope-reorder -m ""  # every test, the slow end-to-end ones too; both cores; a file on one worker, long files first (tests/conftest.py)
 	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict  # a page off the nav, a broken link or anchor fails (--quiet would hide them from strict mode)
 
 # the documentation site from docs/ (mkdocs.yml) into site/: open site/index.html, no server needed

@@ -119,7 +119,7 @@ def make_costs(base: str) -> str:
     ]
     ran = {
         "make install": "the venv and the locked dependencies (uv, byte-code compiled)",
-        "make test": "ruff, the import layers, the test suite (three workers), the strict docs build",
+        "make test": "ruff, the import layers, the test suite on both cores, the strict docs build",
         "make demo": "the end-to-end job, from empty output folders",
     }
     for target, row in record["targets"].items():
