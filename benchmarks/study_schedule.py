@@ -17,6 +17,13 @@ dataset stages' wall times given on the command line (a reused dataset records n
 the data-efficiency runs and the ``lerobot-eval`` cross-check included), so a committed summary
 (``docs/results/study/report_full/summary.json``) replays without its folder. ``--cli-after-pool`` replays the
 cross-check after the pool, alone, as the study ran it before it was a job of the pool.
+
+What a cut would save, before running it: ``--without STUDY:METHOD`` replays without every job of that method in
+the ``--study`` given at that position (0 first; the cross-check stays when its method stays), and
+``--train-scale`` multiplies the training times (fewer epochs: a training's time is about proportional to them).
+
+    python benchmarks/study_schedule.py --study docs/results/study/report_full/summary.json --dataset-s 204 \
+        --study docs/results/study/heldout/summary.json --dataset-s 145 --without 1:memoryless_mlp
 """
 
 from __future__ import annotations
@@ -118,10 +125,12 @@ ORDERS = {"ready": ready, "longest_first": in_order}
 
 
 def replay_studies(studies: list[Path], processes: int = 2, order=ready, cli_in_pool: bool = True,
-                   eval_scale: float = 1.0) -> dict:  # fmt: skip
+                   eval_scale: float = 1.0, without: tuple[tuple[int, str], ...] = (),
+                   train_scale: float = 1.0) -> dict:  # fmt: skip
     """The replayed pool of ``studies`` (folders or ``summary.json`` files, run alongside in one pool): its wall
     seconds (``pool_s``), the cross-checks left after it (``serial_s``), and the job seconds of the trainings and
-    of the evaluations (the cross-checks included) it packs."""
+    of the evaluations (the cross-checks included) it packs. ``without``: (study position, method) pairs whose
+    jobs are left out; ``train_scale`` multiplies every training's time."""
     jobs, times, checks = [], {}, []
     for i, out in enumerate(studies):
         if out.is_file():
@@ -129,16 +138,18 @@ def replay_studies(studies: list[Path], processes: int = 2, order=ready, cli_in_
             checks.append((i, check, config if cli_in_pool and processes > 1 else None))  # one process: after
         else:
             j, t = study_jobs(out, i)
-        jobs += j
-        times.update(t)
+        kept = [job for job in j if (i, job.method) not in without]
+        jobs += kept
+        times.update({job.key: t[job.key] for job in kept})
     serial = with_cli_jobs(jobs, times, checks)
-    times = {k: v * (eval_scale if k[2] not in (ALL, TRAINING) else 1.0) for k, v in times.items()}
+    scale = {TRAINING: train_scale, ALL: 1.0}
+    times = {k: v * scale.get(k[2], eval_scale) for k, v in times.items()}
     train = sum(v for k, v in times.items() if k[2] == TRAINING)
     return {"jobs": len(jobs), "train_s": train, "eval_s": sum(times.values()) - train,
             "pool_s": replay(jobs, times, processes, order), "serial_s": serial}  # fmt: skip
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument(
         "--study", type=Path, action="append", required=True, help="a finished study folder, or its summary.json"
@@ -149,11 +160,26 @@ def main() -> None:
     p.add_argument("--dataset-scale", type=float, default=1.0)
     p.add_argument("--order", choices=sorted(ORDERS), default="ready", help="the pool's order of ready jobs")
     p.add_argument("--cli-after-pool", action="store_true", help="the cross-checks after the pool, one at a time")
-    args = p.parse_args()
+    p.add_argument("--without", action="append", default=[], metavar="STUDY:METHOD",
+                   help="leave out a method's jobs in the --study at that position (0 first)")  # fmt: skip
+    p.add_argument("--train-scale", type=float, default=1.0, help="multiply every training's time")
+    args = p.parse_args(argv)
+    try:
+        without = tuple((int(w.split(":")[0]), w.split(":", 1)[1]) for w in args.without)
+    except (ValueError, IndexError):
+        raise SystemExit(f"--without takes STUDY:METHOD (a --study's position, 0 first): got {args.without}") from None
     datasets = args.dataset_s or [0.0] * len(args.study)
     if len(datasets) != len(args.study):
         raise SystemExit("give one --dataset-s per --study")
-    r = replay_studies(args.study, args.processes, ORDERS[args.order], not args.cli_after_pool, args.eval_scale)
+    r = replay_studies(
+        args.study,
+        args.processes,
+        ORDERS[args.order],
+        not args.cli_after_pool,
+        args.eval_scale,
+        without,
+        args.train_scale,
+    )
     data = sum(datasets) * args.dataset_scale
     wall = data + r["pool_s"] + r["serial_s"]
     print(

@@ -54,3 +54,20 @@ def test_the_cross_check_replays_as_a_pool_job_after_the_nominal_evaluation(benc
     assert (after["pool_s"], after["serial_s"]) == (130.0, 15.0)
     summary.write_text(json.dumps({"timings_s": timings}))
     assert bench.replay_studies([summary])["serial_s"] == 15.0
+
+
+def test_a_cut_replays_without_its_methods_jobs_and_with_its_training_scale(bench, tmp_path, capsys):
+    """``--without STUDY:METHOD`` leaves that study's method out (the other study's stays); ``--train-scale`` scales
+    every training; a malformed ``--without`` is one line naming the form."""
+    timings = {"train/clocked_lstm/1000": 100.0, "eval/clocked_lstm/1000/nominal": 30.0, "eval/expert/-/nominal": 40.0}
+    for name in ("a", "b"):
+        (tmp_path / f"{name}.json").write_text(json.dumps({"timings_s": timings}))
+    studies = [tmp_path / "a.json", tmp_path / "b.json"]
+    whole = bench.replay_studies(studies, processes=1)
+    assert (whole["jobs"], whole["pool_s"]) == (6, 340.0)
+    cut = bench.replay_studies(studies, processes=1, without=((1, "clocked_lstm"),), train_scale=0.5)
+    assert (cut["jobs"], cut["train_s"], cut["pool_s"]) == (4, 50.0, 50.0 + 30.0 + 40.0 + 40.0)
+    bench.main(["--study", str(studies[0]), "--without", "0:expert"])
+    assert "2 jobs: training 100 s + evaluation 30 s" in capsys.readouterr().out
+    with pytest.raises(SystemExit, match="--without takes STUDY:METHOD"):
+        bench.main(["--study", str(studies[0]), "--without", "expert"])
