@@ -142,6 +142,15 @@ def run_command(argv: list[str], cwd: Path, log: Path, executable: str | None = 
     }
 
 
+def write_record(record: dict, out: Path) -> None:
+    """Write ``record`` to ``out`` whole or not at all (a temporary file beside it, then renamed)."""
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp_out = out.with_suffix(".json.tmp")
+    tmp_out.write_text(json.dumps(record, indent=2) + "\n")
+    tmp_out.replace(out)
+    print(f"written to {out}")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "results" / "command_costs.json")
@@ -162,11 +171,7 @@ def main(argv: list[str] | None = None) -> int:
     from lerobot_pnp.report.provenance import machine  # after the commands: this process stays small (see above)
 
     record = {"machine": machine(), "environment": env, "commands": rows}
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    tmp_out = args.out.with_suffix(".json.tmp")
-    tmp_out.write_text(json.dumps(record, indent=2) + "\n")
-    tmp_out.replace(args.out)
-    print(f"written to {args.out}")
+    write_record(record, args.out)
     return 0
 
 

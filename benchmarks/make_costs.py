@@ -21,7 +21,6 @@ make-target table and the README's cost line from the record.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import re
 import subprocess
@@ -29,7 +28,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from command_costs import ROOT, run_command
+from command_costs import ROOT, run_command, write_record
 
 TARGETS = ("install", "test", "demo")
 _SUMMARY = re.compile(r"^=*\s*(\d+ passed.*?) in [\d.]+s", re.M)
@@ -85,11 +84,7 @@ def main(argv: list[str] | None = None) -> int:
         "slurm": bool(sinfo and sinfo.returncode == 0 and sinfo.stdout.strip()),
         "targets": {f"make {row['command'].split()[-1]}": row for row in rows},
     }
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    tmp_out = args.out.with_suffix(".json.tmp")
-    tmp_out.write_text(json.dumps(record, indent=2) + "\n")
-    tmp_out.replace(args.out)
-    print(f"written to {args.out}")
+    write_record(record, args.out)
     return 0
 
 
