@@ -23,6 +23,7 @@ from __future__ import annotations
 import argparse
 import os
 import re
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -73,7 +74,7 @@ def main(argv: list[str] | None = None) -> int:
         subprocess.run(["git", "clone", "-q", str(ROOT), str(clone)], check=True)
         subprocess.run(["git", "-C", str(clone), "checkout", "-q", commit], check=True)
         rows = measure(args.targets, clone, Path(tmp))
-        sinfo = subprocess.run(["sinfo", "-h"], capture_output=True, text=True) if _which("sinfo") else None
+        sinfo = subprocess.run(["sinfo", "-h"], capture_output=True, text=True) if shutil.which("sinfo") else None
     sys.path.insert(0, str(ROOT))
     from lerobot_pnp.report.provenance import machine  # after the targets: this process stays small meanwhile
 
@@ -86,10 +87,6 @@ def main(argv: list[str] | None = None) -> int:
     }
     write_record(record, args.out)
     return 0
-
-
-def _which(name: str) -> bool:
-    return any(Path(p, name).is_file() for p in os.environ.get("PATH", "").split(os.pathsep))
 
 
 if __name__ == "__main__":

@@ -13,6 +13,9 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import docs_cost
+from docs_cost import duration
+
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "docs" / "results"
 # the quick start's commands, named as the README's table names them
@@ -21,16 +24,6 @@ NAMES = {"generate": "`lerobot-pnp generate`", "train": "`lerobot-pnp train`", "
 
 def _json(rel: str) -> dict:
     return json.loads((RESULTS / rel).read_text())
-
-
-def duration(seconds: float) -> str:
-    """``seconds`` as a reader reads a duration: "14 s", "3 min 5 s", "1 h 12 min"."""
-    s = round(seconds)
-    if s < 60:
-        return f"{s} s"
-    if s < 3600:
-        return f"{s // 60} min {s % 60} s"
-    return f"{s // 3600} h {s % 3600 // 60} min"
 
 
 def size(mb: float | None) -> str:
@@ -90,11 +83,9 @@ def command_costs(base: str) -> str:
 
 
 def study_cost() -> tuple[str, str, str, str] | None:
-    """``make study``'s (time, peak memory, disk, where) from the study's own from-scratch cost record, by the rule
-    and in the words of ``docs_cost`` (the one statement of the study's cost); None while the committed summaries
-    hold no such record."""
-    import docs_cost
-
+    """``make study``'s (time, peak memory, disk, CPU time) from the study's own from-scratch cost record, by the
+    rule and in the words of ``docs_cost`` (the one statement of the study's cost); None while the committed
+    summaries hold no such record."""
     _, summaries = docs_cost._study()
     cost = docs_cost.measured(summaries)
     if cost is None:
@@ -103,15 +94,13 @@ def study_cost() -> tuple[str, str, str, str] | None:
         docs_cost._duration(cost["wall_s"]),
         docs_cost._size(cost.get("peak_rss_mb")),
         docs_cost._size(cost.get("disk_mb")),
-        "the study itself, from scratch (`docs/results/study/*/summary.json`, `cost`)",
+        "-" if cost.get("cpu_s") is None else duration(cost["cpu_s"]),
     )
 
 
 def make_costs(base: str) -> str:
     """The make targets: ``make install``, ``make test`` and ``make demo`` as measured one after the other from a
     fresh clone (``docs/results/make_costs.json``), ``make study`` from the study's own from-scratch record."""
-    import docs_cost
-
     record = _json("make_costs.json")
     lines = [
         "| target | wall time | CPU time | peak memory | disk written | what it ran |",
@@ -137,11 +126,9 @@ def make_costs(base: str) -> str:
             f"from-scratch cost record: their job times replayed, [results, what it costs]({base}index.md#what-it-costs) |"
         )
     else:
-        time_, memory, disk, _ = study
-        cpu = docs_cost.measured(docs_cost._study()[1]).get("cpu_s")
+        time_, memory, disk, cpu = study
         lines.append(
-            f"| `make study` | {time_} | {'-' if cpu is None else duration(cpu)} | {memory} | {disk} | both studies, "
-            "from scratch: its own record |"
+            f"| `make study` | {time_} | {cpu} | {memory} | {disk} | both studies, from scratch: its own record |"
         )
     m = record["machine"]
     return "\n".join(

@@ -98,17 +98,21 @@ def make_target(target: str) -> tuple[dict, dict]:
     return record["targets"][f"make {target}"], record["machine"]
 
 
-def minutes_seconds(seconds: float) -> str:
-    """A target's time as "9 min 48 s"."""
+def duration(seconds: float) -> str:
+    """``seconds`` as a reader reads a duration: "14 s", "3 min 5 s", "1 h 12 min"."""
     s = round(seconds)
-    return f"{s // 60} min {s % 60} s" if s >= 60 else f"{s} s"
+    if s < 60:
+        return f"{s} s"
+    if s < 3600:
+        return f"{s // 60} min {s % 60} s"
+    return f"{s // 3600} h {s % 3600 // 60} min"
 
 
 def demo_line() -> str:
     """The one statement of `make demo`'s cost."""
     demo, m = make_target("demo")
     return (
-        f"- `make demo`: **{minutes_seconds(demo['wall_s'])}** from a fresh clone, the venv installed, on "
+        f"- `make demo`: **{duration(demo['wall_s'])}** from a fresh clone, the venv installed, on "
         f"{_machine(m)} (`benchmarks/make_costs.py`; commit `{m['commit'][:7]}`, {m['date']})."
     )
 

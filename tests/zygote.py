@@ -272,9 +272,11 @@ def _exit_as_the_interpreter(request: dict) -> None:
         _child(request)
         status = 0
     except SystemExit as stop:
-        status = stop.code if stop.code is None or isinstance(stop.code, int) else 1
-        if not (stop.code is None or isinstance(stop.code, int)):
+        if stop.code is None or isinstance(stop.code, int):
+            status = stop.code or 0
+        else:  # a message: printed, status 1
             print(stop.code, file=sys.stderr)
+            status = 1
     except KeyboardInterrupt:
         sys.excepthook(*sys.exc_info())
         status = -signal.SIGINT
@@ -289,7 +291,7 @@ def _exit_as_the_interpreter(request: dict) -> None:
     if status == -signal.SIGINT:
         signal.signal(signal.SIGINT, signal.SIG_DFL)
         os.kill(os.getpid(), signal.SIGINT)
-    os._exit(status or 0)
+    os._exit(status)
 
 
 if __name__ == "__main__":
