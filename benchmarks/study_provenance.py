@@ -20,49 +20,18 @@ compared with the published study without git history (``code_changes``; ``tests
 from __future__ import annotations
 
 import argparse
-import fnmatch
-import hashlib
 import json
 import sys
 from pathlib import Path
 
 from lerobot_pnp.errors import ConfigError, PnPError
 from lerobot_pnp.outputs import write_json_atomic
-from lerobot_pnp.report.code_provenance import (
-    SOURCE_ROOT,
-    STUDY_CODE,
-    _code_of,
-    checkout_commit,
-    study_code_changes,
-)
+from lerobot_pnp.report.code_provenance import SOURCE_ROOT, checkout_commit, code_digests, study_code_changes
 from lerobot_pnp.report.repro import load_summary
 
 RESULTS = SOURCE_ROOT / "docs" / "results"
 SUMMARIES = (RESULTS / "study" / "report_full" / "summary.json", RESULTS / "study" / "heldout" / "summary.json")
 CODE_RECORD = RESULTS / "study" / "code.json"
-
-
-def _study_files(root: Path) -> list[str]:
-    """The files under ``root`` that ``STUDY_CODE``'s pathspecs name, read without git: its ``:(glob)`` and
-    plain paths, less its ``:(exclude,glob)`` folders."""
-    include, exclude = [], []
-    for spec in STUDY_CODE:
-        magic, _, pattern = spec.rpartition(")") if spec.startswith(":(") else ("", "", spec)
-        (exclude if "exclude" in magic else include).append(pattern)
-    names = {p.relative_to(root).as_posix() for pattern in include for p in root.glob(pattern) if p.is_file()}
-    return sorted(n for n in names if not any(fnmatch.fnmatch(n, pattern) for pattern in exclude))
-
-
-def code_digests(root: Path) -> dict[str, str]:
-    """Per study code file under ``root`` (relative name), the sha256 of its code: a Python module's syntax tree
-    with docstrings set aside (comments never reach it), any other file's bytes."""
-    root = Path(root)
-    digests = {}
-    for name in _study_files(root):
-        data = (root / name).read_bytes()
-        code = _code_of(data.decode()) if name.endswith(".py") else None
-        digests[name] = hashlib.sha256(code.encode() if code is not None else data).hexdigest()
-    return digests
 
 
 def code_changes(record: dict, root: Path) -> list[str]:

@@ -74,6 +74,36 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
 }
 
 
+# Episode counts have two names: ``num_episodes``, the episodes of data a command records or reads (as
+# ``lerobot-record --dataset.num_episodes``), and ``n_episodes``, the episodes it runs (as ``lerobot-eval
+# --eval.n_episodes``). Options once spelled otherwise get a one-line error naming their current spelling.
+RENAMED_OPTIONS: dict[str, dict[str, str]] = {
+    "dagger": {"num_demos": "num_episodes", "eval_episodes": "n_episodes"},
+    "lookup-table": {"n_episodes": "num_episodes"},
+    "viz": {"n_rollouts": "n_episodes"},
+    "leaderboard": {"episodes": "n_episodes"},
+}
+
+
+def check_renamed(name: str, config_path: str | None, args: list[str]) -> None:
+    """Raise ``ConfigError`` naming the current spelling when ``args`` or the ``--config_path`` file (its top
+    level) use a renamed option of command ``name``."""
+    from lerobot_pnp.errors import ConfigError
+
+    renamed = RENAMED_OPTIONS.get(name, {})
+    used = [a[2:].split("=", 1)[0].replace("-", "_") for a in args if a.startswith("--")]
+    try:
+        keys = list(json.loads(Path(config_path).read_text())) if config_path else []
+    except (OSError, ValueError, TypeError):
+        keys = []  # not JSON (YAML) or unreadable: the parser reports what it rejects
+    for where, option in [("", o) for o in used] + [(f" in {config_path}", k) for k in keys]:
+        if option in renamed:
+            raise ConfigError(
+                f"--{option}{where} is spelled --{renamed[option]} (num_episodes: episodes of data recorded or "
+                "read; n_episodes: episodes run)"
+            )
+
+
 def _load(ref: str):
     module, name = ref.split(":")
     return getattr(importlib.import_module(module), name)
@@ -152,6 +182,7 @@ def command_config(name: str, args: list[str]) -> tuple[type, str | None, list[s
     if name == "compare":  # its runs are positional: RUN_A RUN_B ...
         args = _load("lerobot_pnp.evaluation.compare:positional_runs")(args)
     config_path, args = _split_config_path(args)
+    check_renamed(name, config_path, args)
     if hasattr(config_cls, "command_class"):  # a config class chosen by the input (train: the policy type)
         config_cls, args = config_cls.command_class(config_path, args)
     return config_cls, config_path, args

@@ -44,7 +44,7 @@ def _size_flag(command: str) -> str:
     """What the command's size flag asks for, as the quick start sets it ("200 episodes")."""
     words = command.split()
     for flag, unit in (("--num_episodes", "episodes"), ("--epochs", "epochs"), ("--eval.n_episodes", "episodes"),
-                       ("--n_rollouts", "rollouts")):  # fmt: skip
+                       ("--n_episodes", "rollouts")):  # fmt: skip
         if flag in words:
             return f"{words[words.index(flag) + 1]} {unit}"
     return ""

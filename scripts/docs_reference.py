@@ -139,12 +139,12 @@ EPISODE_FLAGS = (
     ("lerobot-pnp generate", ["num_episodes"]),
     ("lerobot-pnp demo", ["num_episodes", "cli_check_episodes"]),
     ("lerobot-pnp report", ["num_episodes", "cli_check_episodes"]),
-    ("lerobot-pnp dagger", ["num_demos", "rollouts_per_round", "eval_episodes"]),
-    ("lerobot-pnp lookup-table", ["n_episodes"]),
+    ("lerobot-pnp dagger", ["num_episodes", "rollouts_per_round", "n_episodes"]),
+    ("lerobot-pnp lookup-table", ["num_episodes"]),
     ("lerobot-pnp expert", ["n_episodes"]),
     ("lerobot-eval", ["n_episodes"]),
-    ("lerobot-pnp viz", ["n_rollouts"]),
-    ("lerobot-pnp leaderboard", ["episodes"]),
+    ("lerobot-pnp viz", ["n_episodes"]),
+    ("lerobot-pnp leaderboard", ["n_episodes"]),
 )
 
 

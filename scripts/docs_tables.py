@@ -41,7 +41,12 @@ PAPER_METHODS = {
 }
 PAPER_SUITES = ("nominal", "outside_ring", "nudge_0.03", "nudge_0.05", "obs_noise_0.01", "latency", "random_yaw",
                 "grasp_miss", "drop", "displace")  # fmt: skip
-HELDOUT_METHODS = ("recovering", "expert", "memoryless_mlp", "act", "lookup_table")
+HELDOUT_METHODS = ("recovering", "expert", "memoryless_mlp", "act", "lookup_table")  # the order of those run
+
+
+def heldout_methods(summary: dict) -> list[str]:
+    """The held-out study's methods, in the pages' order (``HELDOUT_METHODS``): those its config ran."""
+    return [m for m in HELDOUT_METHODS if m in summary["config"]["methods"]]
 
 
 def _json(rel: str) -> dict:
@@ -123,7 +128,7 @@ def heldout_verdicts(base: str) -> str:
             f"{_verdict(e, difference=True)} |"
         )
     others = []
-    for m in HELDOUT_METHODS[1:]:
+    for m in heldout_methods(summary)[1:]:
         verdicts = sorted({_verdict(e).strip("*") for (_, method), e in rows.items() if method == m})
         others.append(f"{PAPER_METHODS[m]}: {', '.join(verdicts)}")
     seeds = summary["config"]["train_seeds"]
@@ -142,7 +147,7 @@ def heldout_verdicts(base: str) -> str:
 def heldout_suites(base: str) -> str:
     """Every suite of the held-out study: the recovering planner with its interval and seeds, the baselines."""
     summary = _json("study/heldout/summary.json")
-    cols = HELDOUT_METHODS
+    cols = heldout_methods(summary)
     lines = ["| suite | " + " | ".join(PAPER_METHODS[m] for m in cols) + " |", "|---" * (len(cols) + 1) + "|"]
     for suite, cells in summary["success"].items():
         rec = cells["recovering"]

@@ -45,7 +45,7 @@ def main() -> None:
             beta=a.beta,
             rollout_suites=[a.suite],
             eval_suites=["heldout_latency_2"],
-            eval_episodes=200,
+            n_episodes=200,
             eval_seed=100_000,
             policy=policy,
             epochs=300,

@@ -23,12 +23,12 @@ from lerobot_pnp.errors import ConfigError, DatasetError, ResetOptionError
 from lerobot_pnp.outputs import OutputFolder
 
 DAGGER = {
-    "num_demos": 6,
+    "num_episodes": 6,
     "rounds": 1,
     "rollouts_per_round": 2,
     "rollout_suites": ["quiet_drop"],
     "eval_suites": ["quiet"],
-    "eval_episodes": 2,
+    "n_episodes": 2,
     "epochs": 2,
     "progress": False,
 }
@@ -104,19 +104,19 @@ def test_2_dagger_reruns_the_stages_whose_config_changed(dagger_run, tmp_path, c
     assert _dagger(out, seed=1) == 0
     assert json.loads((out / "demos/stage.json").read_text())["parts"]["seed"] == 1
     assert ckpt0.stat().st_mtime_ns != stamp[ckpt0]
-    assert _dagger(out, seed=1, num_demos=8) == 0
+    assert _dagger(out, seed=1, num_episodes=8) == 0
     info = json.loads((out / "round_01/data/meta/info.json").read_text())
     assert info["total_episodes"] == 8 + 2 and info["splits"]["test"] == "7:8"  # the test range of these demos
     other = _copy(out / "round_00/train/checkpoints/last/pretrained_model", tmp_path / "round0")
     rollouts = out / "round_01/rollouts.json"
     trained = json.loads(rollouts.read_text())["key"]
-    assert _dagger(out, seed=1, num_demos=8, round0_checkpoint=str(other)) == 0
+    assert _dagger(out, seed=1, num_episodes=8, round0_checkpoint=str(other)) == 0
     before = json.loads(rollouts.read_text())["key"]
     assert before != trained  # rolled out again: a checkpoint passed in is keyed by its content
-    assert _dagger(out, seed=1, num_demos=8, round0_checkpoint=str(other)) == 0
+    assert _dagger(out, seed=1, num_episodes=8, round0_checkpoint=str(other)) == 0
     assert json.loads(rollouts.read_text())["key"] == before  # the same checkpoint content: the same key
     (other / "model.safetensors").write_bytes((out / CKPT / "model.safetensors").read_bytes())
-    assert _dagger(out, seed=1, num_demos=8, round0_checkpoint=str(other)) == 0
+    assert _dagger(out, seed=1, num_episodes=8, round0_checkpoint=str(other)) == 0
     assert json.loads(rollouts.read_text())["key"] != before  # another round-0 policy: rolled out again
 
 

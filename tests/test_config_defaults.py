@@ -81,10 +81,10 @@ def test_a_config_file_with_part_of_the_policy_keeps_the_rest_of_the_recipe(tmp_
     from lerobot_pnp.policy.recipes import RECOVERING_RECIPE
 
     config = tmp_path / "dagger.json"
-    config.write_text(json.dumps({"num_demos": 10, "policy": {"num_layers": 1}}))
+    config.write_text(json.dumps({"num_episodes": 10, "policy": {"num_layers": 1}}))
     cfg = cli.config_of("dagger", ["--config_path", str(config), "--policy.hidden_size=16"])
     expected = {**RECOVERING_RECIPE, "num_layers": 1, "hidden_size": 16}
-    assert cfg.num_demos == 10 and {k: getattr(cfg.policy, k) for k in RECOVERING_RECIPE} == expected
+    assert cfg.num_episodes == 10 and {k: getattr(cfg.policy, k) for k in RECOVERING_RECIPE} == expected
 
 
 def _path_flag(name: str) -> str | None:

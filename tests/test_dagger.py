@@ -121,12 +121,12 @@ def test_config_rejects_unknown_suites():
 def test_rounds_run_and_resume(tmp_path):
     cfg = dict(
         output_dir=str(tmp_path / "dg"),
-        num_demos=6,
+        num_episodes=6,
         rounds=1,
         rollouts_per_round=2,
         rollout_suites=["quiet_drop", "quiet_grasp_miss"],
         eval_suites=["quiet"],
-        eval_episodes=2,
+        n_episodes=2,
         epochs=2,
         progress=False,
     )
@@ -283,8 +283,8 @@ def test_beta_decides_who_acts(full_cfg, beta):
 
 
 def test_a_changed_beta_or_dart_noise_reruns_the_rollouts(tmp_path):
-    cfg = dict(output_dir=str(tmp_path / "dg"), num_demos=4, rounds=1, rollouts_per_round=1,
-               rollout_suites=["quiet_drop"], eval_suites=["quiet"], eval_episodes=0, epochs=1, progress=False)  # fmt: skip
+    cfg = dict(output_dir=str(tmp_path / "dg"), num_episodes=4, rounds=1, rollouts_per_round=1,
+               rollout_suites=["quiet_drop"], eval_suites=["quiet"], n_episodes=0, epochs=1, progress=False)  # fmt: skip
     first = run_dagger(DaggerConfig(**cfg))
     record = tmp_path / "dg" / "round_01" / "rollouts.json"
     stamp = record.stat().st_mtime_ns
@@ -385,8 +385,8 @@ def _tree(folder: Path) -> dict[str, bytes | None]:
 
 
 def _dagger_cli(out: Path, *extra: str) -> list[str]:
-    return ["dagger", "--output_dir", str(out), "--num_demos", "4", "--rounds", "0", "--epochs", "1",
-            "--eval_episodes", "0", "--progress", "false", *extra]  # fmt: skip
+    return ["dagger", "--output_dir", str(out), "--num_episodes", "4", "--rounds", "0", "--epochs", "1",
+            "--n_episodes", "0", "--progress", "false", *extra]  # fmt: skip
 
 
 def test_a_users_dataset_named_demos_is_refused_and_kept(tmp_path, capsys):

@@ -301,7 +301,7 @@ def test_every_documented_command_exists_as_written(at_root):
         ("lerobot-train --config_path configs/train_act_images.json --policy.hidden_size 8", ["--policy.hidden_size"]),
         ("lerobot-train --config_path configs/no_such.json", ["--config_path configs/no_such.json: no such file in the repository"]),
         ("lerobot-pnp report --config_path configs/report_full.json --alongside configs/no_such.json", ["configs/no_such.json: no such file in the repository"]),
-        ("lerobot-pnp viz --policy.path p --device cuda --n_rollouts 2", []),
+        ("lerobot-pnp viz --policy.path p --device cuda --n_episodes 2", []),
         ("lerobot-train --policy.type pnp_lstm --policy.hidden_size 8 --dataset.root d --rename_map.a b", []),
     ],
 )  # fmt: skip

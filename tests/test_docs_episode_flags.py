@@ -1,8 +1,10 @@
 """Episode counts and batch sizes across the documented commands.
 
-The commands spell their episode counts differently (``--num_episodes``, ``--n_episodes``, ``--eval.n_episodes``,
-``--n_rollouts``, ...) and keep their flags; the command-line reference has one table that names each command's
-(``scripts/docs_reference.py`` ``episode-flags``), and it lists every integer episode count a command has. Every
+An episode count has two spellings: ``--num_episodes`` for the episodes of data a command records or reads,
+``--n_episodes`` for the episodes it runs (as ``lerobot-eval --eval.n_episodes``); ``cli.RENAMED_OPTIONS`` turns
+an older spelling into a one-line error that names the current one. The command-line reference has one table that
+names each command's (``scripts/docs_reference.py`` ``episode-flags``), and it lists every integer episode count a
+command has. Every
 documented ``lerobot-eval`` run uses the studies' batch of 50 environments: the batch size can flip a borderline
 episode, so another one would not reproduce the published numbers.
 """
@@ -74,4 +76,29 @@ def test_the_reference_table_names_every_episode_count_of_every_command():
                 counts.add((f"lerobot-pnp {name}", f.name))
     assert counts - listed == set(), "add these to docs_reference.EPISODE_FLAGS"
     table = docs_reference.episode_flags("")
-    assert "| `lerobot-eval` | `--eval.n_episodes` |" in table and "| `lerobot-pnp viz` | `--n_rollouts` |" in table
+    assert "| `lerobot-eval` | `--eval.n_episodes` |" in table and "| `lerobot-pnp viz` | `--n_episodes` |" in table
+
+
+# counts of another thing than a command's episodes: a sub-count of the episodes run, the rollouts of a round
+OTHER_COUNTS = {"cli_check_episodes", "rollouts_per_round"}
+
+
+def test_every_episode_count_is_num_episodes_or_n_episodes():
+    load_script("scripts/docs_tables.py")  # puts scripts/ on the path
+    import docs_reference
+
+    names = {name for _, fields in docs_reference.EPISODE_FLAGS for name in fields}
+    assert names - OTHER_COUNTS == {"num_episodes", "n_episodes"}
+
+
+def test_a_renamed_episode_flag_is_one_line_naming_its_spelling(capsys, tmp_path):
+    from lerobot_pnp import cli
+
+    assert cli.main(["dagger", "--num_demos", "3", f"--output_dir={tmp_path / 'd'}"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("lerobot-pnp dagger: error: --num_demos is spelled --num_episodes") and "\n" not in err
+    config = tmp_path / "viz.json"
+    config.write_text('{"n_rollouts": 2}')
+    assert cli.main(["viz", f"--config_path={config}"]) == 2
+    assert f"--n_rollouts in {config} is spelled --n_episodes" in capsys.readouterr().err
+    assert not (tmp_path / "d").exists()  # refused before anything was written

@@ -219,3 +219,33 @@ def test_both_loaders_name_the_same_non_finite_weights():
 
     with pytest.raises(PolicyLoadError, match=r"the checkpoint ckpt is corrupt: its weights 'b' contain NaN/inf"):
         check_checkpoint_values("ckpt", Policy(), ())
+
+
+def test_t975_gives_students_quantiles():
+    from lerobot_pnp.evaluation.stats import t975
+
+    published = {1: 12.706, 2: 4.303, 4: 2.776, 10: 2.228, 11: 2.201, 20: 2.086, 30: 2.042, 60: 2.000, 1000: 1.962}
+    assert all(abs(t975(d) - t) < 1e-3 for d, t in published.items())
+    with pytest.raises(ValueError, match="dof >= 1"):
+        t975(0)
+
+
+def test_a_pooled_interval_counts_the_seeds_where_they_spread():
+    from lerobot_pnp.evaluation.results import Pooled
+    from lerobot_pnp.evaluation.stats import Rate, seed_interval
+
+    agree = Pooled(Rate(135, 150), (Rate(45, 50),) * 3)  # seeds with one rate: the episodes' Wilson interval
+    assert agree.interval == agree.rate.interval
+    close = Pooled(Rate(135, 150), (Rate(45, 50), Rate(46, 50), Rate(44, 50)))  # never narrower than Wilson's
+    assert close.interval[0] <= close.rate.interval[0] and close.interval[1] >= close.rate.interval[1]
+    spread = Pooled(Rate(75, 150), (Rate(10, 50), Rate(25, 50), Rate(40, 50)))  # 20, 50 and 80 %
+    lo, hi = spread.interval
+    wlo, whi = spread.rate.interval
+    assert lo < wlo and hi > whi  # wider than the episodes allow: a rerun's seeds can land anywhere in there
+    assert lo == pytest.approx(max(0.0, 0.5 - 4.302652730 * 0.3 / 3**0.5))
+    assert seed_interval(Rate(7, 10), [0.7]) == Rate(7, 10).interval  # one seed: Wilson's
+    assert str(spread) == f"50.0% [{100 * lo:.1f}, {100 * hi:.1f}]"
+    cell = spread.to_json()
+    assert (
+        cell["interval"] == (lo, hi) and cell["episode_interval"] == (wlo, whi) and cell["per_seed"] == [0.2, 0.5, 0.8]
+    )

@@ -39,7 +39,7 @@ def test_rows_verdicts_and_the_command_to_add_one(tmp_path):
     _write_row(tmp_path / "runs", "a_good", ok=10)
     _write_row(tmp_path / "runs", "b_weak", ok=3)
     out = tmp_path / "leaderboard.md"
-    args = ["leaderboard", f"--runs_dir={tmp_path / 'runs'}", f"--output={out}", "--episodes=10"]
+    args = ["leaderboard", f"--runs_dir={tmp_path / 'runs'}", f"--output={out}", "--n_episodes=10"]
     assert cli.main([*args, "--check=true"]) == 2 and not out.exists()  # no page yet
     assert cli.main(args) == 0 and cli.main([*args, "--check=true"]) == 0
     page = out.read_text()
@@ -59,9 +59,9 @@ def test_a_row_that_does_not_pair_writes_nothing(tmp_path):
     _write_row(tmp_path / "runs", "a", ok=10)
     _write_row(tmp_path / "runs", "b", ok=3, n=12)
     with pytest.raises(ConfigError, match="do not pair"):
-        render(tmp_path / "runs", episodes=10)
+        render(tmp_path / "runs", n_episodes=10)
     out = tmp_path / "leaderboard.md"
-    assert cli.main(["leaderboard", f"--runs_dir={tmp_path / 'runs'}", f"--output={out}", "--episodes=10"]) == 2
+    assert cli.main(["leaderboard", f"--runs_dir={tmp_path / 'runs'}", f"--output={out}", "--n_episodes=10"]) == 2
     assert not out.exists()
     _write_row(tmp_path / "short", "c", ok=3)
     with pytest.raises(ConfigError, match="every suite needs 100 episodes"):
@@ -73,26 +73,28 @@ def test_a_row_may_carry_a_short_name_and_its_budget_and_nothing_else(tmp_path):
     meta_file = tmp_path / "runs" / "a" / "row.json"
     meta = json.loads(meta_file.read_text())
     meta_file.write_text(json.dumps({**meta, "name": "A", "budget": "10 demos, no training"}))
-    assert "| `a` | method a | 10 demos, no training | 100.0% [72.2, 100.0] |" in render(tmp_path / "runs", episodes=10)
-    rows, result, axes = analyse_rows(tmp_path / "runs", episodes=10)
+    assert "| `a` | method a | 10 demos, no training | 100.0% [72.2, 100.0] |" in render(
+        tmp_path / "runs", n_episodes=10
+    )
+    rows, result, axes = analyse_rows(tmp_path / "runs", n_episodes=10)
     assert rows[0] == ("a", {**meta, "name": "A", "budget": "10 demos, no training"})
     assert str(result["table"]["nominal"]["a"].rate) == "100.0% [72.2, 100.0]" and axes[("timing", "a")].verdict
     _write_row(tmp_path / "runs", "b_floor", ok=0)
-    table, left_out = compact_table(tmp_path / "runs", episodes=10, leave_out=("b_floor",))
+    table, left_out = compact_table(tmp_path / "runs", n_episodes=10, leave_out=("b_floor",))
     assert left_out == ["b_floor"] and "b_floor" not in table  # no short name: the row's folder stands in
     assert table.splitlines()[2].replace("\N{NO-BREAK SPACE}", " ") == (
         "| A | 10 demos, no training | 100 [72.2, 100] | 100 ? | 100 ? | 100 ? | 100 ? | 100 ? |"
     )
     meta_file.write_text(json.dumps({**meta, "budgets": "typo"}))
     with pytest.raises(ConfigError, match="unknown key 'budgets'; valid: .*'budget'"):
-        render(tmp_path / "runs", episodes=10)
+        render(tmp_path / "runs", n_episodes=10)
     meta_file.write_text(json.dumps({**meta, "budget": 300}))
     with pytest.raises(ConfigError, match="'budget' must be text, not 300"):
-        render(tmp_path / "runs", episodes=10)
+        render(tmp_path / "runs", n_episodes=10)
 
 
 def _args(root: Path, out: Path) -> list[str]:
-    return ["leaderboard", f"--runs_dir={root / 'runs'}", f"--output={out}", "--episodes=10"]
+    return ["leaderboard", f"--runs_dir={root / 'runs'}", f"--output={out}", "--n_episodes=10"]
 
 
 def test_only_its_own_page_is_replaced(tmp_path, monkeypatch, capsys):
@@ -103,7 +105,7 @@ def test_only_its_own_page_is_replaced(tmp_path, monkeypatch, capsys):
     mine.parent.mkdir()
     mine.write_text("# My project's leaderboard\n")
     monkeypatch.chdir(tmp_path)
-    assert cli.main(["leaderboard", f"--runs_dir={tmp_path / 'runs'}", "--episodes=10"]) == 2
+    assert cli.main(["leaderboard", f"--runs_dir={tmp_path / 'runs'}", "--n_episodes=10"]) == 2
     err = capsys.readouterr().err.strip()
     assert "'docs/leaderboard.md' exists and is not a page `lerobot-pnp leaderboard` wrote" in err and "\n" not in err
     assert mine.read_text() == "# My project's leaderboard\n"
@@ -134,7 +136,7 @@ def test_row_text_is_escaped_on_the_page(tmp_path):
     meta = {"label": "<script>alert(1)</script> x|y\n| injected |", "budget": "a|b\nc", "name": "n|m",
             "command": "lerobot-eval ... | tail -n 1\n- injected item"}  # fmt: skip
     (tmp_path / "runs" / "a" / "row.json").write_text(json.dumps(meta))
-    page = render(tmp_path / "runs", episodes=10)
+    page = render(tmp_path / "runs", n_episodes=10)
     outside_code = re.sub(r"(`+).*?\1", "", page)
     assert "<script>" not in outside_code and "&lt;script&gt;alert(1)&lt;/script&gt; x\\|y \\| injected \\|" in page
     assert "| `a` | &lt;script&gt;" in page and "| a\\|b c |" in page and "\n- injected item" not in page
@@ -142,7 +144,7 @@ def test_row_text_is_escaped_on_the_page(tmp_path):
     for table in re.findall(r"(?:^\|.*\n)+", page, re.M):
         rows = table.splitlines()
         assert len({len(re.findall(r"(?<!\\)\|", r)) for r in rows}) == 1, table
-    table, _ = compact_table(tmp_path / "runs", episodes=10)
+    table, _ = compact_table(tmp_path / "runs", n_episodes=10)
     assert table.splitlines()[2].startswith("| n\\|m | a\\|b c |")
 
 

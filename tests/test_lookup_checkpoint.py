@@ -145,7 +145,7 @@ def test_overwrite_replaces_only_the_tables_files(demos, tmp_path, capsys):
     assert cli.main(args) == 0
     written = sorted(p.name for p in out.iterdir() if p.name != MANIFEST_FILE)
     (out / "NOTES.txt").write_text("my notes")
-    assert cli.main([*args, "--overwrite", "true", "--n_episodes", "2"]) == 0
+    assert cli.main([*args, "--overwrite", "true", "--num_episodes", "2"]) == 0
     assert (out / "NOTES.txt").read_text() == "my notes"
     assert json.loads((out / "config.json").read_text())["table_episodes"] == 2
     (out / MANIFEST_FILE).unlink()  # a table written before the manifest: its files are still the command's

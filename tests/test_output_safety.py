@@ -354,7 +354,7 @@ def test_dagger_keeps_its_demonstrations_record_when_the_generator_refuses_the_s
     from lerobot_pnp.dagger import loop
     from lerobot_pnp.dagger.config import DaggerConfig
 
-    cfg = DaggerConfig(output_dir=str(tmp_path), num_demos=4)
+    cfg = DaggerConfig(output_dir=str(tmp_path), num_episodes=4)
     record = tmp_path / "demos" / "stage.json"
     record.parent.mkdir()
     record.write_text(json.dumps({"key": "k", "parts": {"stage": "demos", "seed": 99}}))  # another seed: stale

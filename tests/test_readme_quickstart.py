@@ -25,7 +25,7 @@ SMALL = {
     "--epochs": "1",
     "--eval.n_episodes": "2",
     "--eval.batch_size": "2",
-    "--n_rollouts": "1",
+    "--n_episodes": "1",
 }
 # what the README's table says each command writes, relative to the folder it runs in
 WRITES = {

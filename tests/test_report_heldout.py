@@ -37,7 +37,7 @@ def test_a_paper_study_keeps_its_stage_keys(tmp_path):
 def test_the_heldout_preset_runs_the_protocol_on_the_full_task():
     cfg = StudyConfig(preset="heldout")
     assert (cfg.task_preset, cfg.num_episodes, cfg.epochs, cfg.train_seeds) == ("full", 1000, 300, [1000, 1001, 1002])
-    assert cfg.methods == ["expert", "lookup_table", "recovering", "memoryless_mlp", "act"]
+    assert cfg.methods == ["expert", "lookup_table", "recovering", "act"]
     assert [s.name for s in cfg.suites] == ["nominal", *PROTOCOL_SUITES] and {s.n_episodes for s in cfg.suites} == {200}
     assert set(PROTOCOL_SUITES) == {s for a in HELD_OUT_AXES for s in a.in_distribution + a.held_out}
     assert cfg.cli_check_episodes == 100 and cfg.data_efficiency == []
@@ -81,7 +81,7 @@ def test_make_study_runs_both_tasks_with_every_method_and_three_seeds():
     paper, heldout = StudyConfig(**paper), StudyConfig(**heldout)
     assert (paper.task_preset, heldout.task_preset) == ("paper", "full")
     assert len(paper.train_seeds) == len(heldout.train_seeds) == 3
-    assert {"recovering", "memoryless_mlp", "act", "lookup_table", "expert"} <= set(heldout.methods)
+    assert {"recovering", "act", "lookup_table", "expert"} <= set(heldout.methods)
     assert {s.name for s in heldout.suites} >= {s for a in HELD_OUT_AXES for s in a.held_out}
 
 

@@ -37,7 +37,7 @@ def _write_run(folder: Path) -> None:
 
 def test_the_study_compare_and_the_leaderboard_give_one_verdict_for_the_same_counts(tmp_path):
     _write_run(tmp_path / "rows" / "m")
-    _, _, board = analyse_rows(tmp_path / "rows", episodes=N)
+    _, _, board = analyse_rows(tmp_path / "rows", n_episodes=N)
     assert cli.main(["compare", f"m={tmp_path / 'rows' / 'm'}", "--output_dir", str(tmp_path / "cmp")]) == 0
     compared = {a["axis"]: a for a in json.loads((tmp_path / "cmp" / "compare.json").read_text())["held_out_axes"]}
     records = {

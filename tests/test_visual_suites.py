@@ -146,7 +146,7 @@ def test_the_leaderboard_shows_the_visual_axes_only_for_rows_evaluated_on_them(t
 
     runs = tmp_path / "runs"
     _write_row(runs, "a_state", ok=10, n=N)
-    assert "## Visual axes" not in render(runs, episodes=N)  # the page as it was without visual rows
+    assert "## Visual axes" not in render(runs, n_episodes=N)  # the page as it was without visual rows
     cam = runs / "b_camera"
     _visual_run(cam, TRAIN_OK)
     info = json.loads((cam / "eval_info.json").read_text())
@@ -155,7 +155,7 @@ def test_the_leaderboard_shows_the_visual_axes_only_for_rows_evaluated_on_them(t
     info["per_group"] = {**state["per_group"], **info["per_group"]}
     (cam / "eval_info.json").write_text(json.dumps(info))
     (cam / "row.json").write_text(json.dumps({"label": "camera policy", "command": "lerobot-eval ..."}))
-    page = render(runs, episodes=N)
+    page = render(runs, n_episodes=N)
     table = page[page.index("## Visual axes") : page.index("## Per suite")]
     assert "| `b_camera` | camera policy |" in table and "`a_state`" not in table
     assert "99.0 -> 75.0: does not generalise" in table and "99.0 -> 98.5: generalises" in table

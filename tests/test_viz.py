@@ -331,7 +331,7 @@ def test_policy_rollout_recording(policy_dir, tmp_path):
     from lerobot_pnp.viz import VizConfig, visualize
 
     out = tmp_path / "rollout.rrd"
-    summary = visualize(VizConfig(policy_path=str(policy_dir), n_rollouts=2, seed=3, save=str(out)))
+    summary = visualize(VizConfig(policy_path=str(policy_dir), n_episodes=2, seed=3, save=str(out)))
     runs = summary["runs"]
     assert [r["run"] for r in runs] == ["rollout_0", "rollout_1"]
     assert [r["seed"] for r in runs] == [3, 4]

@@ -75,7 +75,7 @@ def claim_run(folder: OutputFolder, cfg) -> None:
     if legacy := legacy_entries(folder):
         folder.adopt(*legacy)
     names = ([] if cfg.base_root else ["demos"]) + [round_name(r) for r in range(cfg.rounds + 1)]
-    names += [*TABLE_FILES, SUMMARY_FILE] if cfg.eval_episodes > 0 else [SUMMARY_FILE]
+    names += [*TABLE_FILES, SUMMARY_FILE] if cfg.n_episodes > 0 else [SUMMARY_FILE]
     folder.claim(*names)
 
 

@@ -17,7 +17,7 @@ Layout of ``output_dir``::
 
 Every stage is keyed (``lerobot_pnp.cache``) by what determines it and recorded when complete: the datasets'
 ``stage.json``, ``round_XX/rollouts.json``, ``round_XX/train/done.json`` (the checkpoint relative to it) and
-``round_XX/eval.stage.json``. A stage whose key changed (another seed, num_demos, round-0 checkpoint, ...) is
+``round_XX/eval.stage.json``. A stage whose key changed (another seed, num_episodes, round-0 checkpoint, ...) is
 re-run, and so is everything keyed by it. The folder is held for the run, and each top-level entry is recorded
 as DAgger's before any work (``folder``): only recorded entries are replaced or deleted.
 """
@@ -107,9 +107,9 @@ def _demos(cfg: DaggerConfig, out: Path, env_cfg) -> tuple[Path, str, str, str]:
         key = _key("base", content=digest_files(Path(cfg.base_root), DATASET_FILES), test=test)
         return Path(cfg.base_root), cfg.base_repo_id, test, key
     root, repo_id = out / "demos", f"{cfg.base_repo_id}_demos"
-    n = cfg.num_demos
+    n = cfg.num_episodes
     test = test_split(n, cfg.test_fraction)
-    stage = _stage(root / STAGE_FILE, "demos", env=env_cfg.to_dict(), num_demos=n, test=test, seed=cfg.seed,
+    stage = _stage(root / STAGE_FILE, "demos", env=env_cfg.to_dict(), num_episodes=n, test=test, seed=cfg.seed,
                    repo_id=repo_id)  # fmt: skip
     if not stage.done("dagger demos"):
         gen = GenerateConfig(repo_id=repo_id, root=str(root), num_episodes=n, seed=cfg.seed, env=env_cfg,
@@ -227,13 +227,13 @@ def evaluate_checkpoint(cfg: DaggerConfig, ckpt: Path, env_cfg, out_file: Path, 
     """Success per eval suite on seeds ``eval_seed + i`` (the same for every round); cached in ``out_file``
     (its record ``<name>.stage.json`` keys it by the checkpoint, the env and the evaluation settings)."""
     stage = _stage(out_file.with_suffix(".stage.json"), "eval", policy=ckpt_key or checkpoint_key(ckpt),
-                   env=env_cfg.to_dict(), suites=cfg.eval_suites, episodes=cfg.eval_episodes,
+                   env=env_cfg.to_dict(), suites=cfg.eval_suites, episodes=cfg.n_episodes,
                    eval_seed=cfg.eval_seed)  # fmt: skip
     if out_file.is_file() and stage.done(f"dagger {out_file.parent.name} evaluation"):
         return json.loads(out_file.read_text())
     stage.invalidate()
     policy = load_policy(ckpt)
-    seeds = [cfg.eval_seed + i for i in range(cfg.eval_episodes)]
+    seeds = [cfg.eval_seed + i for i in range(cfg.n_episodes)]
     results = {}
     with _tqdm(len(seeds) * len(cfg.eval_suites), f"eval {out_file.parent.name}", cfg.progress) as bar:
         for suite in cfg.eval_suites:
@@ -286,7 +286,7 @@ def _run_rounds(cfg: DaggerConfig, folder: OutputFolder) -> dict:
             warm = rnd > 0 and cfg.warm_start_epochs > 0
             ckpt = _train(cfg, data, test, rdir / "train", ckpt if warm else None)
         timings[f"round{rnd}_train_s"] = time.perf_counter() - t
-        if cfg.eval_episodes > 0:
+        if cfg.n_episodes > 0:
             rows.append((f"round {rnd}", evaluate_checkpoint(cfg, ckpt[0], env_cfg, rdir / "eval.json", ckpt[1])))
             write_table(rows, cfg.eval_suites, folder)
     remove_later_rounds(folder, cfg.rounds)

@@ -48,7 +48,8 @@ def _intro(result: dict, cfg) -> list[str]:
         lines.append(f"- suites compared: {text(cfg.suites)} (`--suites`; the runs may hold others)")
     return lines + [
         "",
-        f"Success with its 95 % Wilson interval (training seeds pooled). {_pairing(result['runs'])} Paired tests: "
+        "Success with its 95 % interval, training seeds pooled (several seeds: the interval counts the seeds as well "
+        f"as the episodes; one: Wilson's). {_pairing(result['runs'])} Paired tests: "
         f"exact McNemar per training seed at alpha {cfg.alpha} (improved / regressed: every seed's p below it, one "
         f"direction); held: the 95 % interval of the difference within +-{100 * cfg.margin:g} pts; underpowered: "
         "neither.",
@@ -67,7 +68,7 @@ def markdown(result: dict, cfg) -> str:
     lines += [_row(["suite", "n", *map(text, names)]), "|---|---|" + "---|" * len(names)]
     for s in result["suites"]:
         ns = sorted({table[s][n].rate.n for n in names if n in table[s]})
-        cells = [f"{table[s][n].rate}" if n in table[s] else "-" for n in names]
+        cells = [f"{table[s][n]}" if n in table[s] else "-" for n in names]
         lines.append(_row([text(s), "/".join(map(str, ns)), *cells]))
     control = result["control"]
     if any(control.values()):
@@ -99,7 +100,7 @@ def _seeds_markdown(seeds: dict, alpha: float) -> list[str]:
         return []
     lines = ["", "## Do the training seeds agree? (chi-square test of homogeneity)", "",
              f"differ: the seeds' success counts differ beyond evaluation noise (p < {alpha}); the pooled interval "
-             "then describes these seeds, not the rate a new training seed gets.", "",
+             "then widens to their spread.", "",
              "| run | suite | per seed | chi2 (dof) | p | seeds |", "|---" * 6 + "|"]  # fmt: skip
     for name, per in seeds.items():
         for suite, a in per.items():

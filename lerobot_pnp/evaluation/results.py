@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from lerobot_pnp.evaluation.stats import Rate, paired_comparison
+from lerobot_pnp.evaluation.stats import Rate, paired_comparison, seed_interval
 from lerobot_pnp.evaluation.verdicts import MARGIN, Verdict, axis_verdict
 from lerobot_pnp.sim.suites import ALL_AXES, SUITES, Axis
 
@@ -21,15 +21,26 @@ BASELINE = "lookup_table"
 
 @dataclass(frozen=True)
 class Pooled:
-    """A method's success on a suite: its training seeds pooled, and each seed's own rate."""
+    """A method's success on a suite: its training seeds pooled, and each seed's own rate. Its ``interval``
+    counts the training seeds as well as the episodes (``stats.seed_interval``); ``rate.interval`` is the
+    episodes' Wilson interval alone."""
 
     rate: Rate
     per_seed: tuple[Rate, ...]
 
+    @property
+    def interval(self) -> tuple[float, float]:
+        return seed_interval(self.rate, [q.rate for q in self.per_seed])
+
+    def __str__(self) -> str:
+        lo, hi = self.interval
+        return f"{100 * self.rate.rate:.1f}% [{100 * lo:.1f}, {100 * hi:.1f}]"
+
     def to_json(self) -> dict:
-        """``summary.json``'s cell: the pooled rate, its interval and episodes, and the per-seed rates."""
-        return {"rate": self.rate.rate, "interval": self.rate.interval, "n": self.rate.n,
-                "per_seed": [q.rate for q in self.per_seed]}  # fmt: skip
+        """``summary.json``'s cell: the pooled rate, its interval (seeds counted) and the episodes' Wilson interval,
+        its episodes, and the per-seed rates."""
+        return {"rate": self.rate.rate, "interval": self.interval, "episode_interval": self.rate.interval,
+                "n": self.rate.n, "per_seed": [q.rate for q in self.per_seed]}  # fmt: skip
 
 
 @dataclass(frozen=True)

@@ -1,4 +1,5 @@
-"""Success rates with 95 % Wilson intervals and paired comparisons of two methods on the same seeds.
+"""Success rates with 95 % intervals (Wilson; pooled over training seeds, counting the seeds) and paired
+comparisons of two methods on the same seeds.
 
 Every method is evaluated on the same seeded episodes, so two methods can be compared episode by episode:
 only the discordant pairs (one succeeds where the other fails) carry information, and under "no difference"
@@ -28,6 +29,45 @@ def wilson_interval(successes: int, n: int, z: float = Z95) -> tuple[float, floa
     lo = 0.0 if successes == 0 else max(0.0, centre - half)
     hi = 1.0 if successes == n else min(1.0, centre + half)
     return lo, hi
+
+
+# Student's t at 0.975 for 1-10 degrees of freedom; above, the Cornish-Fisher expansion (``t975``).
+_T975 = (12.706204736, 4.302652730, 3.182446305, 2.776445105, 2.570581836, 2.446911851, 2.364624252, 2.306004135,
+         2.262157163, 2.228138852)  # fmt: skip
+
+
+def t975(dof: int) -> float:
+    """The 97.5 % quantile of Student's t with ``dof`` degrees of freedom (the half-width factor of a 95 %
+    interval): a table up to 10, the Cornish-Fisher expansion in ``1/dof`` beyond (error below 1e-4)."""
+    if dof < 1:
+        raise ValueError(f"t975 needs dof >= 1, got {dof}")
+    if dof <= len(_T975):
+        return _T975[dof - 1]
+    z = Z95
+    return (
+        z
+        + (z**3 + z) / (4 * dof)
+        + (5 * z**5 + 16 * z**3 + 3 * z) / (96 * dof**2)
+        + (3 * z**7 + 19 * z**5 + 17 * z**3 - 15 * z) / (384 * dof**3)
+    )
+
+
+def seed_interval(pooled: Rate, seed_rates: Sequence[float]) -> tuple[float, float]:
+    """95 % interval of a rate pooled over training seeds that counts the seeds as well as the episodes.
+
+    The Wilson interval of the pooled episodes says how well the evaluation measured these trained networks; a
+    rerun trains them anew (another machine's floats, other seeds) and can land elsewhere when the seeds spread
+    more than their episodes explain. Here the pooled rate +- t(k-1) s / sqrt(k) over the k seeds' rates (s: their
+    standard deviation, which carries both the training's and the episodes' variation), joined with the Wilson
+    interval, so that it is never narrower than the episodes allow. One seed: the Wilson interval."""
+    lo, hi = pooled.interval
+    k = len(seed_rates)
+    if k < 2:
+        return lo, hi
+    mean = sum(seed_rates) / k
+    sd = math.sqrt(sum((r - mean) ** 2 for r in seed_rates) / (k - 1))
+    half = t975(k - 1) * sd / math.sqrt(k)
+    return max(0.0, min(lo, pooled.rate - half)), min(1.0, max(hi, pooled.rate + half))
 
 
 @dataclass(frozen=True)

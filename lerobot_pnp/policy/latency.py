@@ -8,6 +8,8 @@ applies it to every planner's batches, before the input noise.
 
 from __future__ import annotations
 
+from typing import Any
+
 import torch
 from torch import Tensor
 
@@ -70,3 +72,19 @@ def late_observer(
     blind |= (j == (new_len - 1).unsqueeze(1)) & (lag > 0)
     valid_new = valid.gather(1, src) & (j < new_len.unsqueeze(1)) & ~copy & ~blind
     return x_new, valid_new, src
+
+
+def latency_rules(c: Any) -> list[tuple[bool, str]]:
+    """The rules of the config's ``latency_augment_*`` options: (condition, the one-line message naming the option
+    and its value)."""
+    return [
+        (
+            0.0 <= c.latency_augment_prob <= 1.0,
+            f"latency_augment_prob must be in [0, 1], got {c.latency_augment_prob}",
+        ),
+        (
+            c.latency_augment_max >= 1 and 0.0 <= c.latency_augment_jitter <= 1.0,
+            f"latency_augment_max must be >= 1 and latency_augment_jitter in [0, 1], got "
+            f"{c.latency_augment_max} and {c.latency_augment_jitter}",
+        ),
+    ]

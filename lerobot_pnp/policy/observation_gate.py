@@ -29,6 +29,7 @@ Everything is per environment of the batch: each env waits for its own move.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import torch
 from torch import Tensor
@@ -73,3 +74,20 @@ class ObservationGate:
         )
         self._unseen = self._unseen + (decided & moves).long()
         self._waited = torch.where(decided, torch.zeros_like(self._waited), self._waited + 1)
+
+
+def gate_rules(c: Any) -> list[tuple[bool, str]]:
+    """The rules of the config's ``await_*`` options, which set up the gate: (condition, the one-line message
+    naming the options and their values)."""
+    return [
+        (
+            c.await_state_tol > 0
+            and c.await_action_tol > 0
+            and c.await_max_steps >= 1
+            and (c.await_in_flight is None or c.await_in_flight >= 0)
+            and c.await_past_states >= 1,
+            "await_state_tol and await_action_tol must be > 0, await_max_steps and await_past_states >= 1 and "
+            f"await_in_flight >= 0, got {c.await_state_tol}, {c.await_action_tol}, {c.await_max_steps}, "
+            f"{c.await_past_states} and {c.await_in_flight}",
+        ),
+    ]

@@ -1,15 +1,19 @@
 """The rules of ``pnp_lstm``'s options, one group per part of the planner that reads them.
 
-``PnpLstmConfig`` holds the options of two planners and of the parts they share; each group below is the rule
-of one part, next to the others so that the config states them all at construction (``option_rules``): the
-network and its training, latency augmentation (``latency.py``), the clocked and recovering planners
-(``clocked.py``, ``recovering.py``) and the observation gate (``observation_gate.py``). A rule is a pair
-(condition, the one-line message naming the option, its value and the valid ones).
+``PnpLstmConfig`` holds the options of two planners and of the parts they share, and states every rule at
+construction (``option_rules``). A part that stands alone owns its rules: latency augmentation
+(``latency.latency_rules``) and the observation gate (``observation_gate.gate_rules``). The rules here are those
+of the network and its training, of the choice between the clocked and recovering planners, and of the
+recovering planner's still arm: ``recovering.py`` reads the config, so its rules sit beside the config rather
+than in it. A rule is a pair (condition, the one-line message naming the option, its value and the valid ones).
 """
 
 from __future__ import annotations
 
 from typing import Any
+
+from .latency import latency_rules
+from .observation_gate import gate_rules
 
 LR_SCHEDULERS = ("none", "cosine")
 MODES = ("clocked", "recovering")
@@ -46,21 +50,6 @@ def network_rules(c: Any) -> list[Rule]:
     ]
 
 
-def latency_rules(c: Any) -> list[Rule]:
-    """Latency augmentation in training (``latency.py``)."""
-    return [
-        (
-            0.0 <= c.latency_augment_prob <= 1.0,
-            f"latency_augment_prob must be in [0, 1], got {c.latency_augment_prob}",
-        ),
-        (
-            c.latency_augment_max >= 1 and 0.0 <= c.latency_augment_jitter <= 1.0,
-            f"latency_augment_max must be >= 1 and latency_augment_jitter in [0, 1], got "
-            f"{c.latency_augment_max} and {c.latency_augment_jitter}",
-        ),
-    ]
-
-
 def planner_rules(c: Any) -> list[Rule]:
     """Which planner (``mode``), and the options that belong to one of them only."""
     return [
@@ -83,20 +72,10 @@ def planner_rules(c: Any) -> list[Rule]:
     ]
 
 
-def gate_rules(c: Any) -> list[Rule]:
-    """The observation gate at inference (``observation_gate.py``): waiting for a move to be observed, and
-    holding the arm still in the FSM states that keep it."""
+def still_arm_rules(c: Any) -> list[Rule]:
+    """The recovering planner's still arm at inference (``recovering.py``): the FSM states whose keyframe keeps
+    the arm."""
     return [
-        (
-            c.await_state_tol > 0
-            and c.await_action_tol > 0
-            and c.await_max_steps >= 1
-            and (c.await_in_flight is None or c.await_in_flight >= 0)
-            and c.await_past_states >= 1,
-            "await_state_tol and await_action_tol must be > 0, await_max_steps and await_past_states >= 1 and "
-            f"await_in_flight >= 0, got {c.await_state_tol}, {c.await_action_tol}, {c.await_max_steps}, "
-            f"{c.await_past_states} and {c.await_in_flight}",
-        ),
         (
             set(c.still_arm_phases) <= set(STILL_ARM_PHASES),
             f"still_arm_phases must be among the FSM states that keep the arm {list(STILL_ARM_PHASES)}, got "
@@ -108,4 +87,4 @@ def gate_rules(c: Any) -> list[Rule]:
 
 def option_rules(c: Any) -> list[Rule]:
     """Every rule, in the order the config states them."""
-    return [*network_rules(c), *latency_rules(c), *planner_rules(c), *gate_rules(c)]
+    return [*network_rules(c), *latency_rules(c), *planner_rules(c), *gate_rules(c), *still_arm_rules(c)]

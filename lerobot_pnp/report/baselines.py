@@ -50,12 +50,12 @@ class LookupTableCheckpointConfig:
     dataset_root: str = ""  # the dataset folder (lerobot-pnp generate's --root)
     output_dir: str = "outputs/lookup_table"  # the checkpoint folder: lerobot-eval --policy.path <output_dir>
     split: str = "train"  # the episodes of this split of meta/info.json (all episodes if the dataset has no splits)
-    n_episodes: int | None = None  # only the first n episodes of the split (None: all)
+    num_episodes: int | None = None  # only the first n episodes of the split (None: all)
     overwrite: bool = False  # replace the files of a lookup table this command wrote in output_dir (others stay)
 
     def __post_init__(self):
-        if self.n_episodes is not None and not (isinstance(self.n_episodes, int) and self.n_episodes >= 1):
-            raise ConfigError(f"n_episodes must be an integer >= 1 or None, got {self.n_episodes!r}")
+        if self.num_episodes is not None and not (isinstance(self.num_episodes, int) and self.num_episodes >= 1):
+            raise ConfigError(f"num_episodes must be an integer >= 1 or None, got {self.num_episodes!r}")
 
 
 LOOKUP_TABLE_COMMAND = "lerobot-pnp lookup-table"
@@ -81,8 +81,8 @@ def write_lookup_table(cfg: LookupTableCheckpointConfig) -> dict:
         )
     with OutputFolder(Path(cfg.output_dir).expanduser(), LOOKUP_TABLE_COMMAND) as folder:
         _check_output(folder, cfg.overwrite)
-        episodes = load_train_episodes(root, split=cfg.split, limit=cfg.n_episodes)
-        source = f"{root} split {cfg.split!r}" + (f", first {cfg.n_episodes} episodes" if cfg.n_episodes else "")
+        episodes = load_train_episodes(root, split=cfg.split, limit=cfg.num_episodes)
+        source = f"{root} split {cfg.split!r}" + (f", first {cfg.num_episodes} episodes" if cfg.num_episodes else "")
         policy = LookupTablePolicy(episodes, source=source)
         files = _checkpoint_files(policy, root)
         stale = folder.entries - set(files)

@@ -41,14 +41,14 @@ class Claim:
 
 
 def _pct(v: Pooled) -> str:
-    return str(v.rate)
+    return str(v)
 
 
 def _generalises(table, comparisons) -> list[str]:
     nom = table.get("nominal", {}).get("clocked_lstm")
     if not nom:
         return []
-    lo = nom.rate.interval[0]
+    lo = nom.interval[0]
     return [
         f"- *The LSTM planner generalises to unseen object positions*: {100 * nom.rate.rate:.1f}% "
         f"(95 % interval from {100 * lo:.1f}%) -> {'holds' if lo >= 0.9 else 'does not hold (below 90 %)'}."
@@ -124,7 +124,7 @@ def _told_verdict(lstm: Pooled, mlp: Pooled, told: Pooled) -> str:
     closed = (told.rate.rate - mlp.rate.rate) / gap if gap > 0 else float("nan")
     return f" Told the phase (privileged), the MLP gets {_pct(told)}" + (
         ": below the plain MLP, so being told the phase does not replace memory."
-        if told.rate.interval[1] < mlp.rate.interval[0]
+        if told.interval[1] < mlp.interval[0]
         else f": {100 * closed:.0f} % of the gap closed, so the phase is most of what memory supplies."
         if gap > 0 and closed >= 0.8
         else f": {100 * closed:.0f} % of the gap closed, so memory supplies more than the phase."
@@ -139,7 +139,7 @@ def _memory_phase(table, comparisons) -> list[str]:
     lstm, mlp, told = nominal.get("recovering"), nominal.get("memoryless_mlp"), nominal.get("phase_told_mlp")
     if not (lstm and mlp):
         return []
-    matters = lstm.rate.interval[0] > mlp.rate.interval[1]
+    matters = lstm.interval[0] > mlp.interval[1]
     line = (
         f"- *Memory tracks the phase (nominal, same recipe and capacity)*: recovering LSTM {_pct(lstm)}, the "
         f"matched memoryless MLP {_pct(mlp)}"
@@ -154,7 +154,7 @@ def _memory_phase(table, comparisons) -> list[str]:
     slack = table.get("slack", {})
     if all(m in slack for m in ("recovering", "memoryless_mlp", "phase_told_mlp")):
         told_slack = slack["phase_told_mlp"]
-        slower = told and told_slack.rate.interval[0] > told.rate.interval[1]
+        slower = told and told_slack.interval[0] > told.interval[1]
         line += (
             f" With a {RECOVERY_BUDGET}-keyframe budget (suite `slack`) the told MLP reaches {_pct(told_slack)} "
             f"(LSTM {_pct(slack['recovering'])}, plain MLP {_pct(slack['memoryless_mlp'])})"
@@ -174,7 +174,7 @@ def _corrects_itself(table, comparisons) -> list[str]:
         rates = [(s, table.get(s, {}).get(name)) for s in RECOVERY_SUITES]
         rates = [(s, v) for s, v in rates if v]
         if rates:
-            held = [s for s, v in rates if v.rate.interval[0] >= 0.5]
+            held = [s for s, v in rates if v.interval[0] >= 0.5]
             out.append(
                 f"- *The planner corrects itself* ({label}): "
                 + ", ".join(f"`{s}` {_pct(v)}" for s, v in rates)
@@ -205,10 +205,8 @@ def _round_adds(method: str, what: str) -> Callable[[dict, dict], list[str]]:
         ]
         if not before_after:
             return []
-        better = [
-            f"`{s}` {_pct(a)} -> {_pct(b)}" for s, a, b in before_after if b.rate.interval[0] > a.rate.interval[1]
-        ]
-        worse = [f"`{s}` {_pct(a)} -> {_pct(b)}" for s, a, b in before_after if b.rate.interval[1] < a.rate.interval[0]]
+        better = [f"`{s}` {_pct(a)} -> {_pct(b)}" for s, a, b in before_after if b.interval[0] > a.interval[1]]
+        worse = [f"`{s}` {_pct(a)} -> {_pct(b)}" for s, a, b in before_after if b.interval[1] < a.interval[0]]
         return [
             f"- *What the teacher adds ({what}, {_rounds(method)})*: beyond the intervals better on "
             + ("; ".join(better) or "no suite")

@@ -13,6 +13,8 @@ the top of its git work tree (an installed copy inside some other repository nam
 from __future__ import annotations
 
 import ast
+import fnmatch
+import hashlib
 import subprocess
 from dataclasses import dataclass
 from pathlib import Path
@@ -65,7 +67,7 @@ class CodeChanges:
         return not self.changed
 
 
-def _code_of(source: str) -> str | None:
+def code_of(source: str) -> str | None:
     """The syntax tree of a Python source with its docstrings removed, dumped; None when it does not parse."""
     try:
         tree = ast.parse(source)
@@ -80,6 +82,30 @@ def _code_of(source: str) -> str | None:
     return ast.dump(tree)
 
 
+def study_files(root: Path) -> list[str]:
+    """The files under ``root`` (relative names, sorted) that ``STUDY_CODE``'s pathspecs name, read without git
+    (a copy of a checkout, a shallow clone): its ``:(glob)`` and plain paths, less its ``:(exclude,glob)``
+    folders."""
+    include, exclude = [], []
+    for spec in STUDY_CODE:
+        magic, _, pattern = spec.rpartition(")") if spec.startswith(":(") else ("", "", spec)
+        (exclude if "exclude" in magic else include).append(pattern)
+    names = {p.relative_to(root).as_posix() for pattern in include for p in root.glob(pattern) if p.is_file()}
+    return sorted(n for n in names if not any(fnmatch.fnmatch(n, pattern) for pattern in exclude))
+
+
+def code_digests(root: Path) -> dict[str, str]:
+    """Per study code file under ``root`` (relative name), the sha256 of its code: a Python module's syntax tree
+    with docstrings set aside (comments never reach it), any other file's bytes."""
+    root = Path(root)
+    digests = {}
+    for name in study_files(root):
+        data = (root / name).read_bytes()
+        code = code_of(data.decode()) if name.endswith(".py") else None
+        digests[name] = hashlib.sha256(code.encode() if code is not None else data).hexdigest()
+    return digests
+
+
 def _same_code(root: Path, commit: str, path: str) -> bool:
     """Whether the Python file ``path`` has the same code at ``commit`` as in the work tree."""
     if not path.endswith(".py"):
@@ -89,7 +115,7 @@ def _same_code(root: Path, commit: str, path: str) -> bool:
         new = (Path(root) / path).read_text()
     except OSError:
         return False
-    return old is not None and _code_of(old) is not None and _code_of(old) == _code_of(new)
+    return old is not None and code_of(old) is not None and code_of(old) == code_of(new)
 
 
 def study_code_changes(root: Path, commit: str, pathspecs: tuple[str, ...] = STUDY_CODE) -> CodeChanges:

@@ -239,7 +239,7 @@ def _notes(methods, suite_names, task: str) -> list[str]:
 def _cell(v: Pooled | None) -> str:
     if not v:
         return "-"
-    lo, hi = v.rate.interval
+    lo, hi = v.interval
     spread = ""
     if len(v.per_seed) > 1:
         rates = [q.rate for q in v.per_seed]
@@ -280,8 +280,8 @@ def _separations(table, methods) -> list[str]:
         cands = {m: v for m, v in row.items() if m != "expert"}
         if len(cands) < 2:
             continue
-        best = max(cands, key=lambda m: (cands[m].rate.interval[0], cands[m].rate.rate))
-        below = [m for m, v in cands.items() if v.rate.interval[1] < cands[best].rate.interval[0]]
+        best = max(cands, key=lambda m: (cands[m].interval[0], cands[m].rate.rate))
+        below = [m for m, v in cands.items() if v.interval[1] < cands[best].interval[0]]
         separated += bool(below)
         rows.append(
             f"| `{s}` | {labels.get(best, best)} {100 * cands[best].rate.rate:.1f}% | "

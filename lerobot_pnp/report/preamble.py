@@ -62,8 +62,10 @@ def header(layout, cfg, methods, summary, left=()) -> list[str]:
         + (" (dense-control methods: their budget is under Methods)" if any(m.data == "dense" for m in methods) else "")
         + "; their rate pools the seeds.",
         *_cli_lines(summary.get("lerobot_eval_cli_check")),
-        "Intervals: 95 % Wilson. Pooling seeds treats them as one sample; the per-seed range is shown beside it."
-        + _episodes_rule_sentence(cfg),
+        "Intervals: 95 %. A rate pooled over training seeds has an interval that counts the seeds as well as the "
+        "episodes (the pooled rate +- t s / sqrt(k) over the k seeds' rates, joined with the Wilson interval of the "
+        "episodes), so that a rerun, which trains the seeds anew, is expected inside it; the per-seed range is shown "
+        "beside it. One seed, or nothing trained: Wilson's." + _episodes_rule_sentence(cfg),
         "",
         "## Methods",
         "",

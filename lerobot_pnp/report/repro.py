@@ -1,11 +1,14 @@
 """Whether two runs of the study agree: cell by cell and verdict by verdict, from their ``summary.json``.
 
 **Cells.** A cell is one method's success on one suite, pooled over its training seeds (``success`` ->
-suite -> method: ``rate`` and ``n``; the successes are ``rate * n``). Two runs' cells *differ beyond their
-intervals* when the 95 % interval of the difference of their rates (B minus A; Newcombe's hybrid score
-interval for two independent rates, ``verdicts.difference_interval``) excludes 0. Two runs of one config
-evaluate the same eval seeds, so their episodes start alike; the interval for independent rates is then the
-wider one, and a cell flagged by it differs the more surely. On the same code, CPU model and locked
+suite -> method: ``rate``, ``n`` and ``per_seed``; the successes are ``rate * n``). Two runs' cells *differ
+beyond their intervals* when the 95 % interval of the difference of their rates (B minus A) excludes 0. The
+interval counts the training seeds as well as the episodes (``seed_difference_interval``: Welch's interval over
+the seeds' rates joined with Newcombe's over the episodes, ``verdicts.difference_interval``), as the tables'
+intervals do (``stats.seed_interval``): a rerun trains every seed anew, so a method whose seeds spread widely
+can land far from its published rate without anything being wrong. Two runs of one config evaluate the same
+eval seeds, so their episodes start alike; the interval for independent rates is then the wider one, and a cell
+flagged by it differs the more surely. On the same code, CPU model and locked
 dependencies the seeded stages are meant to give the same rates; on another CPU the trained nets differ in
 their last bits and drift, and a cell may differ by chance: at 95 %, up to about one in twenty of the cells
 whose runs agree in distribution.
@@ -21,11 +24,13 @@ planner's) on each held-out axis; a change there is what a rerun must not show.
 from __future__ import annotations
 
 import json
+import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 from lerobot_pnp.errors import ConfigError
-from lerobot_pnp.evaluation.stats import Rate
+from lerobot_pnp.evaluation.stats import Rate, t975
 from lerobot_pnp.evaluation.verdicts import TEXT, difference_interval, summary_verdict
 
 HEADLINE_METHOD = "recovering"
@@ -97,6 +102,31 @@ def load_summary(path: Path) -> dict:
     return data
 
 
+def seed_difference_interval(
+    a: Rate, a_seeds: Sequence[float], b: Rate, b_seeds: Sequence[float]
+) -> tuple[float, float]:
+    """95 % interval of ``b.rate - a.rate`` for two rates pooled over training seeds, counting the seeds: Welch's
+    interval over the seeds' rates (``a_seeds``, ``b_seeds``; Welch-Satterthwaite degrees of freedom, rounded
+    down), joined with Newcombe's over the episodes (``difference_interval``). With fewer than two seeds on a
+    side, Newcombe's alone."""
+    lo, hi = difference_interval(a, b)
+    if min(len(a_seeds), len(b_seeds)) < 2:
+        return lo, hi
+    var = [_variance(r) / len(r) for r in (a_seeds, b_seeds)]
+    se = math.sqrt(sum(var))
+    if se == 0:
+        return lo, hi
+    dof = sum(var) ** 2 / sum(v**2 / (len(r) - 1) for v, r in zip(var, (a_seeds, b_seeds)) if v > 0)
+    half = t975(max(1, math.floor(dof))) * se
+    d = b.rate - a.rate
+    return max(-1.0, min(lo, d - half)), min(1.0, max(hi, d + half))
+
+
+def _variance(rates: Sequence[float]) -> float:
+    mean = sum(rates) / len(rates)
+    return sum((r - mean) ** 2 for r in rates) / (len(rates) - 1)
+
+
 def _rate(cell: dict) -> Rate:
     n = int(cell["n"])
     return Rate(round(cell["rate"] * n), n)
@@ -111,7 +141,11 @@ def compare_cells(a: dict, b: dict) -> list[CellDiff]:
         for method in list(row_a) + [m for m in row_b if m not in row_a]:
             ra = _rate(row_a[method]) if method in row_a else None
             rb = _rate(row_b[method]) if method in row_b else None
-            interval = difference_interval(ra, rb) if ra and rb else None
+            interval = None
+            if ra and rb:
+                interval = seed_difference_interval(
+                    ra, row_a[method].get("per_seed", []), rb, row_b[method].get("per_seed", [])
+                )
             out.append(CellDiff(suite, method, ra, rb, interval))
     return out
 

@@ -54,7 +54,7 @@ def visualize(cfg: VizConfig) -> dict:
         policy_cfg = rollout_config(str(loaded.path), cfg.task_source, cfg.control_mode, cfg.env_changes, cams)
         rendered = {c: (policy_cfg.image_height, policy_cfg.image_width) for c in policy_cfg.cameras}
         check_policy_features(loaded.policy.config, len(policy_cfg.environment_state_names), rendered)  # fits
-    seeds = [cfg.seed + i for i in range(cfg.n_rollouts)] if loaded is not None else []
+    seeds = [cfg.seed + i for i in range(cfg.n_episodes)] if loaded is not None else []
     claim_destinations(destinations)  # a file of the user's there is refused before any rollout
 
     runs = [replay_episode(ep, replay_cfg, cfg.log_hz) for ep in episodes]

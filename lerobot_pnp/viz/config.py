@@ -49,7 +49,7 @@ class VizConfig:
     # task fields (and cameras / image size) changed for the rollouts, on top of that task, e.g.
     # '{"drop_prob": 1.0, "keyframe_budget": 20}' to watch a planner re-pick a dropped cube, '{"cameras": ["front"]}'
     env_changes: dict[str, Any] = field(default_factory=dict)
-    n_rollouts: int = 1  # policy rollouts, seeds seed .. seed + n_rollouts - 1
+    n_episodes: int = 1  # policy rollouts, seeds seed .. seed + n_episodes - 1
     # first rollout seed; default UNSEEN_SEED, an episode the policy was not trained on (datasets use seeds 0..)
     seed: int | None = None
     compare_expert: bool = True  # run the FSM expert from each rollout's start state and log the differences
@@ -68,8 +68,8 @@ class VizConfig:
             raise ConfigError(f"env_changes has unknown fields {bad}; valid: {sorted(ENV_CHANGE_FIELDS)}")
         if self.seed is None:
             self.seed = UNSEEN_SEED
-        if self.n_rollouts < 1:
-            raise ConfigError(f"n_rollouts must be >= 1, got {self.n_rollouts}")
+        if self.n_episodes < 1:
+            raise ConfigError(f"n_episodes must be >= 1, got {self.n_episodes}")
         if not 1 <= self.log_hz <= 500:
             raise ConfigError(f"log_hz must be in [1, 500], got {self.log_hz}")
         if self.control_mode is not None and self.control_mode not in CONTROL_MODES:
