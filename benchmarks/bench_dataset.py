@@ -1,6 +1,6 @@
 """Dataset generation throughput, side by side with a reference tree, and where the time goes.
 
-    .venv/bin/python benchmarks/bench_dataset.py [--episodes 1400] [--workers 2] [--old-tree /tmp/old]
+    .venv/bin/python benchmarks/bench_dataset.py [--num_episodes 1400] [--workers 2] [--old-tree /tmp/old]
                                                  [--dense-episodes 0] [--profile-episodes 100] [--out DIR]
 
 1. The paper's dataset (1400 keyframe episodes) end to end through the real CLI (``lerobot-pnp generate``:
@@ -130,7 +130,7 @@ def _print_ratio(episodes: int, a: tuple[str, dict], b: tuple[str, dict], note: 
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--episodes", type=int, default=1400)
+    p.add_argument("--num_episodes", type=int, default=1400)
     p.add_argument("--workers", type=int, default=0, help="0 = one per CPU core")
     p.add_argument("--old-tree", type=Path, default=None, help="reference checkout run side by side")
     p.add_argument("--dense-episodes", type=int, default=0)
@@ -143,17 +143,17 @@ def main(argv=None) -> int:
     out = args.out or Path(tempfile.mkdtemp(prefix="bench_dataset_"))
     out.mkdir(parents=True, exist_ok=True)
     print(f"cpu cores: {os.cpu_count()}  load average: {os.getloadavg()[0]:.2f}  output: {out}", flush=True)
-    results = {"new": cli_run(HERE, out / "new", args.episodes, args.workers)}
+    results = {"new": cli_run(HERE, out / "new", args.num_episodes, args.workers)}
     print(json.dumps(results["new"]), flush=True)
     if args.old_tree:
-        results["old"] = cli_run(args.old_tree, out / "old", args.episodes, args.workers)
+        results["old"] = cli_run(args.old_tree, out / "old", args.num_episodes, args.workers)
         print(json.dumps(results["old"]), flush=True)
         same = results["new"]["hash"] == results["old"]["hash"]
-        _print_ratio(args.episodes, ("new", results["new"]), ("old", results["old"]), f"same content hash: {same}")
+        _print_ratio(args.num_episodes, ("new", results["new"]), ("old", results["old"]), f"same content hash: {same}")
     if args.full_vs_paper:
-        results["full"] = cli_run(HERE, out / "full", args.episodes, args.workers, preset="full")
+        results["full"] = cli_run(HERE, out / "full", args.num_episodes, args.workers, preset="full")
         print(json.dumps(results["full"]), flush=True)
-        _print_ratio(args.episodes, ("full", results["full"]), ("paper", results["new"]), "target <= 2")
+        _print_ratio(args.num_episodes, ("full", results["full"]), ("paper", results["new"]), "target <= 2")
     if args.dense_episodes:
         results["dense"] = cli_run(HERE, out / "dense", args.dense_episodes, args.workers, dense=True)
         print(json.dumps(results["dense"]), flush=True)

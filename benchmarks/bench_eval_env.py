@@ -1,7 +1,7 @@
 """The study's evaluations, this tree against an older checkout, side by side: same records, less time?
 
 Each case re-runs one stored evaluation of a study folder (a method's checkpoint of one training seed on one
-suite, its first ``--episodes`` episodes from the study's eval seed, the study's batch of 50 envs) with
+suite, its first ``--n_episodes`` episodes from the study's eval seed, the study's batch of 50 envs) with
 stock ``eval_policy``, the same call the study makes (``closed_loop``); the expert runs its own loop.
 Every case runs in a fresh process, alternating trees (new, old, new, old, ...), so drift on a shared machine
 hits both. It prints, per case and in total, the wall time of each tree and their ratio, and checks that both
@@ -9,7 +9,7 @@ trees reproduce the stored records episode for episode (a speed-up that changed 
 cached evaluation a lie about the code that reads it). Target: new / old <= 0.9 with identical records.
 
     OMP_NUM_THREADS=1 MUJOCO_GL=egl python benchmarks/bench_eval_env.py --old-tree /tmp/old \\
-        [--study outputs/heldout --study outputs/report_full] [--episodes 50] [--repeats 2]
+        [--study outputs/heldout --study outputs/report_full] [--n_episodes 50] [--repeats 2]
 """
 
 from __future__ import annotations
@@ -94,7 +94,7 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--old-tree", type=Path, required=True, help="a checkout of the reference commit")
     p.add_argument("--study", type=Path, action="append", help="study folders (default: outputs/heldout, report_full)")
-    p.add_argument("--episodes", type=int, default=50)
+    p.add_argument("--n_episodes", type=int, default=50)
     p.add_argument("--repeats", type=int, default=2, help="runs of every case per tree")
     p.add_argument("--out", type=Path, default=None, help="write the numbers here as JSON")
     args = p.parse_args()
@@ -105,12 +105,12 @@ def main() -> None:
         for case in CASES[study.name if study.name in CASES else "heldout"]:
             method, seed, suite = case
             record = study / "evals" / method / f"seed{seed}" / f"{suite}.json"
-            stored = json.loads(record.read_text())["episodes"][: args.episodes]
+            stored = json.loads(record.read_text())["episodes"][: args.n_episodes]
             walls: dict[str, list[float]] = {"new": [], "old": []}
             same = True
             for _ in range(args.repeats):
                 for name, tree in (("new", new_tree), ("old", args.old_tree)):
-                    out = run_case(tree, study, case, args.episodes)
+                    out = run_case(tree, study, case, args.n_episodes)
                     walls[name].append(out["wall_s"])
                     same &= same_records(stored, out["episodes"])
             best = {k: min(v) for k, v in walls.items()}

@@ -4,8 +4,8 @@ Targets: >= 99.5 % on `paper`, on `full` and on each perturbation alone (1000 ep
 every suite of the held-out-disturbance protocol (``sim.suites.HELD_OUT_AXES``, on the `full` training task;
 >= 200 episodes each).
 
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_expert.py --episodes 1000 --out outputs/bench_expert.json
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_expert.py --episodes 200 --suites protocol \
+    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_expert.py --n_episodes 1000 --out outputs/bench_expert.json
+    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_expert.py --n_episodes 200 --suites protocol \
         --out docs/results/bench_expert_protocol.json
 """
 
@@ -54,7 +54,7 @@ def env_config(name: str) -> BaxterPnPEnvConfig:
 
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--episodes", type=int, default=1000)
+    parser.add_argument("--n_episodes", type=int, default=1000)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument(
         "--suites", nargs="*", default=list(PRESET_SUITES), help="names, or 'protocol' for all of those"
@@ -65,9 +65,9 @@ def main(argv=None) -> dict:
     names = [n for name in args.suites for n in (PROTOCOL if name == "protocol" else [name])]
     for name in names:
         env = env_config(name)
-        res = evaluate_expert(ExpertEvalConfig(n_episodes=args.episodes, seed=args.seed, env=env, progress=False))
-        k = round(res["success_rate"] * args.episodes)
-        res["wilson95"] = wilson(k, args.episodes)
+        res = evaluate_expert(ExpertEvalConfig(n_episodes=args.n_episodes, seed=args.seed, env=env, progress=False))
+        k = round(res["success_rate"] * args.n_episodes)
+        res["wilson95"] = wilson(k, args.n_episodes)
         results[name] = res
         lo, hi = res["wilson95"]
         print(

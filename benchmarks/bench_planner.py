@@ -141,7 +141,7 @@ def cli_check(cfg: DaggerConfig, out: Path, rnd: int) -> dict:
     in_process = json.loads((rdir / "eval.json").read_text())
     report = {}
     for suite in cfg.eval_suites:
-        spec = EvalSpec(suite, cfg.eval_episodes, dict(SUITES[suite].parts[0]))  # DAgger suites have one part
+        spec = EvalSpec(suite, cfg.n_episodes, dict(SUITES[suite].parts[0]))  # DAgger suites have one part
         res = run_eval(ckpt, out / "lerobot_eval" / f"round_{rnd:02d}" / suite, spec, cfg.eval_seed, 50)
         ok = sum(res["per_episode"].values())
         report[suite] = {"successes": ok, "n": len(res["per_episode"]), "in_process": in_process[suite]["successes"]}

@@ -1,6 +1,6 @@
 """What the cameras cost, with MuJoCo's visual effects and without them, measured side by side in one run.
 
-    .venv/bin/python benchmarks/bench_render.py [--camera front] [--size 64] [--frames 40] [--episodes 6]
+    .venv/bin/python benchmarks/bench_render.py [--camera front] [--size 64] [--frames 40] [--num_episodes 6]
                                                 [--png-dir DIR] [--out docs/results/bench_render.json]
 
 1. One frame: ``BaxterPhysics.render`` of one camera at one size in the states of a few seeded `full` resets, with
@@ -83,16 +83,16 @@ def main() -> None:
     parser.add_argument("--camera", default="front")
     parser.add_argument("--size", type=int, default=64)
     parser.add_argument("--frames", type=int, default=40)
-    parser.add_argument("--episodes", type=int, default=6)
+    parser.add_argument("--num_episodes", type=int, default=6)
     parser.add_argument("--png-dir", type=Path, default=None)
     parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args()
     frame = frame_cost(args.camera, args.size, args.frames, args.png_dir)
     print(f"one {args.camera} frame at {args.size}x{args.size}: " + ", ".join(f"{k} {v} ms" for k, v in frame.items()))
-    gen = {name: generation_cost(args.camera, args.size, fx, args.episodes) for name, fx in SETTINGS.items()}
-    gen["no cameras"] = generation_cost(None, args.size, False, args.episodes)
+    gen = {name: generation_cost(args.camera, args.size, fx, args.num_episodes) for name, fx in SETTINGS.items()}
+    gen["no cameras"] = generation_cost(None, args.size, False, args.num_episodes)
     for name, row in gen.items():
-        print(f"generate {args.episodes} full episodes, {name}: {row['wall_s']} s ({row['episodes_per_s']} ep/s; "
+        print(f"generate {args.num_episodes} full episodes, {name}: {row['wall_s']} s ({row['episodes_per_s']} ep/s; "
               f"simulating {row['simulate_cpu_s']} s CPU; load before {row['load_before']})")  # fmt: skip
     result = {
         "command": " ".join(["benchmarks/bench_render.py", *sys.argv[1:]]),
@@ -100,7 +100,7 @@ def main() -> None:
         "size": args.size,
         "cpu_count": os.cpu_count(),
         "frame_ms": frame,
-        "generation": {"episodes": args.episodes, "preset": "full", "workers": 1, **gen},
+        "generation": {"episodes": args.num_episodes, "preset": "full", "workers": 1, **gen},
     }
     if args.out:
         args.out.write_text(json.dumps(result, indent=1) + "\n")

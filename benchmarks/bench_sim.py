@@ -6,7 +6,7 @@ contains, measured as the time spent inside ``mj_step`` during the episode (cont
 those steps dearer than idle ones, so the ratio to the idle rate is printed too). Target: IK + FSM +
 interpolation + env overhead under 50 % of the physics cost.
 
-    OMP_NUM_THREADS=1 python benchmarks/bench_sim.py [--episodes 100]
+    OMP_NUM_THREADS=1 python benchmarks/bench_sim.py [--n_episodes 100]
 """
 
 from __future__ import annotations
@@ -74,11 +74,14 @@ def expert_rate(control_mode: str, episodes: int, step_rate: float) -> dict:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--episodes", type=int, default=100)
+    parser.add_argument("--n_episodes", type=int, default=100)
     args = parser.parse_args()
     rate = raw_step_rate()
     print(f"raw mj_step rate: {rate:,.0f} steps/s ({1e6 / rate:.1f} us/step)")
-    for name, gym_id, n in (("keyframe", "keyframe", args.episodes), ("dense", "dense", max(10, args.episodes // 4))):
+    for name, gym_id, n in (
+        ("keyframe", "keyframe", args.n_episodes),
+        ("dense", "dense", max(10, args.n_episodes // 4)),
+    ):
         r = expert_rate(gym_id, n, rate)
         overhead = r["wall_over_physics"] - 1
         print(

@@ -14,7 +14,7 @@ their ratios and each suite's success to ``--out``. Target: stock / study <= 1.2
 held-out suites x 100 keyframe episodes on 2 cores.
 
     OMP_NUM_THREADS=1 MUJOCO_GL=egl python benchmarks/bench_stock_suites.py [--checkpoint PATH] \\
-        [--task heldout] [--episodes 100] [--batch 50] [--repeats 2] [--without_videos] [--keep DIR] [--out FILE]
+        [--task heldout] [--n_episodes 100] [--batch 50] [--repeats 2] [--without_videos] [--keep DIR] [--out FILE]
 
 Without ``--checkpoint`` it builds an untrained tiny pnp_lstm recording the ``full`` task (the held-out protocol's
 training task): it fails every episode, so every episode runs to its suite's budget, the most steps a suite costs.
@@ -122,20 +122,20 @@ def run_study(ckpt: Path, task: str, n: int, batch: int) -> tuple[dict[str, floa
 
 def measure(args, ckpt: Path, tmp: Path) -> dict:
     """Rounds of (stock, study), alternated so that drift on a shared machine hits both; the fastest of each."""
-    batch = min(args.batch, args.episodes)
+    batch = min(args.batch, args.n_episodes)
     stock_s, study_s, differ = [], [], set()
     for r in range(args.repeats):
         out = args.keep if (args.keep and r == 0) else tmp / f"eval{r}"
-        wall, stock = run_stock(ckpt, args.task, args.episodes, batch, out)
+        wall, stock = run_stock(ckpt, args.task, args.n_episodes, batch, out)
         stock_s.append(wall)
         print(f"stock lerobot-eval: {wall:.1f} s", flush=True)
-        times, study = run_study(ckpt, args.task, args.episodes, batch)
+        times, study = run_study(ckpt, args.task, args.n_episodes, batch)
         study_s.append(times)
         differ |= {s for s in study if stock.get(s) != study[s]}
-    quiet_s = run_stock_no_videos(ckpt, args.task, args.episodes, batch) if args.without_videos else None
+    quiet_s = run_stock_no_videos(ckpt, args.task, args.n_episodes, batch) if args.without_videos else None
     best = min(study_s, key=lambda t: sum(t.values()))
     return {
-        "task": args.task, "suites": len(best), "episodes_per_suite": args.episodes, "batch": batch,
+        "task": args.task, "suites": len(best), "episodes_per_suite": args.n_episodes, "batch": batch,
         "checkpoint": str(args.checkpoint or "untrained tiny pnp_lstm, full task"), "cpus": os.cpu_count(),
         "load_average_after": os.getloadavg(), "stock_s": stock_s, "study_sum_s": [sum(t.values()) for t in study_s],
         "ratio": min(stock_s) / sum(best.values()), "stock_no_videos_s": quiet_s, "study_s": best,
@@ -147,7 +147,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--checkpoint", type=Path, default=None, help="default: an untrained tiny pnp_lstm (full task)")
     ap.add_argument("--task", default="heldout", help="--env.task: suites, axes or aliases")
-    ap.add_argument("--episodes", type=int, default=100)
+    ap.add_argument("--n_episodes", type=int, default=100)
     ap.add_argument("--batch", type=int, default=50)
     ap.add_argument("--repeats", type=int, default=1, help="rounds of (stock, study); the fastest of each is compared")
     ap.add_argument("--without_videos", action="store_true", help="also time eval_policy_all with no video")

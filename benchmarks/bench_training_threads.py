@@ -1,7 +1,7 @@
 """Whether a study training gives the same weights at 2 torch threads as at 1, and how much faster it is.
 
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_training_threads.py --workdir outputs/bench_threads
-        [--task paper] [--episodes 100] [--epochs 20] [--act_steps 60] [--methods clocked_lstm recovering act]
+        [--task paper] [--num_episodes 100] [--epochs 20] [--act_steps 60] [--methods clocked_lstm recovering act]
 
 The study trains every job on one thread (``job.run_job``). A training that runs alone while the pool's other
 core waits on it could use 2 threads, but only if that leaves its weights bit-identical: the study's results must
@@ -30,7 +30,7 @@ METHODS = ["clocked_lstm", "recovering", "memoryless_mlp", "phase_told_mlp", "ac
 def _cfg(args):
     from lerobot_pnp.report.config import StudyConfig
 
-    return StudyConfig(output_dir=str(args.workdir), preset="quick", num_episodes=args.episodes, workers=1,
+    return StudyConfig(output_dir=str(args.workdir), preset="quick", num_episodes=args.num_episodes, workers=1,
                        epochs=args.epochs, act_steps=args.act_steps, methods=args.methods, task_preset=args.task)  # fmt: skip
 
 
@@ -91,7 +91,7 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--workdir", type=Path, required=True)
     p.add_argument("--task", default="paper", choices=["paper", "full"])
-    p.add_argument("--episodes", type=int, default=100)
+    p.add_argument("--num_episodes", type=int, default=100)
     p.add_argument("--epochs", type=int, default=20)
     p.add_argument("--act_steps", type=int, default=60)
     p.add_argument("--methods", nargs="+", default=METHODS)

@@ -1,7 +1,7 @@
 """How large DART's joint noise is on the task's scale: what a noise setting does to the expert's hand and to
 its demonstrations (the measurement that picks ``dart.sigma``).
 
-``python benchmarks/dart_noise.py [--config configs/dart_paper.json] [--episodes 40] SIGMA[,FLIP] ...`` prints,
+``python benchmarks/dart_noise.py [--config configs/dart_paper.json] [--n_episodes 40] SIGMA[,FLIP] ...`` prints,
 per setting, in the task of a dagger config (its preset with ``env_changes``, the rollout suite ``nominal``):
 the end-effector displacement that the joint noise causes at the expert's keyframes (forward kinematics of
 the clean keyframe and of the noised one, median and 90th percentile over keyframes and draws), and what the
@@ -96,7 +96,7 @@ def main() -> None:
     ap.add_argument("settings", nargs="*", help="SIGMA[,GRIPPER_FLIP]")
     ap.add_argument("--rollouts", nargs="*", default=[], help="rollout dataset folders (round_XX/rollouts)")
     ap.add_argument("--config", default="configs/dart_paper.json", help="a dagger config: its task (env_changes)")
-    ap.add_argument("--episodes", type=int, default=40)
+    ap.add_argument("--n_episodes", type=int, default=40)
     args = ap.parse_args()
     env = suite_env(base_env_config(draccus.parse(DaggerConfig, config_path=args.config, args=[])), "nominal")
     for root in args.rollouts:
@@ -111,8 +111,8 @@ def main() -> None:
         for spec in args.settings:
             sigma, flip = (float(x) for x in (spec.split(",") + ["0"])[:2])
             med, p90 = hand_displacement(env, sigma, range(5)) if sigma > 0 else (0.0, 0.0)
-            r = noisy_expert(env, DartNoise(sigma, flip), args.episodes)
-            n = args.episodes
+            r = noisy_expert(env, DartNoise(sigma, flip), args.n_episodes)
+            n = args.n_episodes
             print(f"| {sigma:g} | {flip:g} | {100 * med:.1f} / {100 * p90:.1f} | {r['success']}/{n} | "
                   f"{r['recovered']}/{n} | {r['frames_per_episode']:.1f} |", flush=True)  # fmt: skip
     env.close()

@@ -7,9 +7,9 @@ mode, so that each episode's keyframes and dense steps are counted on the same d
 the dense expert's longest episode on every suite stays inside the dense budget, as its keyframe episodes stay
 inside the keyframe budget.
 
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/dense_pace.py --preset paper --episodes 100 \
+    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/dense_pace.py --preset paper --n_episodes 100 \
         --suites nominal,grasp_miss,drop,displace,random_place,random_yaw --out docs/results/dense_pace_paper.json
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/dense_pace.py --preset full --episodes 60 \
+    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/dense_pace.py --preset full --n_episodes 60 \
         --suites nominal,train_drop,heldout_far_displace,heldout_double_drop,heldout_all_at_once \
         --out docs/results/dense_pace_full.json
 """
@@ -42,11 +42,11 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--preset", default="paper", help="the task preset (paper | full)")
     parser.add_argument("--suites", default="nominal", help="comma-separated suite names (the study's catalogue)")
-    parser.add_argument("--episodes", type=int, default=100)
+    parser.add_argument("--n_episodes", type=int, default=100)
     parser.add_argument("--seed", type=int, default=100_000, help="first seed (the study's evaluation seeds)")
     parser.add_argument("--out", type=Path, default=None, help="write the table as JSON here")
     args = parser.parse_args()
-    seeds = range(args.seed, args.seed + args.episodes)
+    seeds = range(args.seed, args.seed + args.n_episodes)
     rows = []
     for suite in get_suites(args.suites.split(",")):
         keyframe = suite.env_configs(BaxterPnPEnvConfig(preset=args.preset))[0]
@@ -71,7 +71,7 @@ def main() -> None:
             flush=True,
         )
     if args.out:
-        args.out.write_text(json.dumps({"preset": args.preset, "episodes": args.episodes, "rows": rows}, indent=1))
+        args.out.write_text(json.dumps({"preset": args.preset, "episodes": args.n_episodes, "rows": rows}, indent=1))
 
 
 if __name__ == "__main__":

@@ -2,7 +2,7 @@
 `full` task and its disturbance-heavy suites. Run it before and after a change to the simulator, the task or its
 disturbances: the same hash means every episode, observation and info field stayed the same, bit for bit.
 
-    OMP_NUM_THREADS=1 MUJOCO_GL=egl python benchmarks/episode_hash.py [--episodes 10]
+    OMP_NUM_THREADS=1 MUJOCO_GL=egl python benchmarks/episode_hash.py [--n_episodes 10]
 """
 
 from __future__ import annotations
@@ -55,10 +55,10 @@ def episode_hash(episodes: int) -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--episodes", type=int, default=10, help="expert episodes and blind rollouts per suite")
+    parser.add_argument("--n_episodes", type=int, default=10, help="expert episodes and blind rollouts per suite")
     args = parser.parse_args()
     start = time.process_time()
-    print(episode_hash(args.episodes), f"({time.process_time() - start:.0f} s CPU)")
+    print(episode_hash(args.n_episodes), f"({time.process_time() - start:.0f} s CPU)")
 
 
 if __name__ == "__main__":

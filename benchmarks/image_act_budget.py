@@ -1,7 +1,7 @@
 """Stock image ACT on the camera planner's data at the camera planner's wall-clock budget.
 
     .venv/bin/python benchmarks/image_act_budget.py --dataset_root D [--budget_s 1800] [--save_freq 200]
-        [--eval_episodes 100] [--threads 1] [--work outputs/image_act_budget]
+        [--n_episodes 100] [--threads 1] [--work outputs/image_act_budget]
         [--out docs/results/pixel_baselines/image_act.json]
 
 1. Training: stock ``lerobot-train`` of ACT (ResNet-18 from scratch, the ``configs/train_act_images.json``
@@ -12,7 +12,7 @@
    LeRobot's "Start offline training" line, so dataset loading is not in it, as it is not in the camera planner's
    loss-curve times).
 2. The last checkpoint within each quarter of the budget: stock ``lerobot-eval`` on the nominal task,
-   ``--eval_episodes`` seeded episodes from 100000, success with its 95 % Wilson interval, and the training time at which it was written.
+   ``--n_episodes`` seeded episodes from 100000, success with its 95 % Wilson interval, and the training time at which it was written.
 """
 
 from __future__ import annotations
@@ -108,7 +108,7 @@ def main() -> None:
     parser.add_argument("--budget_s", type=float, default=1800.0)
     parser.add_argument("--save_freq", type=int, default=200)
     parser.add_argument("--seed", type=int, default=1000)
-    parser.add_argument("--eval_episodes", type=int, default=100)
+    parser.add_argument("--n_episodes", type=int, default=100)
     parser.add_argument("--threads", type=int, default=1, help="torch threads of the training (OMP_NUM_THREADS)")
     parser.add_argument("--work", type=Path, default=REPO / "outputs" / "image_act_budget")
     parser.add_argument("--out", type=Path, default=None)
@@ -117,7 +117,7 @@ def main() -> None:
     run = train(
         args.dataset_root, args.repo_id, args.work / "train", args.budget_s, args.save_freq, args.seed, args.threads
     )
-    rows = evaluate(args.work / "train", run["checkpoint_time_s"], args.eval_episodes, args.budget_s)
+    rows = evaluate(args.work / "train", run["checkpoint_time_s"], args.n_episodes, args.budget_s)
     result = {"command": " ".join(["benchmarks/image_act_budget.py", *sys.argv[1:]]), "cpu_count": os.cpu_count(),
               "budget_s": args.budget_s, "threads": args.threads, "train": run, "nominal": rows}  # fmt: skip
     if args.out:

@@ -143,7 +143,7 @@ def holds(args) -> dict:
     for hold in args.holds:
         result["holds"][hold] = {}
     for block in args.seed_blocks:
-        episodes = run(args.suite, args.holds, list(range(block, block + args.episodes)))
+        episodes = run(args.suite, args.holds, list(range(block, block + args.n_episodes)))
         for hold, eps in episodes.items():
             result["holds"][hold][str(block)] = summary(eps)
             if args.planner and block == args.seed_blocks[0]:
@@ -165,7 +165,7 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--suite", default="heldout_latency_2")
     p.add_argument("--holds", type=int, nargs="+", default=[0, 1, 2])
-    p.add_argument("--episodes", type=int, default=200, help="per eval-seed block")
+    p.add_argument("--n_episodes", type=int, default=200, help="per eval-seed block")
     p.add_argument("--seed_blocks", type=int, nargs="+", default=[100_000, 10_000_000],
                    help="first eval seeds: the study's and the held-out protocol script's")  # fmt: skip
     p.add_argument("--planner", type=Path, help="a study's evals/recovering folder to pair with (seed block 1)")
@@ -174,7 +174,7 @@ def main() -> None:
     args = p.parse_args()
     if args.variants:
         result = {"suite": args.suite, "what": __doc__.split("\n\n")[2].replace("\n", " "), "seed_blocks": args.seed_blocks,
-                  "episodes_per_block": args.episodes, "hold": 1, "waits": variants(args.suite, args.seed_blocks, args.episodes)}  # fmt: skip
+                  "episodes_per_block": args.n_episodes, "hold": 1, "waits": variants(args.suite, args.seed_blocks, args.n_episodes)}  # fmt: skip
     else:
         result = holds(args)
     if args.out:

@@ -1,7 +1,7 @@
 """The camera planner (``pnp_pixels``) measured end to end: data, training, stock evaluation, ``select_action``.
 
-    .venv/bin/python benchmarks/pixel_planner.py [--episodes 300] [--epochs 100] [--ckpt_every 25]
-        [--eval_episodes 100] [--work outputs/pixel_planner] [--out docs/results/pixel_planner.json]
+    .venv/bin/python benchmarks/pixel_planner.py [--num_episodes 300] [--epochs 100] [--ckpt_every 25]
+        [--n_episodes 100] [--work outputs/pixel_planner] [--out docs/results/pixel_planner.json]
 
 1. Data: ``lerobot-pnp generate`` of the `full` task with ``--cameras`` at ``--size`` (the env's default render
    settings: no shadows, reflections or multisampling), ``--workers`` processes; the generator's own summary
@@ -10,7 +10,7 @@
    a checkpoint and a held-out loss every ``--ckpt_every`` epochs; the training's wall time at each checkpoint is
    the loss curve's ``time_s`` (dataset loading and frame decoding before it are in ``train_wall_s``).
 3. Each checkpoint: stock ``lerobot-eval`` with no camera flag (the cameras come from the recorded task) on the
-   nominal task (the training task unchanged), ``--eval_episodes`` seeded episodes from 100000 (the dataset's
+   nominal task (the training task unchanged), ``--n_episodes`` seeded episodes from 100000 (the dataset's
    seeds are below); success with its 95 % Wilson interval: success against training time.
 4. ``select_action`` at batch 1 of the last checkpoint on pre-rendered observations (joints + the camera image;
    the env's rendering is not in it), mean and median over whole episodes' worth of calls, with and without the
@@ -189,11 +189,11 @@ def failures(ckpt: Path, n: int) -> dict:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--episodes", type=int, default=300)
+    parser.add_argument("--num_episodes", type=int, default=300)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--epochs", type=int, default=100)
     parser.add_argument("--ckpt_every", type=int, default=25)
-    parser.add_argument("--eval_episodes", type=int, default=100)
+    parser.add_argument("--n_episodes", type=int, default=100)
     parser.add_argument("--cameras", default="front,wrist", help="the cameras recorded and seen, comma-separated")
     parser.add_argument("--size", type=int, default=64, help="image height and width (pixels)")
     parser.add_argument(
@@ -203,16 +203,16 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args()
     load = os.getloadavg()[0]
-    data = generate(args.work / "data", args.episodes, args.workers, args.cameras, args.size)
+    data = generate(args.work / "data", args.num_episodes, args.workers, args.cameras, args.size)
     print("generate:", data, flush=True)
     run = train(args.work / "data", args.work / "train", args.epochs, args.ckpt_every, args.train_args.split())
     print("train:", run["summary"], f"{run['train_wall_s']} s", flush=True)
-    curve = evaluate(args.work / "train", run["curve"], args.eval_episodes)
+    curve = evaluate(args.work / "train", run["curve"], args.n_episodes)
     cost = select_action_cost(args.work / "train" / "checkpoints" / "last" / "pretrained_model")
     print("select_action:", cost, flush=True)
     pose = pose_error(args.work / "train" / "checkpoints" / "last" / "pretrained_model", args.work / "data")
     print("pose error:", pose, flush=True)
-    fails = failures(args.work / "train" / "checkpoints" / "last" / "pretrained_model", args.eval_episodes)
+    fails = failures(args.work / "train" / "checkpoints" / "last" / "pretrained_model", args.n_episodes)
     print("failures:", fails, flush=True)
     result = {"command": " ".join(["benchmarks/pixel_planner.py", *sys.argv[1:]]), "cpu_count": os.cpu_count(),
               "cameras": args.cameras.split(","), "size": args.size, "train_args": args.train_args,

@@ -28,10 +28,10 @@ ROOT = HERE.parent
 def small_args(name: str, out: Path, dataset: Path) -> list[str] | None:
     """Small settings per benchmark (read from each one's argparse); None = not known here."""
     return {
-        "bench_sim": ["--episodes", "10"],
-        "bench_expert": ["--episodes", "50", "--out", str(out / "bench_expert.json")],
+        "bench_sim": ["--n_episodes", "10"],
+        "bench_expert": ["--n_episodes", "50", "--out", str(out / "bench_expert.json")],
         "bench_dataset": [
-            "--episodes", "60", "--dense-episodes", "4", "--profile-episodes", "10", "--out", str(out / "bench_dataset"),
+            "--num_episodes", "60", "--dense-episodes", "4", "--profile-episodes", "10", "--out", str(out / "bench_dataset"),
         ],
         "bench_policy": [
             "--quick", "--dataset_root", str(dataset), "--workdir", str(out / "bench_policy_work"),

@@ -8,7 +8,7 @@ do not change an outcome). Side two is the study's evaluator (``eval_lerobot_pol
 It writes each suite's successes on both sides and the suites where they differ (none expected).
 
     OMP_NUM_THREADS=1 MUJOCO_GL=egl python benchmarks/stock_suites_equivalence.py [--task heldout] \\
-        [--episodes 100] [--demos 100] [--out stock_suites_equivalence.json]
+        [--n_episodes 100] [--demos 100] [--out stock_suites_equivalence.json]
 """
 
 from __future__ import annotations
@@ -46,7 +46,7 @@ def lookup_table(demos: int):
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--task", default="heldout")
-    ap.add_argument("--episodes", type=int, default=100)
+    ap.add_argument("--n_episodes", type=int, default=100)
     ap.add_argument("--demos", type=int, default=100)
     ap.add_argument("--batch", type=int, default=50)
     ap.add_argument("--out", type=Path, default=Path("stock_suites_equivalence.json"))
@@ -69,16 +69,16 @@ def main() -> None:
     env_pre, env_post = make_env_pre_post_processors(cfg, policy.config)
     with torch.no_grad():
         info = eval_policy_all(cfg.create_envs(n_envs=args.batch), policy, env_pre, env_post, pre, post,
-                               args.episodes, start_seed=SEED)  # fmt: skip
+                               args.n_episodes, start_seed=SEED)  # fmt: skip
     stock_s = time.perf_counter() - t
     stock = {task["task_group"]: task["metrics"]["successes"] for task in info["per_task"]}
     t, study = time.perf_counter(), {}
     for suite, env_cfg in suite_configs(cfg).items():
-        records = eval_lerobot_policy(policy, pre, post, env_cfg, args.episodes, SEED, args.batch)
+        records = eval_lerobot_policy(policy, pre, post, env_cfg, args.n_episodes, SEED, args.batch)
         study[suite] = [r.success for r in records]
     study_s = time.perf_counter() - t
     differ = sorted(s for s in study if stock.get(s) != study[s])
-    result = {"task": args.task, "episodes_per_suite": args.episodes, "demos": len(policy.table),
+    result = {"task": args.task, "episodes_per_suite": args.n_episodes, "demos": len(policy.table),
               "stock_s": stock_s, "study_s": study_s, "outcomes_differ": differ,
               "success": {s: {"stock": sum(stock[s]), "study": sum(v), "n": len(v)} for s, v in study.items()}}  # fmt: skip
     args.out.write_text(json.dumps(result, indent=2))

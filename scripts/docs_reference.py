@@ -186,10 +186,11 @@ def episode_flags(base: str) -> str:
     root = Path(__file__).resolve().parents[1]
     scripts = {}
     for path in sorted([*root.glob("benchmarks/*.py"), *root.glob("scripts/*.py")]):
-        for flag in re.findall(r"add_argument\([\"'](--(?:eval_)?episodes)[\"']", path.read_text()):
+        for flag in re.findall(r"add_argument\([\"'](--(?:num|n)_episodes)[\"']", path.read_text()):
             scripts.setdefault(flag, []).append(f"`{path.relative_to(root)}`")
-    lines += [f"| {', '.join(paths)} | `{flag}` | the script's episodes (its `--help` says which: generated, or "
-              "evaluated per suite or per run) |" for flag, paths in sorted(scripts.items())]  # fmt: skip
+    what = {"--num_episodes": "the episodes the script generates", "--n_episodes": "the episodes the script runs "
+            "(its `--help` says whether per suite, per run or per block)"}  # fmt: skip
+    lines += [f"| {', '.join(paths)} | `{flag}` | {what[flag]} |" for flag, paths in sorted(scripts.items())]
     return "\n".join(
         [
             *lines,

@@ -153,13 +153,13 @@ def paired(one: dict[int, dict], two: dict[int, dict]) -> dict:
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("runs", nargs="+", help="protocol runs: outputs/RUN/train_done.json names the checkpoint")
-    p.add_argument("--episodes", type=int, default=200)
+    p.add_argument("--n_episodes", type=int, default=200)
     p.add_argument("--seed", type=int, default=10_000_000, help="first eval seed (the protocol script's)")
     p.add_argument("--oracle_gate", action="store_true", help="also two steps with the simulator's truth as gate")
     p.add_argument("--out", type=Path)
     args = p.parse_args()
-    seeds = list(range(args.seed, args.seed + args.episodes))
-    result: dict = {"suite": "heldout_latency_2", "first_seed": args.seed, "episodes": args.episodes, "runs": {}}
+    seeds = list(range(args.seed, args.seed + args.n_episodes))
+    result: dict = {"suite": "heldout_latency_2", "first_seed": args.seed, "episodes": args.n_episodes, "runs": {}}
     for name in args.runs:
         checkpoint = protocol_runs.checkpoint(name)
         one, two = run(checkpoint, 1, seeds, False), run(checkpoint, 2, seeds, False)

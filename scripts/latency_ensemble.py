@@ -7,7 +7,7 @@ so one pre-processor serves all) as one planner: every network steps its own LST
 observations, and the planner acts on the mean of their actions (and of their subtask probabilities, for the
 logs). The first checkpoint's observation gate holds the mean command. The study's evaluator, 10 envs at a time.
 
-    python scripts/latency_ensemble.py s0,s1,s2 heldout_latency_2,heldout_latency_jitter --seed 10000000 --episodes 200
+    python scripts/latency_ensemble.py s0,s1,s2 heldout_latency_2,heldout_latency_jitter --seed 10000000 --n_episodes 200
 """
 
 from __future__ import annotations
@@ -46,7 +46,7 @@ def main() -> None:
     p.add_argument("runs", help="comma-separated protocol runs, e.g. s0,s1,s2")
     p.add_argument("suites", help="comma-separated suites")
     p.add_argument("--seed", type=int, default=10_000_000)
-    p.add_argument("--episodes", type=int, default=200)
+    p.add_argument("--n_episodes", type=int, default=200)
     args = p.parse_args()
     runs = args.runs.split(",")
     checkpoints = [protocol_runs.checkpoint(r) for r in runs]
@@ -57,7 +57,7 @@ def main() -> None:
         host.policy.model.step = averaged([lp.policy.model for lp in loaded])
         host.policy.reset()
         records = eval_lerobot_policy(
-            host.policy, host.preprocessor, host.postprocessor, cfg, args.episodes, args.seed, 10
+            host.policy, host.preprocessor, host.postprocessor, cfg, args.n_episodes, args.seed, 10
         )
         rate = Rate.of([r.success for r in records])
         print(f"{'+'.join(runs)} {suite}: {rate.successes}/{rate.n} = {rate}", flush=True)

@@ -54,5 +54,5 @@ def test_every_documented_script_command_uses_flags_its_parser_declares():
 
 
 def test_an_undeclared_or_abbreviated_flag_is_caught():
-    assert "--episodes" in declared("benchmarks/pixel_planner.py")
+    assert "--num_episodes" in declared("benchmarks/pixel_planner.py")
     assert "--episode" not in declared("benchmarks/pixel_planner.py")
