@@ -6,6 +6,8 @@ verdict (the rules: ``lerobot_pnp.report.repro``).
 
 Prints a one-line summary and a markdown table (also written to ``--out``): the suite x method cells whose
 success differs beyond the intervals of the two runs, and every held-out verdict of both runs by today's rule.
+A method that only one run's config evaluates (a study that dropped or added a method) is a difference of config,
+not of reproduction: its cells and verdicts are left out and named above the table.
 Exit status 1 when a headline verdict (the recovering planner's, on a held-out axis) changes, 2 for a bad
 argument, 0 otherwise.
 """
@@ -30,6 +32,20 @@ def describe(path: Path, summary: dict) -> str:
     )
 
 
+def shared_methods(a: dict, b: dict) -> tuple[dict, dict, list[str]]:
+    """Both summaries cut to the methods both evaluated, and a line per run naming the methods only it has."""
+    methods = [{m for row in s["success"].values() for m in row} for s in (a, b)]
+    both = methods[0] & methods[1]
+
+    def cut(summary: dict) -> dict:
+        success = {suite: {m: c for m, c in row.items() if m in both} for suite, row in summary["success"].items()}
+        axes = [e for e in summary.get("held_out_axes", []) if e["method"] in both]
+        return {**summary, "success": success, "held_out_axes": axes}
+
+    only = [f"{run} only, left out: {', '.join(sorted(m - both))}" for run, m in zip("AB", methods) if m - both]
+    return cut(a), cut(b), only
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("a", type=Path, help="the reference summary.json")
@@ -39,8 +55,12 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         a, b = load_summary(args.a), load_summary(args.b)
+        a, b, only = shared_methods(a, b)
         result = compare(a, b)
         text = render(result, describe(args.a, a), describe(args.b, b), args.all_cells)
+        if only:
+            head, _, rest = text.partition("\n")
+            text = head + "\n\n" + "".join(f"Methods in {line}.  \n" for line in only).rstrip() + "\n" + rest
         if args.out:
             with OutputFolder(args.out.parent, "study_repro") as out:
                 out.write_text(args.out.name, text)

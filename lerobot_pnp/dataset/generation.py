@@ -27,11 +27,11 @@ from lerobot_pnp.dataset.executors import (
     console_to_file,
     default_workers,
     run_local,
-    submit_slurm,
 )
 from lerobot_pnp.dataset.layout import recorded_task_path
-from lerobot_pnp.dataset.merge import GENERATION_FILE, MergeShards, merge_and_commit
-from lerobot_pnp.dataset.shards import GenerateShard, shard_dir, shard_is_valid
+from lerobot_pnp.dataset.merge import GENERATION_FILE, merge_and_commit
+from lerobot_pnp.dataset.shards import GenerateShard, keep_valid_shards
+from lerobot_pnp.dataset.slurm_submit import recorded_slurm_jobs, submit
 from lerobot_pnp.dataset.splits import TRAIN_FRACTION
 from lerobot_pnp.dataset.validation import WORK_DIR, read_json, validate_dataset
 from lerobot_pnp.dataset.workdir import (
@@ -178,7 +178,7 @@ def _root_state_for(cfg: GenerateConfig, out: DatasetRoot) -> str:
     stays until the new one is committed in its place."""
     root, work = out.path, out.path / WORK_DIR
     state = out.state()
-    jobs = _slurm_jobs(work)
+    jobs = recorded_slurm_jobs(work)
     if state == "interrupted" and active_slurm_jobs(jobs) and (cfg.overwrite or cfg.resume):
         raise DatasetError(
             f"SLURM jobs {jobs} of the generation in {root} are still queued or running; wait for them "
@@ -259,11 +259,11 @@ def _run(cfg: GenerateConfig, out: DatasetRoot, state: str, t_start: float) -> d
     tasks = run["tasks"]
     logs = Path(cfg.logging_dir).resolve() if cfg.logging_dir else None
     if cfg.executor == "slurm":
-        return _submit(cfg, root, run, logs or root.with_name(root.name + ".logs"))
+        return submit(cfg, root, run, logs or root.with_name(root.name + ".logs"))
     logs = logs or work / "logs"
 
     # Completed ranks whose shard does not validate (or stale records) are redone.
-    reused = _drop_invalid_completions(work, logs, cfg.num_episodes, tasks)
+    reused = keep_valid_shards(work, logs, cfg.num_episodes, tasks)
     shard_step = GenerateShard(
         work=str(work), repo_id=cfg.repo_id, env=run["env"], seed=cfg.seed, num_episodes=cfg.num_episodes,
         max_retries=cfg.max_retries, parent_pid=os.getpid(),
@@ -315,60 +315,3 @@ def _check_same_run(recorded: dict, cfg: GenerateConfig, recorded_env: dict) -> 
 
 def _norm(v):
     return json.loads(json.dumps(v, default=list))
-
-
-def _drop_invalid_completions(work: Path, logs: Path, num_episodes: int, tasks: int) -> int:
-    """Keep a rank's shard only if it validates; return the number of episodes kept.
-
-    A rank marked complete whose shard does not validate loses its mark (it is redone). A whole shard (renamed
-    from ``.tmp``) without a mark is one whose process was killed between the rename and datatrove's
-    completion record: it validates, so it is marked complete and kept instead of being simulated again.
-    """
-    done = logs / "completions"
-    kept = 0
-    for rank in range(tasks):
-        mark = done / f"{rank:05d}"
-        if not mark.exists() and not shard_dir(work, rank).is_dir():
-            continue
-        if shard_is_valid(work, rank, num_episodes, tasks):
-            kept += len(json.loads((shard_dir(work, rank) / "pnp_shard.json").read_text())["seeds"])
-            if not mark.exists():
-                mark.parent.mkdir(parents=True, exist_ok=True)
-                mark.touch()
-        elif mark.exists():
-            mark.unlink()
-    return kept
-
-
-def _slurm_jobs(work: Path) -> list[str]:
-    """The SLURM job ids a submission recorded; only numeric ids are read (they go to ``squeue -j``)."""
-    try:
-        ids = json.loads((work / "slurm.json").read_text())["job_ids"]
-    except (OSError, ValueError, KeyError, TypeError):
-        return []
-    return [i for i in ids if isinstance(i, str) and i.isdigit()] if isinstance(ids, list) else []
-
-
-def _submit(cfg: GenerateConfig, root: Path, run: dict, logs: Path) -> dict:
-    """``--executor slurm``: submit the shard array and the merge job, record their ids, return at once."""
-    work = root / WORK_DIR
-    tasks = run["tasks"]
-    reused = _drop_invalid_completions(work, logs / "shards", cfg.num_episodes, tasks)
-    shard_step = GenerateShard(
-        work=str(work), repo_id=cfg.repo_id, env=run["env"], seed=cfg.seed, num_episodes=cfg.num_episodes,
-        max_retries=cfg.max_retries,
-    )  # fmt: skip
-    with console_to_file(logs / "console.log"):
-        job_ids = submit_slurm(shard_step, MergeShards(str(root)), tasks, cfg.slurm, logs, cfg.workers)
-    write_json_atomic(work / "slurm.json", {"job_ids": job_ids, "logging_dir": str(logs)}, indent=2)
-    return {
-        "root": str(root),
-        "status": "submitted",
-        "executor": "slurm",
-        "job_ids": job_ids,
-        "shards": tasks,
-        "episodes_reused": reused,
-        "logging_dir": str(logs),
-        "next": f"watch: squeue -j {','.join(job_ids)}; done when {root}/{WORK_DIR} is gone "
-        f"(a failed task: {resume_advice(cfg.overwrite)})",
-    }

@@ -157,3 +157,26 @@ def quiet_and_single_threaded() -> None:
     torch.set_num_threads(1)
     datasets.disable_progress_bars()
     logging.getLogger("lerobot.utils.import_utils").setLevel(logging.ERROR)
+
+
+def keep_valid_shards(work: Path, logs: Path, num_episodes: int, tasks: int) -> int:
+    """Keep a rank's shard only if it validates; return the number of episodes kept.
+
+    A rank marked complete whose shard does not validate loses its mark (it is redone). A whole shard (renamed
+    from ``.tmp``) without a mark is one whose process was killed between the rename and datatrove's
+    completion record: it validates, so it is marked complete and kept instead of being simulated again.
+    """
+    done = logs / "completions"
+    kept = 0
+    for rank in range(tasks):
+        mark = done / f"{rank:05d}"
+        if not mark.exists() and not shard_dir(work, rank).is_dir():
+            continue
+        if shard_is_valid(work, rank, num_episodes, tasks):
+            kept += len(json.loads((shard_dir(work, rank) / "pnp_shard.json").read_text())["seeds"])
+            if not mark.exists():
+                mark.parent.mkdir(parents=True, exist_ok=True)
+                mark.touch()
+        elif mark.exists():
+            mark.unlink()
+    return kept

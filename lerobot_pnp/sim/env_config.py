@@ -30,11 +30,7 @@ from __future__ import annotations
 
 import logging
 import os
-from collections.abc import Iterator
-from contextlib import contextmanager
 from dataclasses import InitVar, dataclass, field, fields
-from pathlib import Path
-from typing import ClassVar
 
 from lerobot.configs.types import FeatureType, PolicyFeature
 from lerobot.envs.configs import EnvConfig
@@ -53,9 +49,9 @@ from lerobot_pnp.presets import (
     PRESETS,
     TASK_FIELDS,
 )
+from lerobot_pnp.sim.edge_records import EdgeRecords
 from lerobot_pnp.sim.env_validation import validate
 from lerobot_pnp.sim.mujoco_gl import default_mujoco_gl
-from lerobot_pnp.sim.recorded_files import check_record, find_recorded
 
 MAX_EPISODE_LENGTH = 100_000  # env steps: every episode's arrays are held in memory (recorder, datasets)
 KEYFRAME_FPS = robot.KEYFRAME_FPS
@@ -73,7 +69,7 @@ def dense_episode_length(keyframe_budget: int, fps: int = DENSE_FPS) -> int:
 
 @EnvConfig.register_subclass(ENV_TYPE)
 @dataclass
-class BaxterPnPEnvConfig(EnvConfig):
+class BaxterPnPEnvConfig(EdgeRecords, EnvConfig):
     """``--env.type=baxter_pnp``: Baxter pick-and-place, the whole task in one place (see module doc)."""
 
     # gymnasium id suffix (the one task), or evaluation suites, comma-separated: heldout, paper, drop,... (stock_suites)
@@ -83,9 +79,6 @@ class BaxterPnPEnvConfig(EnvConfig):
     preset: str | None = None
     # A dataset folder or checkpoint whose recorded task to use (default: from the command line, see above).
     task_source: str | None = None
-    # The records read at the edge, by source (None: the default source of a stock script's command line); a
-    # record is a dict ({}: the source records none) or the ConfigError reading it raised (raised on use)
-    edge_records: ClassVar[dict[str | None, dict | ConfigError]] = {}
     # keyframe (one step = move to a joint keyframe) | dense (one control period); None = the recorded one, else keyframe
     control_mode: str | None = None
     episode_length: int | None = None  # env steps before truncation; default keyframe_budget (dense: 1 s per keyframe)
@@ -226,54 +219,6 @@ class BaxterPnPEnvConfig(EnvConfig):
                 setattr(self, name, default)
         self._resolve_control(recorded)
         self.task_source = None  # resolved: the config now stands on its own
-
-    def _edge_record(self) -> dict:
-        """The record of ``task_source`` (else of the command line's default source) read at the edge."""
-        record = self.edge_records.get(self.task_source, {} if self.task_source is None else None)
-        if record is None:
-            raise ConfigError(
-                f"env.task_source {shown(self.task_source)} was not read where the config was built: build it with "
-                "BaxterPnPEnvConfig.from_source(source, **fields), or name it on the command line (--env.task_source)"
-            )
-        if isinstance(record, ConfigError):
-            raise record
-        return record
-
-    # ------------------------------------------------------------------ the edge: records read from disk
-    @staticmethod
-    def read_source(source: str | Path) -> dict:
-        """The task recorded with a dataset folder or checkpoint, checked (``recorded_files.check_record``); {}
-        when it records none."""
-        found = find_recorded(source)
-        return check_record(*found, BaxterPnPEnvConfig) if found is not None else {}
-
-    @classmethod
-    def from_source(cls, source: str | Path, **fields_) -> BaxterPnPEnvConfig:
-        """A config starting from the task ``source`` (a dataset folder or checkpoint) records, read here."""
-        recorded = cls.read_source(source) if fields_.get("preset") is None else {}
-        return cls(task_source=str(source), recorded=recorded, **fields_)
-
-    @classmethod
-    def read_edge_records(cls, sources: dict[str | None, str | None]) -> dict[str | None, dict | ConfigError]:
-        """The records of ``sources`` (key: the ``task_source`` they stand for, None the default source), each a
-        record, {} or the ConfigError reading it raised (a bad record fails the config that uses it)."""
-        out: dict[str | None, dict | ConfigError] = {}
-        for key, source in sources.items():
-            try:
-                out[key] = cls.read_source(source) if source else {}
-            except ConfigError as err:
-                out[key] = err
-        return out
-
-    @classmethod
-    @contextmanager
-    def reading_edge_records(cls, records: dict[str | None, dict | ConfigError]) -> Iterator[None]:
-        """``edge_records`` while a command line is parsed into configs, then the previous ones again."""
-        before, cls.edge_records = cls.edge_records, records
-        try:
-            yield
-        finally:
-            cls.edge_records = before
 
     def _resolve_control(self, recorded: dict) -> None:
         """Control mode and rate: the recorded ones (the data a policy learned from), and an explicit flag that

@@ -28,6 +28,7 @@ from lerobot_pnp.policy import PnpLstmPolicy, PnpPixelsConfig
 from lerobot_pnp.support.determinism import deterministic_training
 from lerobot_pnp.support.progress import log_friendly_tqdm
 
+from .checkpoints import TrainingRun
 from .config import TrainFastConfig
 from .data import load_keyframe_data
 from .output import CONFIG_FILE, clear_previous_run, run_folder
@@ -54,78 +55,6 @@ class TrainFastResult:
             "final_test_mse": self.final_test_mse,
             "mean_joint_mae_deg": self.test_keyframe_error.get("mean_joint_mae_deg"),
         }
-
-
-@dataclass
-class _Run:
-    """What a checkpoint needs, gathered once."""
-
-    cfg: TrainFastConfig
-    folder: OutputFolder  # the output folder, held for the run
-    total_steps: int
-    policy: PnpLstmPolicy
-    optimizer: Any
-    scheduler: Any
-    preprocessor: Any
-    postprocessor: Any
-    opt_cfg: Any
-    sched_cfg: Any
-
-    @property
-    def out_dir(self) -> Path:
-        return self.folder.path
-
-    def train_config(self, step: int):
-        """The run as LeRobot's ``TrainPipelineConfig``: what a checkpoint's ``train_config.json`` and a pushed
-        model card hold."""
-        from lerobot.configs.default import DatasetConfig
-        from lerobot.configs.train import TrainPipelineConfig
-
-        cfg = self.cfg
-        return TrainPipelineConfig(
-            dataset=DatasetConfig(repo_id=cfg.dataset_repo_id, root=cfg.dataset_root, video_backend="pyav"),
-            policy=self.policy.config,
-            output_dir=self.out_dir,
-            job_name="pnp_lstm_train_fast",
-            seed=cfg.seed,
-            num_workers=0,
-            batch_size=cfg.batch_size,
-            steps=self.total_steps,
-            env_eval_freq=0,
-            save_freq=step,
-            optimizer=self.opt_cfg,
-            scheduler=self.sched_cfg,
-        )
-
-    def save(self, step: int) -> Path:
-        from lerobot.common.train_utils import get_step_checkpoint_dir, save_checkpoint, update_last_checkpoint
-
-        cfg, train_cfg = self.cfg, self.train_config(step)
-        ckpt = get_step_checkpoint_dir(self.out_dir, self.total_steps, step)
-        save_checkpoint(
-            checkpoint_dir=ckpt,
-            step=step,
-            cfg=train_cfg,
-            policy=self.policy,
-            optimizer=self.optimizer,
-            scheduler=self.scheduler,
-            preprocessor=self.preprocessor,
-            postprocessor=self.postprocessor,
-            batch_size=cfg.batch_size,
-        )
-        # The task the data was recorded in travels with the checkpoint (written, validated, by the policy's
-        # save: PnpLstmPolicy._save_pretrained), so lerobot-eval finds it from any folder.
-        update_last_checkpoint(ckpt)
-        return ckpt / "pretrained_model"
-
-    def push(self, step: int) -> None:
-        """``--policy.push_to_hub``: the final policy (with its recorded task), its processors and a model card to
-        ``--policy.repo_id``, as ``lerobot-train`` pushes them."""
-        repo_id = self.policy.config.repo_id
-        logger.info("Pushing the policy and its processors to the Hub: %s", repo_id)
-        self.policy.push_model_to_hub(self.train_config(step))
-        self.preprocessor.push_to_hub(repo_id)
-        self.postprocessor.push_to_hub(repo_id)
 
 
 @torch.no_grad()
@@ -170,7 +99,7 @@ def _normalised(preprocessor, data, rows: torch.Tensor, device) -> dict[str, tor
 
 def _optimisation(cfg: TrainFastConfig, folder: OutputFolder, policy, preprocessor, postprocessor, n_train: int):
     """The optimiser and scheduler of the policy's presets (``cfg.lr`` overrides the rate) over the run's
-    steps (``cfg.steps``, else ``cfg.epochs`` whole epochs); returns ``(_Run, epochs)``."""
+    steps (``cfg.steps``, else ``cfg.epochs`` whole epochs); returns ``(TrainingRun, epochs)``."""
     opt_cfg = cfg.policy.get_optimizer_preset()
     if cfg.lr is not None:
         opt_cfg.lr = cfg.lr
@@ -180,11 +109,15 @@ def _optimisation(cfg: TrainFastConfig, folder: OutputFolder, policy, preprocess
     n_epochs = math.ceil(total_steps / steps_per_epoch)
     optimizer = opt_cfg.build(policy.get_optim_params())
     scheduler = sched_cfg.build(optimizer, total_steps) if sched_cfg is not None else None
-    run = _Run(cfg, folder, total_steps, policy, optimizer, scheduler, preprocessor, postprocessor, opt_cfg, sched_cfg)
+    run = TrainingRun(
+        cfg, folder, total_steps, policy, optimizer, scheduler, preprocessor, postprocessor, opt_cfg, sched_cfg
+    )
     return run, n_epochs
 
 
-def _epoch(run: _Run, train_all: dict[str, torch.Tensor], perm: torch.Tensor, step: int) -> tuple[list[float], int]:
+def _epoch(
+    run: TrainingRun, train_all: dict[str, torch.Tensor], perm: torch.Tensor, step: int
+) -> tuple[list[float], int]:
     """One pass over the training episodes in the order ``perm`` (stops at the run's last step); returns the
     batch losses and the step count after it."""
     policy, optimizer, scheduler, opt_cfg = run.policy, run.optimizer, run.scheduler, run.opt_cfg
@@ -207,7 +140,7 @@ def _epoch(run: _Run, train_all: dict[str, torch.Tensor], perm: torch.Tensor, st
 
 
 def _final_report(
-    run: _Run, ds, data, train_all, test_all, step: int, ckpt_dir: Path, history: list
+    run: TrainingRun, ds, data, train_all, test_all, step: int, ckpt_dir: Path, history: list
 ) -> TrainFastResult:
     """The final MSEs and the held-out keyframe error (``test_keyframe_error.json``), the loss curve."""
     cfg, policy = run.cfg, run.policy
@@ -319,7 +252,7 @@ def _train(cfg: TrainFastConfig, folder: OutputFolder) -> TrainFastResult:
 
 
 def _fit(
-    run: _Run, train_all: dict, test_all: dict | None, n_epochs: int, device
+    run: TrainingRun, train_all: dict, test_all: dict | None, n_epochs: int, device
 ) -> tuple[list[dict[str, float]], int]:
     """The epochs of the run: the loss curve's points (before the first epoch, every ``eval_every_epochs`` and
     after the last) and the extra checkpoints; returns the curve and the step count."""
