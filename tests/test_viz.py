@@ -170,7 +170,7 @@ def _translations(rows) -> np.ndarray:
 # ---------------------------------------------------------------------------------------------- dataset episodes
 def test_dataset_episodes_recording(dataset, tmp_path):
     from lerobot_pnp.viz import VizConfig, visualize
-    from lerobot_pnp.viz.recording import LABEL_SPACING, MERGE_DISTANCE
+    from lerobot_pnp.viz.keyframe_markers import LABEL_SPACING, MERGE_DISTANCE
 
     out = tmp_path / "episodes.rrd"
     summary = visualize(VizConfig(repo_id=REPO_ID, root=str(dataset["root"]), episode_index=[0, 1], save=str(out)))
@@ -255,7 +255,7 @@ def test_dataset_episodes_recording(dataset, tmp_path):
 
 
 def test_merged_labels_group_coincident_keyframes():
-    from lerobot_pnp.viz.recording import PICK_COLOR, PLACE_COLOR, merged_labels
+    from lerobot_pnp.viz.keyframe_markers import PICK_COLOR, PLACE_COLOR, merged_labels
 
     pos = np.array([[0.5, 0.3, 0.2], [0.6, 0.3, 0.0], [0.6, 0.3, -0.1], [0.6, 0.3, -0.1], [0.6, 0.3, 0.0]])
     out, labels, colors = merged_labels(pos, [0, 1, 2, 3, 4])
