@@ -19,6 +19,7 @@ import sys
 from pathlib import Path
 
 from lerobot_pnp.errors import PnPError
+from lerobot_pnp.evaluation.verdicts import difference_interval
 from lerobot_pnp.outputs import OutputFolder
 from lerobot_pnp.report.repro import compare, load_summary, render
 
@@ -30,6 +31,32 @@ def describe(path: Path, summary: dict) -> str:
     return (
         f"`{path}` ({m.get('cpu', '?')}, {m.get('cores_available', '?')} cores; {commit}; {m.get('date', 'no date')})"
     )
+
+
+def by_episodes(result) -> str:
+    """The cells whose difference the episodes alone call (Newcombe's interval excludes 0), each beside its interval
+    with the training seeds counted: what a comparison that ignores the seeds would flag."""
+    rows = []
+    for c in result.cells:
+        if c.a is None or c.b is None:
+            continue
+        lo, hi = difference_interval(c.a, c.b)
+        if lo > 0 or hi < 0:
+            slo, shi = c.interval
+            rows.append(
+                f"| {c.suite} | {c.method} | {100 * c.a.rate:.1f} % | {100 * c.b.rate:.1f} % | "
+                f"{100 * (c.b.rate - c.a.rate):+.1f} | [{100 * lo:+.1f}, {100 * hi:+.1f}] | [{100 * slo:+.1f}, {100 * shi:+.1f}] |"
+            )
+    both = [c for c in result.cells if c.a is not None and c.b is not None]
+    same = sum(c.a == c.b for c in both)
+    equal = f"{same} of {len(both)} cells have the same successes of the same episode count in both runs. "
+    head = [
+        equal + f"{len(rows)} cells differ by their episodes alone (the seeds not counted):",
+        "",
+        "| suite | method | A | B | B - A | episodes only [95 %] | seeds counted [95 %] |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    return "\n".join(head + rows) + "\n" if rows else equal + "No cell differs by its episodes alone either.\n"
 
 
 def shared_methods(a: dict, b: dict) -> tuple[dict, dict, list[str]]:
@@ -52,12 +79,19 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("b", type=Path, help="the rerun's summary.json")
     parser.add_argument("--out", type=Path, help="also write the markdown here (a new file or one this wrote)")
     parser.add_argument("--all-cells", action="store_true", help="list every cell, not only those that differ")
+    parser.add_argument(
+        "--by-episodes",
+        action="store_true",
+        help="also list the cells whose episodes alone (Newcombe's interval, the seeds not counted) differ",
+    )
     args = parser.parse_args(argv)
     try:
         a, b = load_summary(args.a), load_summary(args.b)
         a, b, only = shared_methods(a, b)
         result = compare(a, b)
         text = render(result, describe(args.a, a), describe(args.b, b), args.all_cells)
+        if args.by_episodes:
+            text = text.rstrip() + "\n\n" + by_episodes(result)
         if only:
             head, _, rest = text.partition("\n")
             text = head + "\n\n" + "".join(f"Methods in {line}.  \n" for line in only).rstrip() + "\n" + rest
