@@ -36,10 +36,9 @@ def describe(path: Path, summary: dict) -> str:
 def by_episodes(result) -> str:
     """The cells whose difference the episodes alone call (Newcombe's interval excludes 0), each beside its interval
     with the training seeds counted: what a comparison that ignores the seeds would flag."""
+    both = [c for c in result.cells if c.a is not None and c.b is not None]
     rows = []
-    for c in result.cells:
-        if c.a is None or c.b is None:
-            continue
+    for c in both:
         lo, hi = difference_interval(c.a, c.b)
         if lo > 0 or hi < 0:
             slo, shi = c.interval
@@ -47,7 +46,6 @@ def by_episodes(result) -> str:
                 f"| {c.suite} | {c.method} | {100 * c.a.rate:.1f} % | {100 * c.b.rate:.1f} % | "
                 f"{100 * (c.b.rate - c.a.rate):+.1f} | [{100 * lo:+.1f}, {100 * hi:+.1f}] | [{100 * slo:+.1f}, {100 * shi:+.1f}] |"
             )
-    both = [c for c in result.cells if c.a is not None and c.b is not None]
     same = sum(c.a == c.b for c in both)
     equal = f"{same} of {len(both)} cells have the same successes of the same episode count in both runs. "
     head = [
